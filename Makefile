@@ -1,0 +1,50 @@
+# Thin wrappers over `python -m repro <command>`; see README.md. Every target sets up the virtual
+# environment first, so a fresh clone needs only `make reproduce` or `make test`.
+
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+PY     := $(BIN)/python
+REPRO  := $(PY) -m repro
+SCALE  ?= quick
+SEED   ?= 0
+ARGS   ?=
+TORCH_VERSION ?= 2.13.0
+STAMP  := $(VENV)/.installed
+
+.PHONY: setup reproduce test claims table-race bench clean
+.DEFAULT_GOAL := help
+
+help:
+	@echo "make reproduce   # every driver at SCALE=$(SCALE), then paper_claims.md"
+	@echo "make test        # the test suite"
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed 's/:.*## /\t/' | sort
+
+# torch is installed first and on its own so that pip takes a CPU build: a local wheel where the
+# machine has one, else PyTorch's CPU index, else (e.g. macOS) the default index.
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q --no-index "torch==$(TORCH_VERSION)" 2>/dev/null \
+	  || $(BIN)/pip install -q "torch==$(TORCH_VERSION)" --index-url https://download.pytorch.org/whl/cpu \
+	  || $(BIN)/pip install -q "torch==$(TORCH_VERSION)"
+	$(BIN)/pip install -q -e ".[test]"
+	touch $@
+
+setup: $(STAMP) ## create .venv and install the suite
+
+test: $(STAMP) ## run the test suite
+	$(PY) -m pytest
+
+reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
+	$(MAKE) table-race SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) claims
+
+claims: $(STAMP) ## render paper_claims.md from results/
+	$(REPRO) claims
+
+table-race: $(STAMP) ## race-condition table and figure (C10)
+	$(REPRO) race --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+clean: ## remove the virtual environment and caches (results and figures stay)
+	rm -rf $(VENV) .pytest_cache .hypothesis

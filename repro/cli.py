@@ -1,0 +1,60 @@
+"""``python -m repro <command>``: the one entry point; Makefile targets are thin wrappers over it.
+
+Each command lives in its own module, which defines ``add_arguments(parser)`` and ``run(args)``.
+Only the module of the command being run is imported, so the CLI starts quickly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from repro.core.config import DEFAULT_SCALE, SCALES
+from repro.core.errors import UsageError
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
+    "claims": ("repro.claims", "render paper_claims.md from the result files"),
+}
+"""command -> (module, one-line description)."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse whose errors are one line on stderr and exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0) -> None:
+    """Options every driver takes: scale, seed and where results and figures go."""
+    parser.add_argument("--scale", default=DEFAULT_SCALE, help=f"one of {', '.join(SCALES)}")
+    if seed is not None:
+        parser.add_argument("--seed", type=int, default=seed, help="root seed of every random stream")
+    parser.add_argument("--results-dir", default="results", help="folder for CSVs and sidecars")
+    parser.add_argument("--figures-dir", default="figures", help="folder for PNG and PDF figures")
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print("usage: python -m repro <command> [options]\n\ncommands:")
+        for name, (_, desc) in COMMANDS.items():
+            print(f"  {name:<18} {desc}")
+        return 0 if argv else 2
+    name = argv[0]
+    if name not in COMMANDS:
+        print(f"repro: error: command: must be one of {', '.join(COMMANDS)}, got {name!r}",
+              file=sys.stderr)
+        return 2
+    module = importlib.import_module(COMMANDS[name][0])
+    parser = OneLineParser(prog=f"repro {name}", description=COMMANDS[name][1])
+    module.add_arguments(parser)
+    args = parser.parse_args(argv[1:])
+    try:
+        return int(module.run(args) or 0)
+    except UsageError as err:
+        print(f"repro {name}: error: {err}", file=sys.stderr)
+        return 2

@@ -1,0 +1,1 @@
+"""Infrastructure shared by every driver: errors, scales, atomic writes, provenance, statistics."""

@@ -1,0 +1,32 @@
+"""Scales: every driver's config has the same fields at every scale; a scale only changes sizes.
+
+A driver config is a frozen dataclass with a class attribute ``SCALES`` mapping ``smoke``/``quick``/
+``paper`` to field overrides (``quick`` is the default scale). ``for_scale`` builds the config for a
+scale and applies any explicit overrides from the command line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, TypeVar
+
+from repro.core.errors import UsageError
+
+SCALES = ("smoke", "quick", "paper")
+DEFAULT_SCALE = "quick"
+
+C = TypeVar("C")
+
+
+def for_scale(cls: type[C], scale: str, **overrides: Any) -> C:
+    """The config of ``cls`` at ``scale``; overrides whose value is ``None`` are ignored."""
+    if scale not in SCALES:
+        raise UsageError("--scale", "one of " + ", ".join(SCALES), scale)
+    fields = dict(getattr(cls, "SCALES", {}).get(scale, {}))
+    fields.update({k: v for k, v in overrides.items() if v is not None})
+    return cls(**fields)  # type: ignore[call-arg]
+
+
+def to_dict(cfg: Any) -> dict[str, Any]:
+    """A JSON-ready dict of a (possibly nested) dataclass config."""
+    return dataclasses.asdict(cfg)

@@ -1,0 +1,22 @@
+"""Bad input is reported as one line naming the parameter and what is allowed (exit status 2)."""
+
+
+class UsageError(ValueError):
+    """A parameter has a value the suite does not accept.
+
+    ``str(err)`` is the whole one-line message; the CLI prints it and exits with status 2 before any
+    result file is touched.
+    """
+
+    def __init__(self, param: str, allowed: str, got: object = None):
+        self.param = param
+        self.allowed = allowed
+        self.got = got
+        shown = "" if got is None else f", got {got!r}"
+        super().__init__(f"{param}: must be {allowed}{shown}")
+
+
+def require(condition: bool, param: str, allowed: str, got: object = None) -> None:
+    """Raise :class:`UsageError` unless ``condition`` holds."""
+    if not condition:
+        raise UsageError(param, allowed, got)

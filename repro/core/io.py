@@ -1,0 +1,142 @@
+"""Atomic, deterministic result files and their provenance sidecars.
+
+Every result is written to a temporary file in the destination folder and renamed into place, so an
+interrupted run never leaves a half-written file. CSVs are written with a fixed float format, so the
+same computation gives byte-identical files.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from contextlib import contextmanager
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Iterator
+
+import pandas as pd
+
+from repro.core.errors import UsageError
+
+FLOAT_FORMAT = "%.10g"
+"""Ten significant digits: well above every quantity's precision, and stable across platforms."""
+
+PROVENANCE_PACKAGES = (
+    "numpy", "scipy", "torch", "simpy", "pandas", "statsmodels", "numba", "matplotlib", "pettingzoo",
+)
+
+
+def check_writable_dir(path: str | Path, param: str) -> Path:
+    """Fail early (before any work or write) if ``path`` cannot become a writable folder."""
+    p = Path(path)
+    probe = p
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+        raise UsageError(param, "a writable folder", str(path))
+    return p
+
+
+@contextmanager
+def atomic_path(dest: str | Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``dest``; on success it is renamed onto ``dest``."""
+    dest = Path(dest)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp" + dest.suffix, dir=dest.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, dest)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def write_text(dest: str | Path, text: str) -> None:
+    with atomic_path(dest) as tmp:
+        tmp.write_text(text)
+
+
+def write_json(dest: str | Path, obj: Any) -> None:
+    write_text(dest, json.dumps(obj, indent=2, sort_keys=True, default=str) + "\n")
+
+
+def write_csv(dest: str | Path, frame: pd.DataFrame) -> None:
+    with atomic_path(dest) as tmp:
+        frame.to_csv(tmp, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+
+
+def save_figure(fig: Any, stem: str | Path) -> list[Path]:
+    """Write ``stem.png`` and ``stem.pdf`` atomically (PDF without a timestamp, so it is stable)."""
+    out = []
+    for ext, kw in ((".png", {"dpi": 150}), (".pdf", {"metadata": {"CreationDate": None}})):
+        dest = Path(str(stem) + ext)
+        with atomic_path(dest) as tmp:
+            fig.savefig(tmp, format=ext[1:], bbox_inches="tight", **kw)
+        out.append(dest)
+    return out
+
+
+def git_commit() -> str:
+    """The commit of the working tree, with ``+dirty`` if it has uncommitted changes."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
+                             check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.strip()
+        return sha + ("+dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for name in PROVENANCE_PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def provenance(config: Any, *, command: str, scale: str, seed: int | None, wall_seconds: float,
+               extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The sidecar content: what was run, on what, from which commit, and how long it took."""
+    from repro.core.config import to_dict
+
+    rec = {
+        "command": command,
+        "argv": sys.argv,
+        "scale": scale,
+        "seed": seed,
+        "config": to_dict(config) if hasattr(config, "__dataclass_fields__") else config,
+        "git_commit": git_commit(),
+        "versions": versions(),
+        "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
+        "wall_seconds": round(wall_seconds, 3),
+        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+    if extra:
+        rec.update(extra)
+    return rec
+
+
+def sidecar_path(result: str | Path) -> Path:
+    """``results/x.csv`` -> ``results/x.provenance.json``."""
+    result = Path(result)
+    return result.with_name(result.stem + ".provenance.json")
+
+
+def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any]) -> Path:
+    """Write a result CSV and its provenance sidecar, both atomically."""
+    write_csv(dest, frame)
+    write_json(sidecar_path(dest), prov)
+    return Path(dest)

@@ -1,0 +1,116 @@
+"""The contract between event-driven engines and everything that consumes them.
+
+An engine simulates a batch of episodes. Whenever agents must act it hands the policy one
+:class:`DecisionBatch` holding every pending decision of the whole batch, and receives one action
+per row. When all episodes have ended it returns a :class:`Rollout`: the decisions grouped into
+*paths* (one agent in one episode), each path's decisions contiguous and in time order.
+
+Per decision k of a path the rollout keeps the observation o_k, the action a_k, the macro-action's
+reward r_k (rewards accrued during the action at time t, discounted to the action's start T_k as
+exp(-gamma (t - T_k)) reward) and its duration dt_k (time from its start to the next observation, or
+to the end of the episode for the last one).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class DecisionBatch:
+    """The decisions an engine needs now: one row per agent waiting to act."""
+
+    obs: np.ndarray
+    """(M, obs_dim) float64 observations."""
+    episode: np.ndarray
+    """(M,) int64 index of each row's episode within the batch."""
+    agent: np.ndarray
+    """(M,) int64 agent index within its episode."""
+    index: np.ndarray
+    """(M,) int64 decision number k of that agent in that episode (0 for its first)."""
+
+    def __len__(self) -> int:
+        return len(self.episode)
+
+
+Policy = Callable[[DecisionBatch], np.ndarray]
+"""Maps a batch of pending decisions to one integer action per row."""
+
+
+@dataclass
+class Rollout:
+    """The recorded decisions of a batch of episodes."""
+
+    obs: np.ndarray
+    """(D, obs_dim) observation of every decision."""
+    actions: np.ndarray
+    """(D,) int64 action of every decision."""
+    rewards: np.ndarray
+    """(D,) macro-action reward r_k, discounted within the macro-action to its start."""
+    durations: np.ndarray
+    """(D,) macro-action duration dt_k in seconds."""
+    path_start: np.ndarray
+    """(P+1,) int64 offsets: path p holds decisions path_start[p]:path_start[p+1]."""
+    path_episode: np.ndarray
+    """(P,) episode of each path."""
+    path_agent: np.ndarray
+    """(P,) agent of each path."""
+    episode_return: np.ndarray
+    """(E,) the environment's undiscounted return of each episode (defined by the environment)."""
+    info: dict[str, Any] = field(default_factory=dict)
+    """Engine-specific extras (for example event counts), never needed by the learner."""
+
+    @property
+    def n_decisions(self) -> int:
+        return len(self.actions)
+
+    @property
+    def n_paths(self) -> int:
+        return len(self.path_agent)
+
+    def path_index(self) -> np.ndarray:
+        """(D,) the path of every decision."""
+        return np.repeat(np.arange(self.n_paths), np.diff(self.path_start))
+
+    def discounted_path_returns(self, gamma: float) -> np.ndarray:
+        """(P,) R = r_0 + e^{-gamma dt_0}(r_1 + e^{-gamma dt_1}(r_2 + ...)) for every path."""
+        return discounted_path_returns(self.rewards, self.durations, self.path_start, gamma)
+
+
+def discounted_path_returns(rewards: np.ndarray, durations: np.ndarray, path_start: np.ndarray,
+                            gamma: float) -> np.ndarray:
+    """Each path's return discounted in continuous time to the path's start.
+
+    Decision k of a path starts at T_k = dt_0 + ... + dt_{k-1}, so its reward is weighted by
+    exp(-gamma T_k); a cumulative sum per path gives all T_k at once.
+    """
+    lengths = np.diff(path_start)
+    t_end = np.cumsum(durations)
+    path_t0 = np.concatenate([[0.0], t_end])[path_start[:-1]]
+    t_start = t_end - durations - np.repeat(path_t0, lengths)
+    weighted = np.exp(-gamma * t_start) * rewards
+    sums = np.add.reduceat(weighted, path_start[:-1]) if len(weighted) else np.zeros(0)
+    return np.where(lengths > 0, sums, 0.0)
+
+
+def concat(rollouts: list[Rollout]) -> Rollout:
+    """Join rollouts of separate batches (episode indices are renumbered to stay unique)."""
+    offs, ep_offs, starts, eps = 0, 0, [np.zeros(1, dtype=np.int64)], []
+    for r in rollouts:
+        starts.append(r.path_start[1:] + offs)
+        eps.append(r.path_episode + ep_offs)
+        offs += r.n_decisions
+        ep_offs += len(r.episode_return)
+    return Rollout(
+        obs=np.concatenate([r.obs for r in rollouts]),
+        actions=np.concatenate([r.actions for r in rollouts]),
+        rewards=np.concatenate([r.rewards for r in rollouts]),
+        durations=np.concatenate([r.durations for r in rollouts]),
+        path_start=np.concatenate(starts),
+        path_episode=np.concatenate(eps),
+        path_agent=np.concatenate([r.path_agent for r in rollouts]),
+        episode_return=np.concatenate([r.episode_return for r in rollouts]),
+    )

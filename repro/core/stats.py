@@ -1,0 +1,47 @@
+"""Interval estimates across seeds, in the manner of rliable (Agarwal et al., 2021).
+
+The interquartile mean (IQM) is the mean of the middle 50% of the scores; confidence intervals come
+from a stratified bootstrap: every group (for example one training simulator or one lambda) is
+resampled within itself, so each bootstrap replicate keeps the design's group sizes.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from scipy import stats as sps
+
+
+def iqm(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Interquartile mean: the 25%-trimmed mean (with fractional weights at the trim points)."""
+    return sps.trim_mean(np.asarray(x, dtype=float), 0.25, axis=axis)
+
+
+def bootstrap_ci(scores: np.ndarray, statistic: Callable[[np.ndarray], np.ndarray] = np.mean, *,
+                 n_boot: int = 2000, confidence: float = 0.95,
+                 rng: np.random.Generator) -> tuple[float, float, float]:
+    """Point estimate and percentile bootstrap CI of ``statistic`` over the runs in ``scores``.
+
+    ``scores`` has shape (runs,) or (runs, tasks); with tasks, the runs of each task are resampled
+    separately (stratified), and ``statistic`` receives a (runs, tasks) array and reduces it.
+    """
+    x = np.asarray(scores, dtype=float)
+    if x.ndim == 1:
+        x = x[:, None]
+    runs, tasks = x.shape
+    point = float(statistic(x.reshape(-1) if tasks == 1 else x))
+    idx = rng.integers(0, runs, size=(n_boot, runs, tasks))
+    reps = x[idx, np.arange(tasks)]  # (n_boot, runs, tasks), each column resampled within itself
+    if tasks == 1:
+        boots = np.array([statistic(r.reshape(-1)) for r in reps])
+    else:
+        boots = np.array([statistic(r) for r in reps])
+    lo, hi = np.quantile(boots, [(1 - confidence) / 2, (1 + confidence) / 2])
+    return point, float(lo), float(hi)
+
+
+def sem(x: np.ndarray) -> float:
+    """Standard error of the mean (0 for fewer than two values)."""
+    x = np.asarray(x, dtype=float)
+    return float(x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else 0.0

@@ -1,0 +1,296 @@
+"""Race conditions in fixed-step simulation (paper Table "nvdt", claim C10; SPEC section 2).
+
+N event times are drawn i.i.d. from p(t). A race occurs when two or more fall into the same interval
+[k dT, (k+1) dT) of a grid anchored at 0. For each N the driver finds, by bisection in log dT, the
+largest dT whose race probability stays below delta, and fits log dT = log alpha - beta log N by OLS.
+
+Beyond the paper, the race probability is also computed exactly. With bin probabilities p_b, the
+probability of no race is N! e_N(p), e_N the elementary symmetric polynomial. Writing G_n = n! e_n and
+P_k = sum_b p_b^k (power sums), Newton's identities become
+
+    G_n = sum_{k>=1} (-1)^(k+1) P_k (n-1)!/(n-k)! G_{n-k},    G_0 = 1,
+
+whose terms shrink like (n max_b p_b)^(k-1), so a handful of power sums give every G_n to machine
+precision. The pairwise term P_2 n(n-1) dominates for large N, so dT ~ N^-2 asymptotically; over
+N = 2..20 the higher terms still matter, which is why the fitted beta is about 2.2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+from scipy import stats as sps
+
+from repro.cli import add_common
+from repro.core.config import for_scale
+from repro.core.errors import UsageError, require
+from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.progress import progress
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """An event-time distribution: a numpy sampler and its scipy counterpart for exact bins."""
+
+    name: str
+    parameters: str
+    frozen: object  # scipy.stats frozen distribution
+
+    def sample(self, rng: np.random.Generator, size: tuple[int, int]) -> np.ndarray:
+        return self.frozen.rvs(size=size, random_state=rng)  # type: ignore[attr-defined]
+
+
+DISTRIBUTIONS = {
+    "exponential": Distribution("Exponential", "lambda=1", sps.expon(scale=1.0)),
+    "chi2": Distribution("Chi-Squared", "k=5", sps.chi2(df=5)),
+    "gamma": Distribution("Gamma", "k=5, theta=1", sps.gamma(a=5, scale=1.0)),
+}
+
+
+@dataclass(frozen=True)
+class RaceConfig:
+    """Settings of the race-condition study; the defaults are the paper's (the study is cheap)."""
+
+    n_sets: int = 10_000
+    """Monte Carlo sets of N event times drawn for each N (the same sets serve every dT)."""
+    n_min: int = 2
+    """Smallest number of agents."""
+    n_max: int = 20
+    """Largest number of agents in the paper's fit."""
+    delta: float = 0.1
+    """Race probability that dT must keep below."""
+    distributions: tuple[str, ...] = ("exponential", "chi2", "gamma")
+    """Event-time distributions (keys of DISTRIBUTIONS)."""
+    bisection_steps: int = 40
+    """Halvings of the log-dT bracket (a factor 1e8 bracket ends below 1e-4 relative width)."""
+    exact_n: tuple[int, ...] = (2, 3, 4, 5, 7, 10, 14, 20, 30, 50, 70, 100, 150, 200)
+    """Agent counts for the exact (sampling-free) curve, reaching well past the paper's range."""
+
+    SCALES: ClassVar[dict] = {
+        "smoke": dict(exact_n=(2, 3, 5, 10, 20, 30, 50)),
+        "quick": {},
+        "paper": {},
+    }
+
+    def validate(self) -> None:
+        require(self.n_sets >= 1, "--n-sets", "an integer >= 1", self.n_sets)
+        require(self.n_min >= 2, "--n-min", "an integer >= 2", self.n_min)
+        require(self.n_max >= self.n_min + 1, "--n-max", "an integer > --n-min", self.n_max)
+        require(0.0 < self.delta < 1.0, "--delta", "in (0, 1)", self.delta)
+        for d in self.distributions:
+            require(d in DISTRIBUTIONS, "--distribution", "one of " + ", ".join(DISTRIBUTIONS), d)
+        require(self.bisection_steps >= 1, "--bisection-steps", "an integer >= 1",
+                self.bisection_steps)
+
+
+# --- Monte Carlo ---------------------------------------------------------------------------------
+
+def race_probability_mc(sorted_times: np.ndarray, dt: float) -> float:
+    """Fraction of sets (rows, each sorted ascending) with two times in one dT bin."""
+    bins = np.floor(sorted_times / dt)
+    return float(np.mean(np.any(bins[:, 1:] == bins[:, :-1], axis=1)))
+
+
+def largest_safe_dt(race_prob, delta: float, lo: float, hi: float, steps: int) -> float:
+    """Bisection in log dT for the largest dT with race_prob(dT) < delta.
+
+    Requires race_prob(lo) < delta <= race_prob(hi). The race probability is not exactly monotone
+    in dT (the grid is anchored at 0), so this returns a crossing point, as the paper's search does.
+    """
+    if not race_prob(lo) < delta <= race_prob(hi):
+        raise ValueError(f"bracket [{lo}, {hi}] does not straddle delta={delta}")
+    llo, lhi = np.log(lo), np.log(hi)
+    for _ in range(steps):
+        mid = 0.5 * (llo + lhi)
+        if race_prob(np.exp(mid)) < delta:
+            llo = mid
+        else:
+            lhi = mid
+    return float(np.exp(llo))
+
+
+# --- Exact ---------------------------------------------------------------------------------------
+
+def bin_probabilities(dist: Distribution, dt: float, chunk: int = 1 << 20):
+    """Yield the probabilities of consecutive dT bins (in chunks) until the tail is negligible."""
+    frozen = dist.frozen
+    t_end = frozen.isf(1e-17)  # type: ignore[attr-defined]
+    n_bins = int(np.ceil(t_end / dt))
+    for start in range(0, n_bins, chunk):
+        edges = dt * np.arange(start, min(start + chunk, n_bins) + 1, dtype=float)
+        cdf = frozen.cdf(edges)  # type: ignore[attr-defined]
+        sf = frozen.sf(edges)  # type: ignore[attr-defined]
+        # Differences of the CDF lose precision near 1; use the survival function there.
+        yield np.where(cdf[:-1] < 0.5, np.diff(cdf), -np.diff(sf))
+
+
+def no_race_probabilities(dist: Distribution, dt: float, n_max: int) -> np.ndarray:
+    """G[n] = P(no race among n i.i.d. times) for n = 0..n_max, exactly (see module docstring)."""
+    chunks = list(bin_probabilities(dist, dt))
+    p_max = max(float(c.max()) for c in chunks)
+    # Terms shrink like (n_max p_max)^(k-1): stop once below double precision.
+    ratio = min(n_max * p_max, 0.999)
+    k_max = n_max if ratio >= 0.5 else min(n_max, int(np.ceil(-40 / np.log(ratio))) + 2)
+    power = np.zeros(k_max + 1)
+    for c in chunks:
+        ck = np.ones_like(c)
+        for k in range(1, k_max + 1):
+            ck *= c
+            power[k] += ck.sum()
+    g = np.zeros(n_max + 1)
+    g[0] = 1.0
+    for n in range(1, n_max + 1):
+        falling, total = 1.0, 0.0
+        for k in range(1, min(n, k_max) + 1):
+            if k > 1:
+                falling *= n - k + 1
+            total += (-1) ** (k + 1) * power[k] * falling * g[n - k]
+        g[n] = total
+    return g
+
+
+def race_probability_exact(dist: Distribution, dt: float, n: int) -> float:
+    return float(1.0 - no_race_probabilities(dist, dt, n)[n])
+
+
+# --- Fit -----------------------------------------------------------------------------------------
+
+def fit_power_law(n: np.ndarray, dt: np.ndarray) -> tuple[float, float, float]:
+    """OLS of log dT on log N (statsmodels): returns beta, its standard error, and alpha."""
+    import statsmodels.api as sm
+
+    x = sm.add_constant(np.log(np.asarray(n, dtype=float)))
+    res = sm.OLS(np.log(np.asarray(dt, dtype=float)), x).fit()
+    return float(-res.params[1]), float(res.bse[1]), float(np.exp(res.params[0]))
+
+
+# --- Driver --------------------------------------------------------------------------------------
+
+def run_study(cfg: RaceConfig, seed: int) -> dict[str, pd.DataFrame]:
+    """Compute every table of the study (pure: no files are touched)."""
+    cfg.validate()
+    streams = np.random.SeedSequence(seed).spawn(len(cfg.distributions))
+    table, points, exact_rows, ranges = [], [], [], []
+    for key, ss in zip(cfg.distributions, streams):
+        dist = DISTRIBUTIONS[key]
+        ns = np.arange(cfg.n_min, cfg.n_max + 1)
+        n_streams = ss.spawn(len(ns))
+        dts = []
+        hi = float(dist.frozen.isf(1e-9)) * 10  # type: ignore[attr-defined]  # one bin holds all
+        for n, nss in progress(zip(ns, n_streams), f"race MC {key}", total=len(ns)):
+            times = np.sort(dist.sample(np.random.default_rng(nss), (cfg.n_sets, int(n))), axis=1)
+            gaps = np.diff(times, axis=1)
+            lo = float(gaps[gaps > 0].min()) / 4  # below the smallest gap: no set can race
+            dt = largest_safe_dt(lambda d: race_probability_mc(times, d), cfg.delta, lo, hi,
+                                 cfg.bisection_steps)
+            dts.append(dt)
+            points.append(dict(distribution=dist.name, parameters=dist.parameters, n=int(n),
+                               dt_mc=dt, race_prob_mc=race_probability_mc(times, dt),
+                               race_prob_exact=race_probability_exact(dist, dt, int(n))))
+        beta, se, alpha = fit_power_law(ns, np.array(dts))
+        table.append(dict(distribution=dist.name, parameters=dist.parameters, beta=beta,
+                          beta_se=se, alpha=alpha, n_sets=cfg.n_sets, delta=cfg.delta,
+                          n_min=cfg.n_min, n_max=cfg.n_max))
+
+        # Exact curve: the same bisection on the sampling-free probability.
+        exact_dt = {}
+        upper = hi
+        for n in progress(cfg.exact_n, f"race exact {key}"):
+            prob = lambda d, n=n: race_probability_exact(dist, d, n)  # noqa: E731
+            lower = upper / 1e3
+            while not prob(lower) < cfg.delta:
+                lower /= 1e3
+            exact_dt[n] = largest_safe_dt(prob, cfg.delta, lower, upper, cfg.bisection_steps)
+            upper = exact_dt[n] * 1.5
+        en = np.array(sorted(exact_dt))
+        edt = np.array([exact_dt[n] for n in en])
+        local = np.gradient(-np.log(edt), np.log(en))
+        for n, d, b in zip(en, edt, local):
+            exact_rows.append(dict(distribution=dist.name, parameters=dist.parameters, n=int(n),
+                                   dt_exact=d, local_beta=b))
+        for lo_n, hi_n in ((cfg.n_min, cfg.n_max), (cfg.n_max, int(en.max()))):
+            sel = (en >= lo_n) & (en <= hi_n)
+            if sel.sum() >= 3:
+                b, s, a = fit_power_law(en[sel], edt[sel])
+                ranges.append(dict(distribution=dist.name, parameters=dist.parameters,
+                                   n_min=lo_n, n_max=hi_n, method="exact", beta=b, beta_se=s,
+                                   alpha=a))
+    return {
+        "table_race": pd.DataFrame(table),
+        "race_dt_vs_n": pd.DataFrame(points),
+        "race_exact": pd.DataFrame(exact_rows),
+        "race_beta_ranges": pd.DataFrame(ranges),
+    }
+
+
+def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts, fits, exact = tables["race_dt_vs_n"], tables["table_race"], tables["race_exact"]
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    for (name, grp), color in zip(pts.groupby("distribution", sort=False), ("C0", "C1", "C2")):
+        fit = fits[fits.distribution == name].iloc[0]
+        ex = exact[exact.distribution == name]
+        ax.loglog(grp.n, grp.dt_mc, "o", color=color, ms=4,
+                  label=f"{name} ({fit.parameters}): $\\beta$ = {fit.beta:.3f} ({fit.beta_se:.3f})")
+        n_line = np.linspace(grp.n.min(), grp.n.max(), 50)
+        ax.loglog(n_line, fit.alpha * n_line ** -fit.beta, "-", color=color, lw=1)
+        ax.loglog(ex.n, ex.dt_exact, ":", color=color, lw=1.5)
+        ax2.semilogx(ex.n, ex.local_beta, "-o", color=color, ms=3, label=name)
+    ax.set_xlabel("Number of agents $N$")
+    ax.set_ylabel(r"Largest $\Delta T$ with $P(\mathrm{race}) < \delta$")
+    ax.set_title("Monte Carlo (points), OLS fit (lines), exact (dotted)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    ax2.axhline(2.0, color="k", lw=0.8, ls="--")
+    ax2.set_xlabel("Number of agents $N$")
+    ax2.set_ylabel(r"local exponent $-d\log\Delta T / d\log N$ (exact)")
+    ax2.legend(fontsize=7)
+    ax2.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    save_figure(fig, stem)
+    plt.close(fig)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_common(p)
+    p.add_argument("--n-sets", type=int, help="Monte Carlo sets per N (paper: 10000)")
+    p.add_argument("--n-min", type=int, help="smallest N (paper: 2)")
+    p.add_argument("--n-max", type=int, help="largest N (paper: 20)")
+    p.add_argument("--delta", type=float, help="race-probability threshold (paper: 0.1)")
+    p.add_argument("--distribution", action="append", dest="distributions",
+                   help="event-time distribution, repeatable: " + ", ".join(DISTRIBUTIONS))
+    p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = for_scale(RaceConfig, args.scale, n_sets=args.n_sets, n_min=args.n_min,
+                    n_max=args.n_max, delta=args.delta,
+                    distributions=tuple(args.distributions) if args.distributions else None)
+    cfg.validate()
+    results = check_writable_dir(args.results_dir, "--results-dir")
+    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    t0 = time.perf_counter()
+    tables = run_study(cfg, args.seed)
+    wall = time.perf_counter() - t0
+    for name, frame in tables.items():
+        prov = provenance(cfg, command="race", scale=args.scale, seed=args.seed, wall_seconds=wall)
+        write_result(results / f"{name}.csv", frame, prov)
+    if not args.no_figure:
+        plot(tables, figures / "race_dt_vs_n")
+    print(tables["table_race"].to_string(index=False))
+    return 0
+
+
+__all__ = ["RaceConfig", "run_study", "race_probability_mc", "race_probability_exact",
+           "no_race_probabilities", "largest_safe_dt", "fit_power_law", "DISTRIBUTIONS",
+           "UsageError"]
