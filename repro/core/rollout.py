@@ -14,7 +14,7 @@ to the end of the episode for the last one).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
@@ -114,3 +114,34 @@ def concat(rollouts: list[Rollout]) -> Rollout:
         path_agent=np.concatenate([r.path_agent for r in rollouts]),
         episode_return=np.concatenate([r.episode_return for r in rollouts]),
     )
+
+
+def episode_streams(seed: int | np.random.SeedSequence, n_episodes: int) -> list[np.random.SeedSequence]:
+    """One independent random stream per episode of a batch.
+
+    Both engines of an environment (SimPy reference and fast) draw episode ``e``'s randomness from
+    ``episode_streams(seed, n)[e]`` in the same order, which is what makes them comparable draw by
+    draw. The policy's own randomness is separate (the policy owns its generator).
+    """
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    return ss.spawn(n_episodes)
+
+
+class BatchEnv(Protocol):
+    """What the learner and the evaluation tools need from an event-driven multi-agent environment.
+
+    Every environment package ``repro.envs.<name>`` provides one of these (its fast engine) through
+    ``make_env(config)``, and its SimPy reference through ``make_reference_env(config)``.
+    """
+
+    name: str
+    obs_dim: int
+    n_actions: int
+    n_agents: int
+    gamma: float
+    """Continuous-time discount rate (1/s) used inside macro-actions and by M-GAE."""
+
+    def rollout(self, policy: Policy, n_episodes: int,
+                seed: int | np.random.SeedSequence) -> Rollout:
+        """Simulate ``n_episodes`` whole episodes, asking ``policy`` for every decision."""
+        ...
