@@ -32,15 +32,21 @@ PROVENANCE_PACKAGES = (
 
 
 def check_writable_dir(path: str | Path, param: str) -> Path:
-    """Fail early (before any work or write) if ``path`` cannot become a writable folder."""
+    """Fail early (before any work or write) if ``path`` cannot become a writable folder.
+
+    Permission bits say nothing for root or for special file systems, so the nearest existing
+    ancestor is probed by creating and removing a temporary folder in it; nothing is left behind.
+    """
     p = Path(path)
     probe = p
-    while not probe.exists():
-        if probe.parent == probe:
-            break
+    while not probe.exists() and probe.parent != probe:
         probe = probe.parent
-    if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
-        raise UsageError(param, "a writable folder", str(path))
+    try:
+        if not probe.is_dir():
+            raise NotADirectoryError(probe)
+        tempfile.TemporaryDirectory(dir=probe, prefix=".probe-").cleanup()
+    except OSError:
+        raise UsageError(param, "a writable folder", str(path)) from None
     return p
 
 

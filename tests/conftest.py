@@ -1,0 +1,26 @@
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_cli(*args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run the real entry point, `python -m repro ...`, as a user would."""
+    env = dict(os.environ, REPRO_QUIET="1", PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "repro", *args], cwd=cwd or ROOT, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def tree_snapshot(*dirs: Path) -> dict[str, bytes]:
+    """Every file under ``dirs`` with its bytes (to prove that nothing was written)."""
+    return {str(p): p.read_bytes() for d in dirs if d.exists() for p in sorted(d.rglob("*"))
+            if p.is_file()}
+
+
+@pytest.fixture
+def cli():
+    return run_cli
