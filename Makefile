@@ -12,7 +12,8 @@ ARGS   ?=
 TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup reproduce test claims table-race bench clean
+.PHONY: setup reproduce test claims table-race table-thresholds fig-bus-arrivals fig-bus-load \
+	bench-bus bench clean
 .DEFAULT_GOAL := help
 
 help:
@@ -38,6 +39,9 @@ test: $(STAMP) ## run the test suite
 
 reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) table-race SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) table-thresholds SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) fig-bus-arrivals SCALE=$(SCALE)
+	$(MAKE) fig-bus-load SCALE=$(SCALE)
 	$(MAKE) claims
 
 claims: $(STAMP) ## render paper_claims.md from results/
@@ -45,6 +49,18 @@ claims: $(STAMP) ## render paper_claims.md from results/
 
 table-race: $(STAMP) ## race-condition table and figure (C10)
 	$(REPRO) race --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+table-thresholds: $(STAMP) ## Optimized Thresholds by differential evolution (bus baseline)
+	$(REPRO) bus-thresholds --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+fig-bus-arrivals: $(STAMP) ## bus arrival times per policy (C5; needs table-thresholds)
+	$(REPRO) fig-bus-arrivals --scale $(SCALE) $(ARGS)
+
+fig-bus-load: $(STAMP) ## bus 4th-cycle loads per policy (C4; needs table-thresholds)
+	$(REPRO) fig-bus-load --scale $(SCALE) $(ARGS)
+
+bench-bus: $(STAMP) ## episodes/s of the fast bus engine and its SimPy reference
+	$(REPRO) bench-bus --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

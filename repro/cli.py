@@ -15,6 +15,12 @@ from repro.core.errors import UsageError
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
+    "bus-eval": ("repro.experiments.bus_eval", "evaluate a bus policy (return, loads, regularity)"),
+    "bus-thresholds": ("repro.experiments.bus_thresholds",
+                       "Optimized Thresholds by differential evolution (bus baseline)"),
+    "fig-bus-arrivals": ("repro.experiments.fig_bus_arrivals", "bus arrival-time figure per policy"),
+    "fig-bus-load": ("repro.experiments.fig_bus_load", "bus 4th-cycle load figure per policy (C4)"),
+    "bench-bus": ("repro.experiments.bench_bus", "episodes/s of the fast and SimPy bus engines"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
 }
 """command -> (module, one-line description)."""

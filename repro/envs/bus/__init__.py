@@ -1,0 +1,33 @@
+"""Real-time bus holding on a loop corridor (SPEC section 5; paper section "Real-Time Bus Holding").
+
+``make_env`` gives the fast numba engine, ``make_reference_env`` the SimPy reference it is tested
+against; both implement :class:`repro.core.rollout.BatchEnv`.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from repro.envs.bus.engine import BusEnv
+from repro.envs.bus.params import BusConfig
+from repro.envs.bus.reference import ReferenceBusEnv
+
+
+def add_env_arguments(parser: argparse.ArgumentParser) -> None:
+    """The bus environment has no command-line options: its parameters are the paper's."""
+
+
+def config_from_args(args: argparse.Namespace) -> BusConfig:
+    return BusConfig()
+
+
+def make_env(cfg: BusConfig | None = None) -> BusEnv:
+    return BusEnv(cfg)
+
+
+def make_reference_env(cfg: BusConfig | None = None) -> ReferenceBusEnv:
+    return ReferenceBusEnv(cfg)
+
+
+__all__ = ["BusConfig", "BusEnv", "ReferenceBusEnv", "add_env_arguments", "config_from_args",
+           "make_env", "make_reference_env"]

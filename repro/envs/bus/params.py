@@ -1,0 +1,60 @@
+"""Parameters of the bus corridor (SPEC section 5.1, paper Table "bbparams")."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from repro.core.errors import require
+
+
+@dataclass(frozen=True)
+class BusConfig:
+    """The bus corridor. Times are in seconds unless a field says minutes."""
+
+    n_buses: int = 6
+    """N: buses, one agent each; at t = 0 they queue for Stop 1 in index order."""
+    n_stops: int = 10
+    """K: stops on the loop (Stop K is followed by Stop 1)."""
+    l_max: int = 75
+    """L_max: bus capacity in passengers."""
+    travel_time: float = 180.0
+    """rt: travel time between consecutive stops (s), the same for every link."""
+    t_alight: float = 1.8
+    """t_a: seconds per alighting passenger."""
+    t_board: float = 3.0
+    """t_b: seconds per boarding passenger."""
+    headway: float = 6.0
+    """H: planned headway (minutes); the reward penalises (h - H)^2."""
+    t_hold: float = 30.0
+    """T_hold: holding time per unit of action (s); action a holds a * T_hold."""
+    n_actions: int = 4
+    """Actions a in {0, ..., n_actions - 1}."""
+    alight_fraction: tuple[float, ...] = (1.0, 0.0, 0.1, 0.25, 0.25, 0.5, 0.5, 0.1, 0.75, 0.1)
+    """q_k: fraction of the load that alights at each stop."""
+    arrival_rate: tuple[float, ...] = (1.5, 2.25, 1.4, 4.5, 2.55, 1.8, 1.43, 1.05, 0.75, 0.45)
+    """nu_k: passenger arrival rate at each stop (pax/min); also the stop's reward weight."""
+    horizon: float = 3 * 3600.0
+    """Episode length (s): arrivals at t < horizon count; running macro-actions are then cut."""
+    gamma: float = 1e-5
+    """Continuous-time discount rate (1/s) inside macro-actions and for M-GAE (paper Table 2)."""
+
+    def __post_init__(self) -> None:
+        require(self.n_buses >= 1, "n_buses", "an integer >= 1", self.n_buses)
+        require(self.n_stops >= 2, "n_stops", "an integer >= 2", self.n_stops)
+        require(len(self.alight_fraction) == self.n_stops, "alight_fraction",
+                f"{self.n_stops} values (one per stop)", len(self.alight_fraction))
+        require(len(self.arrival_rate) == self.n_stops, "arrival_rate",
+                f"{self.n_stops} values (one per stop)", len(self.arrival_rate))
+        require(all(0.0 <= q <= 1.0 for q in self.alight_fraction), "alight_fraction",
+                "values in [0, 1]", self.alight_fraction)
+        require(all(v >= 0.0 for v in self.arrival_rate), "arrival_rate", "values >= 0",
+                self.arrival_rate)
+        require(self.travel_time > 0.0, "travel_time", "> 0", self.travel_time)
+        require(self.t_hold >= 0.0, "t_hold", ">= 0", self.t_hold)
+        require(self.horizon > 0.0, "horizon", "> 0", self.horizon)
+        require(self.n_actions >= 1, "n_actions", "an integer >= 1", self.n_actions)
+
+    @property
+    def max_arrivals_per_bus(self) -> int:
+        """An upper bound on one bus's arrivals in an episode (each stop visit takes >= rt)."""
+        return int(self.horizon // self.travel_time) + 2

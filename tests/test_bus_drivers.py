@@ -1,0 +1,71 @@
+"""The bus command-line drivers: outputs, determinism, one-line errors that write nothing."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pandas as pd
+import pytest
+
+from repro.claims.bus import check_c4
+from repro.cli import main
+
+
+def _repro(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "repro", *args], capture_output=True, text=True)
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory):
+    res, fig = tmp_path_factory.mktemp("res"), tmp_path_factory.mktemp("fig")
+    common = ["--scale", "smoke", "--results-dir", str(res)]
+    assert main(["bus-thresholds", *common]) == 0
+    for cmd in ("fig-bus-load", "fig-bus-arrivals"):
+        assert main([cmd, *common, "--figures-dir", str(fig)]) == 0
+    return res, fig
+
+
+def test_outputs_and_c4(smoke):
+    res, fig = smoke
+    t = pd.read_csv(res / "bus_thresholds.csv").iloc[0]
+    assert t.T1 > t.T2 > t.T3 and t.evaluations > 0
+    assert (res / "bus_thresholds.provenance.json").exists()
+    assert (fig / "bus_load.png").exists() and (fig / "bus_arrivals.pdf").exists()
+    assert set(pd.read_csv(res / "bus_arrivals.csv").policy) == {"nohold", "thresholds"}
+    assert check_c4(res).verdict == "PASS"
+
+
+def test_thresholds_deterministic(smoke, tmp_path):
+    res, _ = smoke
+    assert main(["bus-thresholds", "--scale", "smoke", "--results-dir", str(tmp_path)]) == 0
+    assert (tmp_path / "bus_thresholds.csv").read_bytes() == (res / "bus_thresholds.csv").read_bytes()
+
+
+def test_eval_json(smoke, capsys):
+    res, _ = smoke
+    assert main(["bus-eval", "--policy", "nohold", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["loads_cycle4"][0] == [64, 60, 75, 75, 75, 75, 75, 75, 75, 50]
+    assert {"return", "discounted_return", "time_to_regularity_min"} <= set(out)
+    assert main(["bus-eval", "--policy", "thresholds", "--results-dir", str(res), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["return"] > out["return"]
+
+
+@pytest.mark.parametrize("args", [
+    ["bus-eval", "--policy", "thresholds", "--thresholds", "3", "5", "1"],
+    ["bus-eval", "--policy", "mystery"],
+    ["fig-bus-load", "--thresholds", "6", "6", "1"],
+    ["fig-bus-load", "--policies", "nohold", "mystery"],
+])
+def test_bad_input(args, tmp_path):
+    proc = _repro(*args, "--results-dir", str(tmp_path / "r"))
+    assert proc.returncode == 2
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "r").exists()
+
+
+def test_missing_thresholds_file(tmp_path):
+    proc = _repro("bus-eval", "--policy", "thresholds", "--results-dir", str(tmp_path))
+    assert proc.returncode == 2 and "make table-thresholds" in proc.stderr
