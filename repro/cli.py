@@ -15,6 +15,9 @@ from repro.core.errors import UsageError
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
+    "wildfire-eval": ("repro.experiments.wildfire_eval", "ADR of a heuristic wildfire policy"),
+    "bench-wildfire": ("repro.experiments.bench_wildfire",
+                       "decisions/s of the fast and SimPy wildfire engines (MLP policy)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
 }
 """command -> (module, one-line description)."""
