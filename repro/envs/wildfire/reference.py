@@ -131,7 +131,8 @@ class WildfireModel:
             obs += [dist[j], 1.0, float(interested), float(self.alive[j]), self._health_now(j)]
         obs.append(sojourn)
         self.current[i] = len(self.rec)
-        self.rec.append(dict(agent=i, index=0 if prev < 0 else self.rec[prev]["index"] + 1,
+        self.rec.append(dict(agent=i, prev=prev,
+                             index=0 if prev < 0 else self.rec[prev]["index"] + 1,
                              time=now, obs=obs, action=-1, reward=0.0, duration=math.nan))
         self.pending.append(i)
 
