@@ -37,7 +37,12 @@ OK, GROW_LOG, HEAP_FULL = range(3)
 HEAP_CAPACITY = 128
 """Pending events per episode: live waits (N UAVs, 9 fires, the clock) plus stale ones."""
 
-fs_delay_nb = njit(cache=True)(fs_delay)
+# Every kernel works on preallocated arrays only. Without the runtime's reference counting
+# (_nrt=False; nothing is allocated inside), passing the state tuple to a helper costs nothing,
+# whereas counting references to its ~35 arrays made each helper call cost ~0.5 us.
+jit = njit(cache=True, _nrt=False)
+
+fs_delay_nb = jit(fs_delay)
 
 Params = namedtuple("Params", "n_agents n_fires n_obs v dt latency tol gamma r_ext r_pen "
                               "t_health t_max q1 q2 fires")
@@ -55,7 +60,7 @@ Log = namedtuple("Log", "obs act rew dur time ep agent idx")
 
 # --- event heap ----------------------------------------------------------------------------------
 
-@njit(cache=True)
+@jit
 def _before(s, e, a, b):
     if s.ht[e, a] != s.ht[e, b]:
         return s.ht[e, a] < s.ht[e, b]
@@ -64,7 +69,7 @@ def _before(s, e, a, b):
     return s.hs[e, a] < s.hs[e, b]
 
 
-@njit(cache=True)
+@jit
 def _swap(s, e, a, b):
     s.ht[e, a], s.ht[e, b] = s.ht[e, b], s.ht[e, a]
     s.hp[e, a], s.hp[e, b] = s.hp[e, b], s.hp[e, a]
@@ -73,7 +78,7 @@ def _swap(s, e, a, b):
     s.hw[e, a], s.hw[e, b] = s.hw[e, b], s.hw[e, a]
 
 
-@njit(cache=True)
+@jit
 def _push(s, e, delay, prio, kind, who):
     """Schedule an event ``delay`` after now (SimPy: time now + delay); return its sequence."""
     n = s.hn[e]
@@ -93,7 +98,7 @@ def _push(s, e, delay, prio, kind, who):
     return s.seq[e] - 1
 
 
-@njit(cache=True)
+@jit
 def _pop(s, e):
     """Remove the first event and return (time, sequence, kind, who)."""
     t, sq, kind, who = s.ht[e, 0], s.hs[e, 0], s.hk[e, 0], s.hw[e, 0]
@@ -117,19 +122,19 @@ def _pop(s, e):
 
 # --- model (mirrors reference.WildfireModel method by method) ------------------------------------
 
-@njit(cache=True)
+@jit
 def _dist(ax, ay, bx, by):
     return math.sqrt((bx - ax) * (bx - ax) + (by - ay) * (by - ay))
 
 
-@njit(cache=True)
+@jit
 def _health_now(s, e, j):
     if not s.alive[e, j]:
         return 0.0
     return max(0.0, s.health[e, j] - s.party[e, j] * (s.now[e] - s.t_update[e, j]))
 
 
-@njit(cache=True)
+@jit
 def _observe(s, lg, p, e, i):
     now = s.now[e]
     prev = s.cur[e, i]
@@ -140,25 +145,24 @@ def _observe(s, lg, p, e, i):
     row = s.n_rows[0]
     s.n_rows[0] = row + 1
     x, y = s.pos[e, i, 0], s.pos[e, i, 1]
-    dist = np.empty(p.n_fires)
-    taken = np.zeros(p.n_fires, dtype=np.bool_)
-    for j in range(p.n_fires):
-        dist[j] = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
     o = lg.obs[row]
     o[0], o[1] = x, y
-    for r in range(p.n_obs):  # selection by distance; the lower index wins ties (stable)
-        best = -1
+    prev_d, prev_j = -1.0, -1
+    for r in range(p.n_obs):  # next in (distance, index) order: the lower index wins ties
+        best, best_d = -1, np.inf
         for j in range(p.n_fires):
-            if not taken[j] and (best < 0 or dist[j] < dist[best]):
-                best = j
-        taken[best] = True
+            d = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
+            after = d > prev_d or (d == prev_d and j > prev_j)
+            if after and d < best_d:
+                best, best_d = j, d
+        prev_d, prev_j = best_d, best
         s.rank[e, i, r] = best
         interested = 0
         for a in range(p.n_agents):
             if s.interest[e, a] == best:
                 interested += 1
         base = 2 + OBS_PER_FIRE * r
-        o[base] = dist[best]
+        o[base] = best_d
         o[base + 1] = 1.0
         o[base + 2] = interested
         o[base + 3] = 1.0 if s.alive[e, best] else 0.0
@@ -176,14 +180,14 @@ def _observe(s, lg, p, e, i):
     s.uwait[e, i] = _push(s, e, p.latency, NORMAL, LATENCY, i)
 
 
-@njit(cache=True)
+@jit
 def _accrue(s, lg, p, e, i, r):
     row = s.cur[e, i]
     lg.rew[row] += math.exp(-p.gamma * (s.now[e] - lg.time[row])) * r
     s.returns[e, i] += r
 
 
-@njit(cache=True)
+@jit
 def _party_change(s, p, e, j, delta):
     if not s.alive[e, j]:
         return
@@ -194,7 +198,7 @@ def _party_change(s, p, e, j, delta):
     _push(s, e, 0.0, URGENT, INT_FIRE, j)
 
 
-@njit(cache=True)
+@jit
 def _penalise(s, lg, p, e, j):
     if s.party[e, j] < 2:
         return
@@ -204,7 +208,7 @@ def _penalise(s, lg, p, e, j):
             _accrue(s, lg, p, e, i, p.r_pen)
 
 
-@njit(cache=True)
+@jit
 def _start_action(s, lg, p, e, i):
     now = s.now[e]
     a = lg.act[s.cur[e, i]]
@@ -245,7 +249,7 @@ def _start_action(s, lg, p, e, i):
     s.uwait[e, i] = _push(s, e, d, NORMAL, ACTION, i)
 
 
-@njit(cache=True)
+@jit
 def _land(s, p, e, i, cut):
     if not s.flying[e, i]:
         return
@@ -259,7 +263,7 @@ def _land(s, p, e, i, cut):
     s.flying[e, i] = False
 
 
-@njit(cache=True)
+@jit
 def _replan(s, p, e, j):
     if s.party[e, j] == 0:
         s.fwait[e, j] = -1  # idle until the party changes
@@ -268,7 +272,7 @@ def _replan(s, p, e, j):
         s.fwait[e, j] = _push(s, e, d, NORMAL, EXTINGUISH, j)
 
 
-@njit(cache=True)
+@jit
 def _end(s, lg, p, e):
     s.done[e] = True
     s.t_end[e] = s.now[e]
@@ -277,7 +281,7 @@ def _end(s, lg, p, e):
         lg.dur[row] = s.t_end[e] - lg.time[row]
 
 
-@njit(cache=True)
+@jit
 def _extinguish(s, lg, p, e, j):
     s.alive[e, j] = False
     s.n_alive[e] -= 1
@@ -292,7 +296,7 @@ def _extinguish(s, lg, p, e, j):
 
 # --- kernels -------------------------------------------------------------------------------------
 
-@njit(cache=True)
+@jit
 def _setup(s, lg, p):
     """Time 0: every UAV observes (in index order), then the T_max clock starts."""
     for e in range(s.now.shape[0]):
@@ -301,7 +305,7 @@ def _setup(s, lg, p):
         _push(s, e, p.t_max, NORMAL, CLOCK, 0)
 
 
-@njit(cache=True)
+@jit
 def _advance(s, lg, p, pending):
     """Run every live episode until it is blocked or over; list the rows awaiting an action."""
     log_capacity = lg.act.shape[0]
