@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 
@@ -99,12 +98,17 @@ def test_cli_json():
     ("--policy", "nearest", "--t-health", "-1"), ("--policy", "nearest", "--episodes", "0"),
     ("--policy", "nearest", "--sim", "fs"), ("--policy", "nearest", "--dt", "1"),
 ])
-def test_cli_bad_input(args, tmp_path):
-    res = subprocess.run([sys.executable, "-m", "repro", "wildfire-eval", *args],
-                         capture_output=True, text=True, cwd=tmp_path,
-                         env={**os.environ, "PYTHONPATH": str(ROOT)})
-    assert res.returncode == 2
-    assert res.stdout == "" and len(res.stderr.strip().splitlines()) == 1
+def test_cli_bad_input(args, tmp_path, monkeypatch, capsys):
+    from repro.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(["wildfire-eval", *args])
+    except SystemExit as exit_:  # argparse's errors
+        code = exit_.code
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert out == "" and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
 
 
