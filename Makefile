@@ -13,7 +13,7 @@ TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
 .PHONY: setup reproduce test claims table-race table-thresholds fig-bus-arrivals fig-bus-load \
-	bench-bus bench clean
+	bench-bus bench-wildfire wildfire-eval clean
 .DEFAULT_GOAL := help
 
 help:
@@ -61,6 +61,12 @@ fig-bus-load: $(STAMP) ## bus 4th-cycle loads per policy (C4; needs table-thresh
 
 bench-bus: $(STAMP) ## episodes/s of the fast bus engine and its SimPy reference
 	$(REPRO) bench-bus --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+bench-wildfire: $(STAMP) ## decisions/s of the fast and SimPy wildfire engines (MLP policy)
+	$(REPRO) bench-wildfire --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+wildfire-eval: $(STAMP) ## ADR of a heuristic wildfire policy (ARGS="--policy flowchart ...")
+	$(REPRO) wildfire-eval --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -21,6 +21,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "fig-bus-arrivals": ("repro.experiments.fig_bus_arrivals", "bus arrival-time figure per policy"),
     "fig-bus-load": ("repro.experiments.fig_bus_load", "bus 4th-cycle load figure per policy (C4)"),
     "bench-bus": ("repro.experiments.bench_bus", "episodes/s of the fast and SimPy bus engines"),
+    "wildfire-eval": ("repro.experiments.wildfire_eval", "ADR of a heuristic wildfire policy"),
+    "bench-wildfire": ("repro.experiments.bench_wildfire",
+                       "decisions/s of the fast and SimPy wildfire engines (MLP policy)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
 }
 """command -> (module, one-line description)."""

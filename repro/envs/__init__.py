@@ -1,1 +1,2 @@
-"""Event-driven multi-agent environments: each subpackage provides a fast engine and a SimPy reference."""
+"""Event-driven multi-agent environments; each subpackage provides ``make_env`` (its fast engine)
+and ``make_reference_env`` (its SimPy reference), both implementing :class:`repro.core.rollout.BatchEnv`."""

@@ -1,0 +1,148 @@
+"""Parameters of the wildfire environment (SPEC section 3) and the fire layout."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from repro.core.errors import require
+
+OBS_PER_FIRE = 5
+"""Per observed fire: distance, level, interest party size, status, remaining health."""
+
+
+@dataclass(frozen=True)
+class WildfireConfig:
+    """Every parameter of SPEC section 3; the defaults are the paper's (released implementation)."""
+
+    n_agents: int = 3
+    """N, the number of UAVs."""
+    v_uav: float = 0.015
+    """UAV speed (m/s)."""
+    hold_mean: float = 3.0
+    """Mean of the Normal hold duration (s)."""
+    hold_std: float = 0.3
+    """Standard deviation of the Normal hold duration (s); a negative draw is treated as 0."""
+    t_health: float = 3.0
+    """UAV-seconds a fire's extinguish party must spend on it to put it out."""
+    r_ext: float = 1.0
+    """Reward every agent accrues when any fire is extinguished."""
+    r_pen: float = -20.0
+    """Reward accrued when a UAV joins an extinguish party that already has a member."""
+    gamma: float = 0.02
+    """Continuous-time discount rate (1/s)."""
+    horizon_discount: float = 0.005
+    """The episode is cut at T_max = ln(horizon_discount) / (-gamma) (264.9 s with the defaults)."""
+    decision_latency: float = 1e-5
+    """Time between an observation and the action it leads to (s); never rounded to the grid."""
+    at_fire_tol: float = 1e-3
+    """A hold joins the parties of the first fire (by index) closer than this (m)."""
+    n_observed: int = 5
+    """Fires in an observation (the closest ones) and fly actions (one per observed fire)."""
+    cluster_radius: float = 1.0
+    """Distance from the origin of the two outer fires' midpoint in each cluster (m)."""
+    fire_spacing: float = 0.02
+    """Side of the equilateral triangle each cluster of three fires forms (m)."""
+    dt: float | None = None
+    """Fixed step dT of the FS simulator (s); None is the event-driven (ED) simulator."""
+    quirk_q1_stale_attack: bool = True
+    """Q1: after a fly action the UAV still remembers the fire it attacked, so holding at it again
+    rejoins nothing until it attacks another fire (released implementation; False = paper)."""
+    quirk_q2_penalty_party_only: bool = True
+    """Q2: r_pen goes to the extinguish party's members only (released implementation); False gives
+    it to every agent, as the paper says."""
+    hold_table_size: int = 128
+    """Hold durations pre-drawn per agent and episode (used in order, cyclically: far more holds
+    than fit into T_max). Both engines index this table by the agent's hold count."""
+
+    def validate(self) -> None:
+        require(self.n_agents >= 1, "--n-agents", "an integer >= 1", self.n_agents)
+        require(self.t_health > 0, "--t-health", "a number > 0", self.t_health)
+        require(self.dt is None or (self.dt > 0 and math.isfinite(self.dt)), "--dt",
+                "a number > 0", self.dt)
+        require(self.v_uav > 0, "--v-uav", "a number > 0", self.v_uav)
+        require(self.gamma > 0, "--gamma", "a number > 0", self.gamma)
+        require(0 < self.horizon_discount < 1, "horizon_discount", "in (0, 1)",
+                self.horizon_discount)
+        require(self.decision_latency >= 0, "decision_latency", "a number >= 0",
+                self.decision_latency)
+        require(1 <= self.n_observed <= 9, "n_observed", "between 1 and the number of fires",
+                self.n_observed)
+        require(self.hold_table_size >= 1, "hold_table_size", "an integer >= 1",
+                self.hold_table_size)
+
+    @property
+    def t_max(self) -> float:
+        """Episode length cap T_max (s)."""
+        return math.log(self.horizon_discount) / (-self.gamma)
+
+    @property
+    def n_actions(self) -> int:
+        """Fly to each observed fire, or hold."""
+        return self.n_observed + 1
+
+    @property
+    def obs_dim(self) -> int:
+        """Own x, y; OBS_PER_FIRE values per observed fire; sojourn time."""
+        return 2 + OBS_PER_FIRE * self.n_observed + 1
+
+    @property
+    def label(self) -> str:
+        """ED, or FS-dT."""
+        return "ED" if self.dt is None else f"FS-{self.dt:g}"
+
+
+def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
+    """(9, 2) fire locations: cluster A, then A rotated by +120 deg (B) and by -120 deg (C).
+
+    Cluster A is (-s/2, R), (s/2, R), (0, R - s sin 60deg) with s = fire_spacing, R = cluster_radius.
+    """
+    s, r = cfg.fire_spacing, cfg.cluster_radius
+    a = np.array([[-s / 2, r], [s / 2, r], [0.0, r - s * math.sin(math.radians(60))]])
+    out = [a]
+    for deg in (120.0, -120.0):
+        c, sn = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+        out.append(a @ np.array([[c, sn], [-sn, c]]))
+    return np.concatenate(out)
+
+
+def fs_delay(now: float, delay: float, dt: float) -> float:
+    """The FS replacement of a delay scheduled at ``now``: its end is rounded up to the dT grid.
+
+    ``dt <= 0`` stands for ED (no rounding). Negative delays (round-off in a fire's re-planned
+    health) count as 0. Plain float arithmetic, so the numba engine compiles the same operations.
+    """
+    d = max(delay, 0.0)
+    if dt <= 0.0:
+        return d
+    return max(0.0, math.ceil((now + d) / dt) * dt - now)
+
+
+@dataclass(frozen=True)
+class EpisodeDraws:
+    """All the randomness of a batch of episodes, drawn before simulating (engine-independent)."""
+
+    starts: np.ndarray
+    """(E, N, 2) UAV start positions."""
+    holds: np.ndarray
+    """(E, N, hold_table_size) hold durations; agent i's h-th hold lasts holds[e, i, h % size]."""
+
+    @property
+    def n_episodes(self) -> int:
+        return len(self.starts)
+
+
+def draw_episodes(cfg: WildfireConfig, n_episodes: int,
+                  seed: int | np.random.SeedSequence) -> EpisodeDraws:
+    """Episode e draws from ``episode_streams(seed, n)[e]``: start positions, then hold durations."""
+    from repro.core.rollout import episode_streams
+
+    starts = np.empty((n_episodes, cfg.n_agents, 2))
+    holds = np.empty((n_episodes, cfg.n_agents, cfg.hold_table_size))
+    for e, ss in enumerate(episode_streams(seed, n_episodes)):
+        rng = np.random.default_rng(ss)
+        starts[e] = rng.uniform(-1.0, 1.0, size=(cfg.n_agents, 2))
+        holds[e] = rng.normal(cfg.hold_mean, cfg.hold_std, size=(cfg.n_agents, cfg.hold_table_size))
+    return EpisodeDraws(starts, holds)

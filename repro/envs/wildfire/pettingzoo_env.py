@@ -1,0 +1,91 @@
+"""A PettingZoo AEC view of the SimPy wildfire model: the UAV whose decision comes next acts.
+
+After each ``step`` the model runs until the next UAV observes; that UAV is selected, its reward
+is its just-finished macro-action's reward (discounted to the action's start, SPEC 3) and its info
+holds the macro-action's ``duration`` and the simulation ``time``. When the episode ends every
+UAV's running macro-action is cut and rewarded; the episode is terminated if all fires are out,
+truncated at T_max.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+from pettingzoo import AECEnv
+
+from repro.envs.wildfire.params import WildfireConfig, draw_episodes
+from repro.envs.wildfire.reference import WildfireModel
+
+
+class WildfireAEC(AECEnv):
+    metadata = {"name": "wildfire_v0", "render_modes": [], "is_parallelizable": False}
+
+    def __init__(self, cfg: WildfireConfig = WildfireConfig()):
+        super().__init__()
+        cfg.validate()
+        self.cfg = cfg
+        self.possible_agents = [f"uav_{i}" for i in range(cfg.n_agents)]
+        self._obs_space = gymnasium.spaces.Box(-np.inf, np.inf, (cfg.obs_dim,), np.float64)
+        self._act_space = gymnasium.spaces.Discrete(cfg.n_actions)
+        self._seed_seq = np.random.SeedSequence()
+        self.model: WildfireModel | None = None
+
+    def observation_space(self, agent: str) -> gymnasium.spaces.Box:
+        return self._obs_space
+
+    def action_space(self, agent: str) -> gymnasium.spaces.Discrete:
+        return self._act_space
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> None:
+        if seed is not None:
+            self._seed_seq = np.random.SeedSequence(seed)
+        draws = draw_episodes(self.cfg, 1, self._seed_seq.spawn(1)[0])
+        self.model = WildfireModel(self.cfg, draws.starts[0], draws.holds[0])
+        self.agents = list(self.possible_agents)
+        self.rewards = {a: 0.0 for a in self.agents}
+        self._cumulative_rewards = {a: 0.0 for a in self.agents}
+        self.terminations = {a: False for a in self.agents}
+        self.truncations = {a: False for a in self.agents}
+        self.infos = {a: {"duration": 0.0, "time": 0.0} for a in self.agents}
+        self._run()
+
+    def observe(self, agent: str) -> np.ndarray:
+        i = self.possible_agents.index(agent)
+        return np.array(self.model.rec[self.model.current[i]]["obs"], dtype=np.float64)
+
+    def step(self, action: int | None) -> None:
+        agent = self.agent_selection
+        if self.terminations[agent] or self.truncations[agent]:
+            self._was_dead_step(action)
+            return
+        self._cumulative_rewards[agent] = 0.0
+        self.model.act(self.possible_agents.index(agent), int(action))
+        self._run()
+
+    def _run(self) -> None:
+        """Advance to the next decision (or the end) and publish the rewards that it completes."""
+        m = self.model
+        m.advance()
+        self.rewards = {a: 0.0 for a in self.agents}
+        if m.done:
+            all_out = not any(m.alive)
+            for i, a in enumerate(self.possible_agents):
+                rec = m.rec[m.current[i]]
+                self.rewards[a] = rec["reward"]
+                self.infos[a] = {"duration": rec["duration"], "time": m.t_end}
+                self.terminations[a] = all_out
+                self.truncations[a] = not all_out
+            self.agent_selection = self.agents[0]
+        else:
+            i = m.pending[0]
+            a = self.possible_agents[i]
+            prev = m.rec[m.current[i]]["prev"]
+            if prev >= 0:
+                self.rewards[a] = m.rec[prev]["reward"]
+                self.infos[a] = {"duration": m.rec[prev]["duration"], "time": m.env.now}
+            self.agent_selection = a
+        self._accumulate_rewards()
+
+
+def env(cfg: WildfireConfig = WildfireConfig()) -> WildfireAEC:
+    return WildfireAEC(cfg)

@@ -1,0 +1,150 @@
+"""The fast wildfire engine against the SimPy reference, and the SimPy ordering FS relies on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import simpy
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from repro.core.rollout import DecisionBatch, Rollout
+from repro.envs.wildfire import WildfireConfig, draw_episodes, make_env, make_reference_env
+from repro.envs.wildfire.policies import POLICIES
+
+DTS = (None, 10 ** -1, 10 ** -0.5, 1.0, 10 ** 0.5, 10.0)
+MAX_DECISIONS = 4096
+
+
+class Scripted:
+    """Actions and policy uniforms that depend on (episode, agent, index) only, so two engines
+    asking in different groupings get the same answers."""
+
+    def __init__(self, seed: int, n_episodes: int, n_agents: int, n_actions: int):
+        rng = np.random.default_rng(seed)
+        self.actions = rng.integers(0, n_actions, size=(n_episodes, n_agents, MAX_DECISIONS))
+        self.u = rng.random((n_episodes, n_agents, MAX_DECISIONS, 2))
+
+    def __call__(self, batch: DecisionBatch) -> np.ndarray:
+        return self.actions[batch.episode, batch.agent, batch.index % MAX_DECISIONS]
+
+    def uniforms(self, batch: DecisionBatch) -> np.ndarray:
+        return self.u[batch.episode, batch.agent, batch.index % MAX_DECISIONS]
+
+
+def make_policy(kind: str, seed: int, cfg: WildfireConfig, n_episodes: int):
+    s = Scripted(seed, n_episodes, cfg.n_agents, cfg.n_actions)
+    return s if kind == "scripted" else POLICIES[kind](uniforms=s.uniforms)
+
+
+def assert_same(ref: Rollout, fast: Rollout) -> None:
+    assert ref.n_decisions == fast.n_decisions
+    np.testing.assert_array_equal(ref.path_start, fast.path_start)
+    np.testing.assert_array_equal(ref.path_episode, fast.path_episode)
+    np.testing.assert_array_equal(ref.path_agent, fast.path_agent)
+    np.testing.assert_array_equal(ref.actions, fast.actions)
+    np.testing.assert_allclose(ref.info["decision_time"], fast.info["decision_time"], rtol=0,
+                               atol=1e-9)
+    np.testing.assert_allclose(ref.info["end_time"], fast.info["end_time"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ref.durations, fast.durations, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ref.obs, fast.obs, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ref.rewards, fast.rewards, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ref.episode_return, fast.episode_return, rtol=0, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2 ** 32 - 1), dt=st.sampled_from(DTS),
+       t_health=st.sampled_from((3.0, 2.9999)), q1=st.booleans(), q2=st.booleans(),
+       kind=st.sampled_from(("scripted", "random", "nearest", "flowchart")))
+def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, kind):
+    cfg = WildfireConfig(dt=dt, t_health=t_health, quirk_q1_stale_attack=q1,
+                         quirk_q2_penalty_party_only=q2)
+    n = 2
+    ref = make_reference_env(cfg).rollout(make_policy(kind, seed, cfg, n), n, seed)
+    fast = make_env(cfg).rollout(make_policy(kind, seed, cfg, n), n, seed)
+    assert_same(ref, fast)
+
+
+def test_engines_agree_on_a_larger_batch():
+    """Many episodes in one fast batch (rounds mix episodes at different stages)."""
+    cfg = WildfireConfig(dt=10 ** 0.5, quirk_q2_penalty_party_only=False)
+    n = 12
+    ref = make_reference_env(cfg).rollout(make_policy("flowchart", 7, cfg, n), n, 11)
+    fast = make_env(cfg).rollout(make_policy("flowchart", 7, cfg, n), n, 11)
+    assert_same(ref, fast)
+    assert ref.rewards.max() > 0
+
+
+def test_rollout_structure():
+    cfg = WildfireConfig()
+    r = make_env(cfg).rollout(make_policy("flowchart", 3, cfg, 5), 5, 3)
+    assert r.n_paths == 5 * cfg.n_agents
+    assert r.obs.shape == (r.n_decisions, 28)
+    for p in range(r.n_paths):
+        sl = slice(r.path_start[p], r.path_start[p + 1])
+        t = r.info["decision_time"][sl]
+        assert t[0] == 0.0 and np.all(np.diff(t) >= 0)
+        # durations chain the decisions and end at the episode's end
+        np.testing.assert_allclose(t[1:], t[:-1] + r.durations[sl][:-1], atol=1e-9)
+        np.testing.assert_allclose(t[-1] + r.durations[sl][-1],
+                                   r.info["end_time"][r.path_episode[p]], atol=1e-9)
+        np.testing.assert_allclose(r.obs[sl][1:, -1], r.durations[sl][:-1], atol=1e-12)
+    assert np.all(r.info["end_time"] <= cfg.t_max + 1e-9)
+
+
+def test_draws_come_from_episode_streams_in_order():
+    cfg = WildfireConfig()
+    d = draw_episodes(cfg, 3, 5)
+    again = draw_episodes(cfg, 3, 5)
+    np.testing.assert_array_equal(d.starts, again.starts)
+    assert d.starts.shape == (3, cfg.n_agents, 2) and np.all(np.abs(d.starts) <= 1)
+    assert d.holds.shape == (3, cfg.n_agents, cfg.hold_table_size)
+    assert abs(d.holds.mean() - cfg.hold_mean) < 0.05
+    assert not np.array_equal(d.starts[0], d.starts[1])
+
+
+def test_simpy_same_instant_order():
+    """What FS semantics rely on: events due at the same instant are processed in the order they
+    were scheduled (first scheduled, first processed), whatever their delays and whenever they
+    were scheduled."""
+    env = simpy.Environment()
+    order: list[str] = []
+
+    def waiter(name, start, delay):
+        yield env.timeout(start)
+        yield env.timeout(delay)  # due at start + delay = 4 for everyone
+        order.append(name)
+
+    for name, start in (("c", 3.0), ("b", 2.0), ("a", 0.0), ("d", 1.0), ("e", 4.0)):
+        env.process(waiter(name, start, 4.0 - start))
+    env.run()
+    # scheduled at t = 0 (a), 1 (d), 2 (b), 3 (c), 4 (e)
+    assert order == ["a", "d", "b", "c", "e"]
+
+
+def test_simpy_interrupt_precedes_timeouts_at_same_instant():
+    """An interrupt (URGENT) issued at t is processed before NORMAL timeouts already due at t."""
+    env = simpy.Environment()
+    order: list[str] = []
+
+    def interrupter():
+        yield env.timeout(5.0)  # scheduled first
+        order.append("interrupter")
+        target_proc.interrupt()
+
+    def target():
+        try:
+            yield env.timeout(5.0)  # scheduled second
+            order.append("target done")
+        except simpy.Interrupt:
+            order.append("target interrupted")
+
+    def sleeper():
+        yield env.timeout(5.0)  # scheduled third
+        order.append("sleeper")
+
+    env.process(interrupter())
+    target_proc = env.process(target())
+    env.process(sleeper())
+    env.run()
+    assert order == ["interrupter", "target interrupted", "sleeper"]

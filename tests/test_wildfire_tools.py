@@ -1,0 +1,150 @@
+"""Heuristic policies, ADR, the wildfire-eval CLI and the PettingZoo wrapper."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from repro.core.rollout import DecisionBatch, Rollout
+from repro.envs.wildfire import WildfireConfig
+from repro.envs.wildfire.policies import (FLOWCHART_HOLD_ALONE, FLOWCHART_HOLD_SHARED,
+                                          FLOWCHART_TARGET, FlowchartPolicy, NearestPolicy,
+                                          RandomPolicy)
+from repro.experiments.wildfire_eval import adr
+
+HOLD = 5
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def obs_rows(fires: list[list[tuple[float, float, float]]]) -> DecisionBatch:
+    """Observations whose observed fires are (distance, interest, alive), closest first."""
+    obs = np.zeros((len(fires), 28))
+    for r, fs in enumerate(fires):
+        for k, (d, interest, alive) in enumerate(fs):
+            obs[r, 2 + 5 * k:2 + 5 * k + 5] = [d, 1.0, interest, alive, 3.0]
+    m = len(fires)
+    return DecisionBatch(obs=obs, episode=np.zeros(m, int), agent=np.zeros(m, int),
+                         index=np.arange(m))
+
+
+FAR = [(0.5 + 0.1 * k, 0, 1) for k in range(5)]
+
+
+def test_nearest_policy():
+    batch = obs_rows([
+        [(0.0, 1, 1)] + FAR[1:],  # at a live fire, only itself interested: hold
+        [(0.0, 2, 1), (0.02, 0, 1)] + FAR[2:],  # another UAV there too: fly to the 2nd
+        [(0.0, 1, 0), (0.02, 1, 1), (0.03, 0, 1)] + FAR[3:],  # out, taken: the 3rd
+        [(0.3, 1, 1)] * 5,  # every fire has someone interested: random
+    ])
+    a = NearestPolicy(uniforms=lambda b: np.full((len(b), 2), 0.99))(batch)
+    assert a.tolist() == [HOLD, 1, 2, HOLD]  # u = 0.99 -> random action 5
+
+
+def test_flowchart_frequencies():
+    rng = np.random.default_rng(0)
+    n = 20000
+    alone = obs_rows([[(0.0, 1, 1)] + FAR[1:]] * n)
+    shared = obs_rows([[(0.0, 2, 1)] + FAR[1:]] * n)
+    away = obs_rows([FAR] * n)
+    pol = FlowchartPolicy(rng)
+    for batch, p in ((alone, FLOWCHART_HOLD_ALONE), (shared, FLOWCHART_HOLD_SHARED), (away, 0.0)):
+        a = pol(batch)
+        assert abs(np.mean(a == HOLD) - p) < 0.015
+        fly = a[a != HOLD]
+        freq = np.bincount(fly, minlength=5) / len(fly)
+        np.testing.assert_allclose(freq, FLOWCHART_TARGET, atol=0.015)
+
+
+def test_random_policy_is_uniform():
+    a = RandomPolicy(np.random.default_rng(1))(obs_rows([FAR] * 30000))
+    np.testing.assert_allclose(np.bincount(a, minlength=6) / len(a), 1 / 6, atol=0.01)
+
+
+def test_adr_is_the_mean_discounted_path_return():
+    # two paths: rewards (1 at t=0, 2 at t=10) and (4 at t=0)
+    r = Rollout(obs=np.zeros((3, 28)), actions=np.zeros(3, int), rewards=np.array([1., 2., 4.]),
+                durations=np.array([10., 5., 7.]), path_start=np.array([0, 2, 3]),
+                path_episode=np.zeros(2, int), path_agent=np.arange(2),
+                episode_return=np.zeros(1))
+    mean, err = adr(r, 0.02)
+    paths = np.array([1 + np.exp(-0.2) * 2, 4.0])
+    assert mean == pytest.approx(paths.mean())
+    assert err == pytest.approx(paths.std(ddof=1) / np.sqrt(2))
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "repro", "wildfire-eval", *args],
+                          capture_output=True, text=True)
+
+
+def test_cli_json():
+    res = cli("--policy", "nearest", "--sim", "fs", "--dt", "1", "--episodes", "20", "--json")
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    assert {"adr", "sem", "episodes", "decisions", "seconds"} <= set(out)
+    assert out["episodes"] == 20 and out["sim"] == "FS-1" and out["adr"] > 0
+
+
+@pytest.mark.parametrize("args", [
+    ("--policy", "greedy"), ("--policy", "nearest", "--engine", "gpu"),
+    ("--policy", "nearest", "--sim", "fs", "--dt", "0"),
+    ("--policy", "nearest", "--t-health", "-1"), ("--policy", "nearest", "--episodes", "0"),
+    ("--policy", "nearest", "--sim", "fs"), ("--policy", "nearest", "--dt", "1"),
+])
+def test_cli_bad_input(args, tmp_path, monkeypatch, capsys):
+    from repro.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(["wildfire-eval", *args])
+    except SystemExit as exit_:  # argparse's errors
+        code = exit_.code
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert out == "" and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_pettingzoo_api():
+    from pettingzoo.test import api_test
+
+    from repro.envs.wildfire.pettingzoo_env import env
+
+    api_test(env(WildfireConfig(dt=1.0)), num_cycles=200)
+
+
+def test_pettingzoo_rewards_match_the_reference():
+    """Driving the AEC env with an observation-driven policy reproduces the reference rollout of
+    the same episode: every decision's observation, reward and duration."""
+    from repro.envs.wildfire import make_reference_env
+    from repro.envs.wildfire.pettingzoo_env import env as make
+
+    policy = NearestPolicy(uniforms=lambda b: np.full((len(b), 2), 0.5))
+    e = make()
+    e.reset(seed=3)
+    rewards, durations, obs = [], [], []
+    for agent in e.agent_iter():
+        o, r, term, trunc, info = e.last()
+        if len(obs):  # the reward and duration of the agent's previous decision
+            rewards.append(r)
+            durations.append(info["duration"])
+        if term or trunc:
+            e.step(None)
+            continue
+        obs.append(o)
+        e.step(int(policy(DecisionBatch(o[None], np.zeros(1, int), np.zeros(1, int),
+                                        np.zeros(1, int)))[0]))
+    ref = make_reference_env(WildfireConfig()).rollout(
+        policy, 1, np.random.SeedSequence(3).spawn(1)[0])
+    assert ref.n_decisions == len(obs) > 3
+    assert sum(rewards) == pytest.approx(ref.rewards.sum())
+    assert sum(durations) == pytest.approx(ref.durations.sum())
+    order = np.argsort(ref.info["decision_time"], kind="stable")
+    np.testing.assert_allclose(np.sort(np.array(obs)[:, 0]), np.sort(ref.obs[order, 0]))
