@@ -1,0 +1,85 @@
+"""Many training runs at once: joblib worker processes by default, an existing Dask cluster when
+the user names one (``--scheduler tcp://host:port``).
+
+A sweep is a list of :class:`TrainJob`; each job trains into its own folder under the sweep's root,
+named after the job. Runs are checkpointed every epoch by the trainer, so re-running a sweep skips
+finished runs and resumes interrupted ones exactly where they stopped. Each job carries its own seed
+in its TrainConfig, so the results do not depend on the scheduler or on the order in which workers
+pick up jobs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from repro.core.errors import UsageError
+
+
+@dataclass(frozen=True)
+class TrainJob:
+    """One training run of a sweep."""
+
+    name: str
+    """Unique within the sweep; the run's folder name."""
+    train: Any
+    """The run's ``repro.learn.trainer.TrainConfig`` (carries env name, epochs and seed)."""
+    env_config: Any
+    """The environment package's config dataclass (e.g. ``WildfireConfig``)."""
+
+
+def run_dir(root: Path, job: TrainJob) -> Path:
+    return Path(root) / job.name
+
+
+def is_done(root: Path, job: TrainJob) -> bool:
+    """A run is done when its progress table holds every epoch the job asks for."""
+    prog = run_dir(root, job) / "progress.csv"
+    return prog.exists() and len(pd.read_csv(prog)) >= job.train.epochs
+
+
+def run_job(job: TrainJob, root: Path) -> str:
+    """Train (or resume) one job; runs in a worker process."""
+    os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
+    from repro.learn.trainer import Trainer, env_package
+
+    env = env_package(job.train.env).make_env(job.env_config)
+    Trainer(job.train, env, run_dir(root, job), env_config=job.env_config).train()
+    return job.name
+
+
+def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
+              scheduler: str | None = None) -> list[Path]:
+    """Run every job that is not done yet; returns every job's folder (in the order given)."""
+    names = [j.name for j in jobs]
+    if len(set(names)) != len(names):
+        raise ValueError("job names must be unique within a sweep")
+    pending = [j for j in jobs if not is_done(root, j)]
+    if pending and scheduler:
+        from dask.distributed import Client
+
+        with Client(scheduler) as client:
+            client.gather(client.map(run_job, pending, root=Path(root), pure=False))
+    elif pending:
+        from joblib import Parallel, delayed
+
+        workers = min(len(pending), n_jobs or os.cpu_count() or 1)
+        Parallel(n_jobs=workers, backend="loky")(delayed(run_job)(j, Path(root)) for j in pending)
+    return [run_dir(root, j) for j in jobs]
+
+
+def add_sweep_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--runs-dir", default="runs",
+                   help="folder of the sweep's run folders (checkpoints; re-running skips what is done)")
+    p.add_argument("--n-jobs", type=int, help="joblib worker processes (default: all cores)")
+    p.add_argument("--scheduler", help="address of an existing Dask scheduler to run on instead")
+
+
+def check_sweep_arguments(args: argparse.Namespace) -> None:
+    if args.n_jobs is not None and args.n_jobs < 1:
+        raise UsageError("--n-jobs", "an integer >= 1", args.n_jobs)
