@@ -125,13 +125,14 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, adv: 
         return (torch.exp(logp.gather(1, actions[:, None])[:, 0] - logp_old_a) * adv).mean()
 
     params = list(policy.parameters())
-    surr0 = surrogate(policy(obs))
-    grad = torch.cat([g.reshape(-1) for g in torch.autograd.grad(surr0, params)])
+    surr = surrogate(policy(obs))
+    grad = torch.cat([g.reshape(-1) for g in torch.autograd.grad(surr, params)])
+    surr0 = float(surr.detach())
     fvp = fisher_vector_product(policy, obs, cg_damping)
     direction = conjugate_gradient(fvp, grad, cg_iters)
     shs = float(direction @ fvp(direction))
     if not shs > 0.0:  # zero gradient (e.g. all advantages equal): nothing to do
-        return TRPOStats(0.0, entropy, float(surr0), float(surr0), 0, False)
+        return TRPOStats(0.0, entropy, surr0, surr0, 0, False)
     full_step = np.sqrt(2.0 * max_kl / shs) * direction
 
     def evaluate() -> tuple[float, float]:
@@ -139,6 +140,6 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, adv: 
             logp = policy(obs)
             return float(surrogate(logp)), float(mean_kl(logp_old, logp))
 
-    accepted, backtracks, surr, kl = line_search(policy, evaluate, full_step, float(surr0), max_kl,
-                                                 backtrack_ratio, max_backtracks)
-    return TRPOStats(kl, entropy, float(surr0), surr, backtracks, accepted)
+    accepted, backtracks, surr1, kl = line_search(policy, evaluate, full_step, surr0, max_kl,
+                                                  backtrack_ratio, max_backtracks)
+    return TRPOStats(kl, entropy, surr0, surr1, backtracks, accepted)
