@@ -12,7 +12,7 @@ ARGS   ?=
 TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup reproduce test claims table-race bench clean
+.PHONY: setup reproduce test claims table-race bench bench-learn clean
 .DEFAULT_GOAL := help
 
 help:
@@ -45,6 +45,9 @@ claims: $(STAMP) ## render paper_claims.md from results/
 
 table-race: $(STAMP) ## race-condition table and figure (C10)
 	$(REPRO) race --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS="--env wildfire")
+	$(REPRO) bench-learn --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -7,7 +7,9 @@ import pytest
 import torch
 from torch.nn.utils import parameters_to_vector, vector_to_parameters
 
-from repro.learn.policy import DTYPE, CategoricalPolicy
+from repro.learn.policy import CategoricalPolicy
+
+DTYPE = torch.float64
 from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, line_search, mean_kl,
                               normalize, trpo_step)
 
@@ -16,7 +18,8 @@ TRPO_KW = dict(max_kl=0.01, cg_iters=10, cg_damping=1e-5, backtrack_ratio=0.8, m
 
 def tiny_problem(seed: int, n: int = 64, obs_dim: int = 3, n_actions: int = 4, hidden=(5,)):
     torch.manual_seed(seed)
-    policy = CategoricalPolicy(obs_dim, n_actions, hidden)
+    # float64 (the trainer's networks are float32) so that comparisons can be tight
+    policy = CategoricalPolicy(obs_dim, n_actions, hidden).double()
     # a larger output gain than the default, so the policy is far from uniform and F non-trivial
     with torch.no_grad():
         policy.net[-1].weight.mul_(100.0)

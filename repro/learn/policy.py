@@ -1,8 +1,8 @@
 """The shared categorical MLP policy, the observation normaliser, and the sampler the engines call.
 
 Parameter sharing (PS-TRPO): every agent of every episode acts with the same network; the agent's own
-observation is its only input. Networks are float64 so that conjugate gradient and the KL line search
-work with exact-enough curvature, at a cost that the benchmark shows is small next to simulation.
+observation is its only input. Networks are float32 (3-4x faster than float64 on CPU, and what rllab
+and stable-baselines use); everything around them (returns, advantages, statistics) is float64.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from torch import nn
 
 from repro.core.rollout import DecisionBatch
 
-DTYPE = torch.float64
+DTYPE = torch.float32
 
 
 def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, out_gain: float) -> nn.Sequential:

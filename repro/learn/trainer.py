@@ -34,7 +34,7 @@ from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
 from repro.learn.baseline import ValueBaseline
 from repro.learn.m_gae import m_gae_paths
-from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.policy import DTYPE, CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn.trpo import normalize, trpo_step
 
 ENVS = ("toy", "wildfire", "bus")
@@ -170,11 +170,12 @@ class Trainer:
             values = self.baseline(obs).numpy()
         adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
         explained = 1.0 - np.var(ret - values) / np.var(ret) if np.var(ret) > 0 else 0.0
-        stats = trpo_step(self.policy, obs, torch.as_tensor(ro.actions), torch.as_tensor(normalize(adv)),
+        stats = trpo_step(self.policy, obs, torch.as_tensor(ro.actions),
+                          torch.as_tensor(normalize(adv), dtype=DTYPE),
                           max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
                           backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks)
         t2 = time.perf_counter()
-        baseline_loss = self.baseline.fit(obs, torch.as_tensor(ret))
+        baseline_loss = self.baseline.fit(obs, torch.as_tensor(ret, dtype=DTYPE))
         if cfg.normalize_obs:
             self.normalizer.update(ro.obs)
         t3 = time.perf_counter()
