@@ -86,16 +86,35 @@ class CategoricalPolicy(nn.Module):
 class Sampler:
     """The :data:`~repro.core.rollout.Policy` handed to an engine: one batched forward per
     DecisionBatch, then inverse-CDF sampling with one uniform per row from the trainer's Generator,
-    so the same generator state gives the same actions."""
+    so the same generator state gives the same actions.
+
+    Engines call it once per event, often for a single row, where torch's per-operation overhead
+    (tens of microseconds) would dominate; so the sampler evaluates a numpy snapshot of the network
+    and normaliser, taken when it is created (the policy is fixed during a rollout). The snapshot
+    computes in float64 and agrees with the torch network to float32 rounding.
+    """
 
     def __init__(self, policy: CategoricalPolicy, normalizer: ObsNormalizer,
                  rng: np.random.Generator):
-        self.policy, self.normalizer, self.rng = policy, normalizer, rng
+        linears = [m for m in policy.net if isinstance(m, nn.Linear)]
+        self.layers = [(m.weight.detach().double().numpy().T.copy(),
+                        m.bias.detach().double().numpy().copy()) for m in linears]
+        self.mean = normalizer.mean.copy()
+        self.scale = 1.0 / np.sqrt(normalizer.var + normalizer.eps)
+        self.rng = rng
+
+    def probabilities(self, obs: np.ndarray) -> np.ndarray:
+        """pi(. | o) for raw observations (N, obs_dim)."""
+        x = (obs - self.mean) * self.scale
+        for w, b in self.layers[:-1]:
+            x = np.tanh(x @ w + b)
+        w, b = self.layers[-1]
+        logits = x @ w + b
+        e = np.exp(logits - logits.max(axis=1, keepdims=True))
+        return e / e.sum(axis=1, keepdims=True)
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
-        with torch.inference_mode():
-            probs = self.policy(self.normalizer(batch.obs)).exp().numpy()
-        cdf = np.cumsum(probs, axis=1)
-        u = self.rng.random(len(probs)) * cdf[:, -1]
-        # the count of CDF entries <= u is the sampled action; clip guards u == cdf[-1] rounding
-        return np.minimum((cdf <= u[:, None]).sum(axis=1), probs.shape[1] - 1).astype(np.int64)
+        cdf = np.cumsum(self.probabilities(batch.obs), axis=1)
+        u = self.rng.random(len(cdf)) * cdf[:, -1]
+        # the number of CDF entries <= u is the sampled action; the min guards rounding at the top
+        return np.minimum((cdf <= u[:, None]).sum(axis=1), cdf.shape[1] - 1)
