@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def toy_policy_table(trainer: Trainer) -> np.ndarray:
     """pi(a | c) of the trained policy for both contexts."""
     with torch.no_grad():
-        return trainer.policy(trainer.normalizer(np.eye(toy.N_CONTEXTS))).exp().numpy()
+        z = trainer.normalizer(np.eye(toy.N_CONTEXTS))
+        return trainer.policy(torch.as_tensor(z, dtype=torch.float32)).exp().double().numpy()
 
 
 def test_reaches_toy_optimum():

@@ -61,8 +61,8 @@ class ObsNormalizer:
         self.var = m2 / total
         self.count = total
 
-    def __call__(self, x: np.ndarray) -> torch.Tensor:
-        return torch.as_tensor((x - self.mean) / np.sqrt(self.var + self.eps), dtype=DTYPE)
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return (x - self.mean) / np.sqrt(self.var + self.eps)
 
     def state_dict(self) -> dict:
         return {"count": self.count, "mean": self.mean.copy(), "var": self.var.copy()}

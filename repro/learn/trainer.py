@@ -32,7 +32,7 @@ from repro.core.errors import UsageError, require
 from repro.core.io import atomic_path, check_writable_dir, write_csv, write_json
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
-from repro.learn.baseline import ValueBaseline
+from repro.learn.baseline import BASELINES, make_baseline
 from repro.learn.m_gae import m_gae_paths
 from repro.learn.policy import DTYPE, CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn.trpo import normalize, trpo_step
@@ -67,10 +67,13 @@ class TrainConfig:
     """TRPO max step: bound on the mean KL between consecutive policies."""
     hidden: tuple[int, ...] = (32, 32)
     """Hidden layer sizes of the policy MLP (tanh)."""
+    baseline: str = "linear"
+    """Value baseline: "linear" (rllab's linear feature baseline, as the released implementation)
+    or "mlp" (see repro.learn.baseline)."""
     baseline_hidden: tuple[int, ...] = (32, 32)
-    """Hidden layer sizes of the value baseline MLP (tanh)."""
+    """Hidden layer sizes of the "mlp" baseline (tanh)."""
     baseline_iters: int = 20
-    """Full-batch L-BFGS iterations fitting the baseline each epoch."""
+    """Full-batch L-BFGS iterations fitting the "mlp" baseline each epoch."""
     cg_iters: int = 10
     """Conjugate-gradient iterations for the natural-gradient direction (rllab: 10)."""
     cg_damping: float = 1e-5
@@ -98,6 +101,8 @@ class TrainConfig:
         require(self.max_kl > 0, "--max-kl", "> 0", self.max_kl)
         require(len(self.hidden) >= 1 and min(self.hidden) >= 1, "--hidden",
                 "one or more positive layer sizes", list(self.hidden))
+        require(self.baseline in BASELINES, "--baseline", "one of " + ", ".join(BASELINES),
+                self.baseline)
         require(self.baseline_iters >= 1, "baseline_iters", "an integer >= 1", self.baseline_iters)
         require(self.cg_iters >= 1, "cg_iters", "an integer >= 1", self.cg_iters)
         require(self.cg_damping >= 0, "cg_damping", ">= 0", self.cg_damping)
@@ -151,7 +156,8 @@ class Trainer:
         torch.set_num_threads(1)
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
         self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden)
-        self.baseline = ValueBaseline(env.obs_dim, cfg.baseline_hidden, cfg.baseline_iters)
+        self.baseline = make_baseline(cfg.baseline, env.obs_dim, cfg.baseline_hidden,
+                                      cfg.baseline_iters)
         self.normalizer = ObsNormalizer(env.obs_dim)
         self.rng = np.random.default_rng(_stream(cfg.seed, _SAMPLER_STREAM))
         self.epoch = 0
@@ -165,17 +171,17 @@ class Trainer:
         ro = env.rollout(Sampler(self.policy, self.normalizer, self.rng), cfg.batch_episodes,
                          epoch_seed(cfg.seed, self.epoch))
         t1 = time.perf_counter()
-        obs = self.normalizer(ro.obs)
-        with torch.no_grad():
-            values = self.baseline(obs).numpy()
+        z = self.normalizer(ro.obs)
+        index = np.arange(ro.n_decisions) - np.repeat(ro.path_start[:-1], np.diff(ro.path_start))
+        values = self.baseline.predict(z, index)
         adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
         explained = 1.0 - np.var(ret - values) / np.var(ret) if np.var(ret) > 0 else 0.0
-        stats = trpo_step(self.policy, obs, torch.as_tensor(ro.actions),
+        stats = trpo_step(self.policy, torch.as_tensor(z, dtype=DTYPE), torch.as_tensor(ro.actions),
                           torch.as_tensor(normalize(adv), dtype=DTYPE),
                           max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
                           backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks)
         t2 = time.perf_counter()
-        baseline_loss = self.baseline.fit(obs, torch.as_tensor(ret, dtype=DTYPE))
+        baseline_loss = self.baseline.fit(z, index, ret)
         if cfg.normalize_obs:
             self.normalizer.update(ro.obs)
         t3 = time.perf_counter()
@@ -303,6 +309,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--lam", type=float, help="M-GAE lambda (wildfire 1.0, bus 2.0)")
     p.add_argument("--max-kl", type=float, help="TRPO max step (0.01)")
     p.add_argument("--hidden", type=int, nargs="+", help="policy hidden sizes (32 32)")
+    p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
     p.add_argument("--no-obs-norm", action="store_true", help="switch off observation normalisation")
 
 
@@ -320,7 +327,7 @@ def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainCon
     pkg = env_package(args.env)
     cfg = train_config(args.scale, args.env, seed=args.seed, epochs=args.epochs,
                        batch_episodes=args.batch_episodes, lam=args.lam, max_kl=args.max_kl,
-                       hidden=tuple(args.hidden) if args.hidden else None,
+                       hidden=tuple(args.hidden) if args.hidden else None, baseline=args.baseline,
                        normalize_obs=False if args.no_obs_norm else None, **overrides)
     env_cfg = pkg.config_from_args(args)
     return cfg, pkg.make_env(env_cfg), env_cfg
