@@ -15,6 +15,7 @@ import torch
 
 from repro.cli import main
 from repro.envs import toy
+from repro.learn.policy import Sampler
 from repro.learn.trainer import (CHECKPOINT, TIMING_COLUMNS, Trainer, load_checkpoint,
                                  policy_from_checkpoint, train_config)
 
@@ -159,13 +160,8 @@ def test_wildfire_trained_policy_beats_random():
     trainer = Trainer(train_config("quick", "wildfire", epochs=10, batch_episodes=60, seed=0), env)
     trainer.train()
     rng = np.random.default_rng(1)
-    trained = env.rollout(policy_from_checkpoint_like(trainer, rng), 300, 12345)
+    trained = env.rollout(Sampler(trainer.policy, trainer.normalizer, rng), 300, 12345)
     random = env.rollout(lambda b: rng.integers(0, env.n_actions, len(b)), 300, 12345)
     assert (trained.discounted_path_returns(env.gamma).mean()
             > random.discounted_path_returns(env.gamma).mean())
 
-
-def policy_from_checkpoint_like(trainer: Trainer, rng: np.random.Generator):
-    from repro.learn.policy import Sampler
-
-    return Sampler(trainer.policy, trainer.normalizer, rng)

@@ -1,8 +1,8 @@
 """PS-TRPO with M-GAE: the training loop and the ``train`` command (SPEC section 4).
 
 One epoch = sample ``batch_episodes`` whole episodes with the current shared policy, compute M-GAE
-advantages with the current baseline, take one TRPO step, fit the baseline to the batch's discounted
-returns, then update the observation normaliser. After every epoch the run folder gets an atomically
+advantages with the current baseline, take one TRPO step, update the observation normaliser, then fit
+the baseline to the batch's discounted returns (in the new normalisation, which it will be used with). After every epoch the run folder gets an atomically
 written checkpoint and ``progress.csv``; running the same command again resumes from the checkpoint
 and ends with exactly the parameters of an uninterrupted run.
 
@@ -181,9 +181,11 @@ class Trainer:
                           max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
                           backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks)
         t2 = time.perf_counter()
-        baseline_loss = self.baseline.fit(z, index, ret)
+        # the normaliser moves on first, so that the baseline is fitted in the coordinates in which
+        # it will predict the next batch's values
         if cfg.normalize_obs:
             self.normalizer.update(ro.obs)
+        baseline_loss = self.baseline.fit(self.normalizer(ro.obs), index, ret)
         t3 = time.perf_counter()
         row = dict(
             epoch=self.epoch,
