@@ -6,10 +6,8 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
-from typing import Any, ClassVar
 from dataclasses import dataclass
-
-import pandas as pd
+from typing import Any, ClassVar
 
 from repro.cli import add_common
 from repro.core.config import for_scale
@@ -20,6 +18,8 @@ from repro.learn import trainer
 
 @dataclass(frozen=True)
 class BenchConfig:
+    """Size of the timing run."""
+
     episodes: int = 1000
     """Episodes per epoch."""
     epochs: int = 3
@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     table = frame[["epoch", "batch_episodes", "decisions", *trainer.TIMING_COLUMNS]].copy()
     table.insert(0, "env", args.env)
     table["update_share"] = table.seconds_update / (table.seconds_sim + table.seconds_update)
-    prov = provenance({"bench": cfg, "train": train_cfg, "env": trainer._as_dict(env_cfg)},
+    prov = provenance({"bench": cfg, "train": train_cfg, "env": trainer.config_dict(env_cfg)},
                       command="bench-learn", scale=args.scale, seed=args.seed, wall_seconds=wall)
     write_result(results / "bench_learn.csv", table, prov)
     print(table.to_string(index=False))

@@ -152,7 +152,7 @@ class Trainer:
         require(env.gamma > 0, "gamma", "> 0", env.gamma)
         self.cfg, self.env = cfg, env
         self.out = None if out is None else Path(out)
-        self.run_config = {"train": to_dict(cfg), "env": _as_dict(env_config), "env_name": env.name}
+        self.run_config = {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env.name}
         torch.set_num_threads(1)
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
         self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden)
@@ -291,7 +291,8 @@ def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sample
     return Sampler(policy, normalizer, rng)
 
 
-def _as_dict(cfg: Any) -> Any:
+def config_dict(cfg: Any) -> Any:
+    """A dataclass config as a dict (other configs unchanged), for config.json and sidecars."""
     return to_dict(cfg) if dataclasses.is_dataclass(cfg) else cfg
 
 
