@@ -13,7 +13,7 @@ TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
 .PHONY: setup reproduce test claims table-race table-thresholds fig-bus-arrivals fig-bus-load \
-	bench-bus bench-wildfire wildfire-eval clean
+	bench-bus bench-wildfire wildfire-eval bench-learn clean
 .DEFAULT_GOAL := help
 
 help:
@@ -67,6 +67,9 @@ bench-wildfire: $(STAMP) ## decisions/s of the fast and SimPy wildfire engines (
 
 wildfire-eval: $(STAMP) ## ADR of a heuristic wildfire policy (ARGS="--policy flowchart ...")
 	$(REPRO) wildfire-eval --seed $(SEED) $(ARGS)
+
+bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS="--env wildfire")
+	$(REPRO) bench-learn --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -25,6 +25,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench-wildfire": ("repro.experiments.bench_wildfire",
                        "decisions/s of the fast and SimPy wildfire engines (MLP policy)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
+    "train": ("repro.learn.trainer", "train a shared policy with PS-TRPO and M-GAE"),
+    "bench-learn": ("repro.learn.bench", "seconds per training epoch: simulation vs update"),
 }
 """command -> (module, one-line description)."""
 
@@ -60,9 +62,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     module = importlib.import_module(COMMANDS[name][0])
     parser = OneLineParser(prog=f"repro {name}", description=COMMANDS[name][1])
-    module.add_arguments(parser)
-    args = parser.parse_args(argv[1:])
     try:
+        module.add_arguments(parser)
+        # options that depend on other options (train: the chosen environment's own options)
+        if hasattr(module, "extend_arguments"):
+            module.extend_arguments(parser, argv[1:])
+        args = parser.parse_args(argv[1:])
         return int(module.run(args) or 0)
     except UsageError as err:
         print(f"repro {name}: error: {err}", file=sys.stderr)

@@ -1,0 +1,76 @@
+"""M-GAE: generalized advantage estimation for macro-actions of random durations (SPEC section 4).
+
+For one agent's path with rewards r_k, durations dt_k and baseline values V_k = V(o_k):
+
+    delta_k = r_k + exp(-gamma dt_k) V_{k+1} - V_k          (V_n = value after the last decision)
+    A_k     = sum_l exp(-gamma lam (T_{k+l} - T_k)) delta_{k+l},   T_k = dt_0 + ... + dt_{k-1}
+    R_k     = sum_l exp(-gamma (T_{k+l} - T_k)) r_{k+l} + exp(-gamma (T_n - T_k)) V_n
+
+R_k (the discounted return-to-go) is the baseline's regression target. With every dt_k = 1 this is
+standard GAE with discrete discount gamma_d = e^-gamma and gamma_d lambda_d = e^-(gamma lam), i.e.
+lambda_d = e^-(gamma (lam - 1)); in particular lam = 1 gives lambda_d = 1 in both conventions.
+(The released implementation discounts the same way: exp(-gamma dt) and exp(-gamma lam dt).)
+
+:func:`m_gae` is the reference for one path, written as the paper's sums over decision times.
+:func:`m_gae_paths` is the fast form the trainer uses: the equivalent backward recursions
+A_k = delta_k + exp(-gamma lam dt_k) A_{k+1} and R_k = r_k + exp(-gamma dt_k) R_{k+1}, run over
+every path of a rollout in one compiled loop.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+def m_gae(rewards: np.ndarray, durations: np.ndarray, values: np.ndarray, last_value: float,
+          gamma: float, lam: float) -> tuple[np.ndarray, np.ndarray]:
+    """Advantages and discounted returns of ONE agent's path (see the module docstring).
+
+    ``values[k]`` = V(o_k); ``last_value`` = V after the last decision (0 when the episode ended).
+    """
+    r = np.asarray(rewards, dtype=float)
+    dt = np.asarray(durations, dtype=float)
+    v = np.append(np.asarray(values, dtype=float), last_value)
+    t = np.concatenate([[0.0], np.cumsum(dt)])  # T_0..T_n
+    deltas = r + np.exp(-gamma * dt) * v[1:] - v[:-1]
+    elapsed = np.maximum(t[None, :-1] - t[:-1, None], 0.0)  # [k, l] = T_l - T_k for l >= k
+    adv = np.triu(np.exp(-gamma * lam * elapsed)) @ deltas
+    ret = np.triu(np.exp(-gamma * elapsed)) @ r + np.exp(-gamma * (t[-1] - t[:-1])) * last_value
+    return adv, ret
+
+
+@numba.njit(cache=True)
+def _m_gae_kernel(rewards, durations, values, path_start, last_values, gamma, lam):
+    n = rewards.shape[0]
+    adv = np.empty(n)
+    ret = np.empty(n)
+    for p in range(path_start.shape[0] - 1):
+        a = 0.0
+        g = last_values[p]
+        v_next = last_values[p]
+        for k in range(path_start[p + 1] - 1, path_start[p] - 1, -1):
+            dt = durations[k]
+            delta = rewards[k] + np.exp(-gamma * dt) * v_next - values[k]
+            a = delta + np.exp(-gamma * lam * dt) * a
+            g = rewards[k] + np.exp(-gamma * dt) * g
+            adv[k] = a
+            ret[k] = g
+            v_next = values[k]
+    return adv, ret
+
+
+def m_gae_paths(rewards: np.ndarray, durations: np.ndarray, values: np.ndarray,
+                path_start: np.ndarray, gamma: float, lam: float,
+                last_values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`m_gae` for every path of a rollout at once (decisions of path p are
+    ``path_start[p]:path_start[p+1]``); ``last_values`` default to 0 (every path ran to the end of
+    its episode)."""
+    path_start = np.asarray(path_start, dtype=np.int64)
+    if last_values is None:
+        last_values = np.zeros(len(path_start) - 1)
+    return _m_gae_kernel(np.ascontiguousarray(rewards, dtype=np.float64),
+                         np.ascontiguousarray(durations, dtype=np.float64),
+                         np.ascontiguousarray(values, dtype=np.float64), path_start,
+                         np.ascontiguousarray(last_values, dtype=np.float64), float(gamma),
+                         float(lam))

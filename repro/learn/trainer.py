@@ -1,0 +1,346 @@
+"""PS-TRPO with M-GAE: the training loop and the ``train`` command (SPEC section 4).
+
+One epoch = sample ``batch_episodes`` whole episodes with the current shared policy, compute M-GAE
+advantages with the current baseline, take one TRPO step, update the observation normaliser, then fit
+the baseline to the batch's discounted returns (in the new normalisation, which it will be used with). After every epoch the run folder gets an atomically
+written checkpoint and ``progress.csv``; running the same command again resumes from the checkpoint
+and ends with exactly the parameters of an uninterrupted run.
+
+Determinism: torch runs on one thread and is seeded from the run seed; the policy's sampling draws
+come from one numpy Generator owned by the trainer (its state is checkpointed); epoch e's environment
+seed is derived from (seed, e). Timing columns are the only run-to-run differences in the outputs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import Any, ClassVar
+
+import numpy as np
+import pandas as pd
+import torch
+
+from repro.core.config import SCALES, to_dict
+from repro.core.errors import UsageError, require
+from repro.core.io import atomic_path, check_writable_dir, write_csv, write_json
+from repro.core.progress import progress
+from repro.core.rollout import BatchEnv
+from repro.learn.baseline import BASELINES, make_baseline
+from repro.learn.m_gae import m_gae_paths
+from repro.learn.policy import DTYPE, CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.trpo import normalize, trpo_step
+
+ENVS = ("toy", "wildfire", "bus")
+"""Environment packages ``repro.envs.<name>`` that ``--env`` accepts (imported lazily)."""
+
+ENV_DEFAULTS: dict[str, dict[str, Any]] = {
+    "toy": dict(lam=1.0, batch_episodes=50, epochs=40),
+    "wildfire": dict(lam=1.0, batch_episodes=600, epochs=300),  # paper: 600-1200 episodes, 300 epochs
+    "bus": dict(lam=2.0, batch_episodes=540, epochs=300),  # paper: lambda 2.0, 540 episodes
+}
+"""Per-environment defaults (the paper's settings), applied under the scale and the command line."""
+
+# Independent child streams of the run seed.
+_TORCH_STREAM, _SAMPLER_STREAM, _ENV_STREAM = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Hyperparameters of one PS-TRPO + M-GAE run."""
+
+    env: str = "toy"
+    """Environment package under repro.envs."""
+    epochs: int = 40
+    """Policy updates; each samples a fresh batch."""
+    batch_episodes: int = 50
+    """Whole episodes simulated per epoch (the paper counts batches in episodes)."""
+    lam: float = 1.0
+    """M-GAE lambda: advantages discount deltas by exp(-gamma lam dt) per macro-action."""
+    max_kl: float = 0.01
+    """TRPO max step: bound on the mean KL between consecutive policies."""
+    hidden: tuple[int, ...] = (32, 32)
+    """Hidden layer sizes of the policy MLP (tanh)."""
+    baseline: str = "linear"
+    """Value baseline: "linear" (rllab's linear feature baseline, as the released implementation)
+    or "mlp" (see repro.learn.baseline)."""
+    baseline_hidden: tuple[int, ...] = (32, 32)
+    """Hidden layer sizes of the "mlp" baseline (tanh)."""
+    baseline_iters: int = 20
+    """Full-batch L-BFGS iterations fitting the "mlp" baseline each epoch."""
+    cg_iters: int = 10
+    """Conjugate-gradient iterations for the natural-gradient direction (rllab: 10)."""
+    cg_damping: float = 1e-5
+    """Multiple of the identity added to the Fisher matrix (rllab's reg_coeff)."""
+    backtrack_ratio: float = 0.8
+    """Line-search shrink factor (rllab: 0.8)."""
+    max_backtracks: int = 15
+    """Line-search tries before the step is rejected (rllab: 15)."""
+    normalize_obs: bool = True
+    """Running mean/std observation normalisation (frozen within a batch)."""
+    seed: int = 0
+    """Root of every random stream of the run."""
+
+    SCALES: ClassVar[dict[str, dict[str, Any]]] = {
+        "smoke": dict(epochs=2, batch_episodes=8),
+        "quick": {},
+        "paper": {},
+    }
+
+    def validate(self) -> None:
+        require(self.env in ENVS, "--env", "one of " + ", ".join(ENVS), self.env)
+        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
+        require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1", self.batch_episodes)
+        require(self.lam >= 0, "--lam", ">= 0", self.lam)
+        require(self.max_kl > 0, "--max-kl", "> 0", self.max_kl)
+        require(len(self.hidden) >= 1 and min(self.hidden) >= 1, "--hidden",
+                "one or more positive layer sizes", list(self.hidden))
+        require(self.baseline in BASELINES, "--baseline", "one of " + ", ".join(BASELINES),
+                self.baseline)
+        require(self.baseline_iters >= 1, "baseline_iters", "an integer >= 1", self.baseline_iters)
+        require(self.cg_iters >= 1, "cg_iters", "an integer >= 1", self.cg_iters)
+        require(self.cg_damping >= 0, "cg_damping", ">= 0", self.cg_damping)
+        require(0 < self.backtrack_ratio < 1, "backtrack_ratio", "in (0, 1)", self.backtrack_ratio)
+        require(self.max_backtracks >= 1, "max_backtracks", "an integer >= 1", self.max_backtracks)
+
+
+def train_config(scale: str, env: str, **overrides: Any) -> TrainConfig:
+    """The config at ``scale`` for ``env``: env defaults, then the scale, then explicit overrides
+    (``None`` means not given)."""
+    require(scale in SCALES, "--scale", "one of " + ", ".join(SCALES), scale)
+    require(env in ENVS, "--env", "one of " + ", ".join(ENVS), env)
+    fields = {**ENV_DEFAULTS[env], **TrainConfig.SCALES[scale], "env": env}
+    fields.update({k: v for k, v in overrides.items() if v is not None})
+    cfg = TrainConfig(**fields)
+    cfg.validate()
+    return cfg
+
+
+def env_package(name: str) -> ModuleType:
+    """``repro.envs.<name>``, imported only when asked for, so training works with whichever
+    environment packages exist."""
+    require(name in ENVS, "--env", "one of " + ", ".join(ENVS), name)
+    try:
+        return importlib.import_module(f"repro.envs.{name}")
+    except ModuleNotFoundError as err:
+        if err.name not in (f"repro.envs.{name}", "repro.envs"):
+            raise
+        raise UsageError("--env", "an installed environment package", name) from None
+
+
+def _stream(seed: int, *key: int) -> np.random.SeedSequence:
+    return np.random.SeedSequence(seed, spawn_key=key)
+
+
+def epoch_seed(seed: int, epoch: int) -> np.random.SeedSequence:
+    """The environment seed of ``epoch`` (0-based) of a run with root ``seed``."""
+    return _stream(seed, _ENV_STREAM, epoch)
+
+
+class Trainer:
+    """Owns the policy, baseline, normaliser and sampling generator of one run."""
+
+    def __init__(self, cfg: TrainConfig, env: BatchEnv, out: str | Path | None = None,
+                 env_config: Any = None):
+        cfg.validate()
+        require(env.gamma > 0, "gamma", "> 0", env.gamma)
+        self.cfg, self.env = cfg, env
+        self.out = None if out is None else Path(out)
+        self.run_config = {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env.name}
+        torch.set_num_threads(1)
+        torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
+        self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden)
+        self.baseline = make_baseline(cfg.baseline, env.obs_dim, cfg.baseline_hidden,
+                                      cfg.baseline_iters)
+        self.normalizer = ObsNormalizer(env.obs_dim)
+        self.rng = np.random.default_rng(_stream(cfg.seed, _SAMPLER_STREAM))
+        self.epoch = 0
+        self.rows: list[dict[str, Any]] = []
+
+    # --- one epoch -------------------------------------------------------------------------------
+
+    def run_epoch(self) -> dict[str, Any]:
+        cfg, env = self.cfg, self.env
+        t0 = time.perf_counter()
+        ro = env.rollout(Sampler(self.policy, self.normalizer, self.rng), cfg.batch_episodes,
+                         epoch_seed(cfg.seed, self.epoch))
+        t1 = time.perf_counter()
+        z = self.normalizer(ro.obs)
+        index = np.arange(ro.n_decisions) - np.repeat(ro.path_start[:-1], np.diff(ro.path_start))
+        values = self.baseline.predict(z, index)
+        adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
+        explained = 1.0 - np.var(ret - values) / np.var(ret) if np.var(ret) > 0 else 0.0
+        stats = trpo_step(self.policy, torch.as_tensor(z, dtype=DTYPE), torch.as_tensor(ro.actions),
+                          torch.as_tensor(normalize(adv), dtype=DTYPE),
+                          max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
+                          backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks)
+        t2 = time.perf_counter()
+        # the normaliser moves on first, so that the baseline is fitted in the coordinates in which
+        # it will predict the next batch's values
+        if cfg.normalize_obs:
+            self.normalizer.update(ro.obs)
+        baseline_loss = self.baseline.fit(self.normalizer(ro.obs), index, ret)
+        t3 = time.perf_counter()
+        row = dict(
+            epoch=self.epoch,
+            average_return=float(ro.episode_return.mean()),
+            average_discounted_return=float(ro.discounted_path_returns(env.gamma).mean()),
+            kl=stats.kl, entropy=stats.entropy, surrogate_before=stats.surrogate_before,
+            surrogate_after=stats.surrogate_after, backtracks=stats.backtracks,
+            accepted=int(stats.accepted), explained_variance=float(explained),
+            baseline_loss=baseline_loss, batch_episodes=cfg.batch_episodes,
+            decisions=ro.n_decisions,
+            seconds_sim=t1 - t0, seconds_trpo=t2 - t1, seconds_baseline=t3 - t2,
+            seconds_update=t3 - t1,
+        )
+        self.epoch += 1
+        return row
+
+    def train(self) -> pd.DataFrame:
+        """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table."""
+        if self.out is not None:
+            self._start_or_resume()
+        for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
+                          total=self.cfg.epochs - self.epoch):
+            t0 = time.perf_counter()
+            row = self.run_epoch()
+            row["seconds"] = time.perf_counter() - t0
+            self.rows.append(row)
+            if self.out is not None:
+                self.save_checkpoint(self.out / CHECKPOINT)
+                write_csv(self.out / "progress.csv", self.progress())
+        return self.progress()
+
+    def progress(self) -> pd.DataFrame:
+        return pd.DataFrame(self.rows, columns=PROGRESS_COLUMNS)
+
+    # --- checkpoints -----------------------------------------------------------------------------
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "epoch": self.epoch,
+            "policy": self.policy.state_dict(),
+            "baseline": self.baseline.state_dict(),
+            "normalizer": self.normalizer.state_dict(),
+            "sampler_rng": self.rng.bit_generator.state,
+            "torch_rng": torch.get_rng_state(),
+            "rows": self.rows,
+            "run_config": self.run_config,
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.epoch = int(state["epoch"])
+        self.policy.load_state_dict(state["policy"])
+        self.baseline.load_state_dict(state["baseline"])
+        self.normalizer.load_state_dict(state["normalizer"])
+        self.rng.bit_generator.state = state["sampler_rng"]
+        torch.set_rng_state(state["torch_rng"])
+        self.rows = [dict(r) for r in state["rows"]]
+
+    def save_checkpoint(self, path: Path) -> None:
+        with atomic_path(path) as tmp:
+            torch.save(self.state_dict(), tmp)
+
+    def _start_or_resume(self) -> None:
+        """Write config.json, or check it against the run already in ``out`` and load its
+        checkpoint. Only ``epochs`` may differ (to extend or finish a run)."""
+        assert self.out is not None
+        config_path = self.out / "config.json"
+        if config_path.exists():
+            saved = json.loads(config_path.read_text())
+            mine = json.loads(json.dumps(self.run_config, default=str))
+            if _without_epochs(saved) != _without_epochs(mine):
+                raise UsageError("--out", "empty or holding a run with the same settings",
+                                 str(self.out))
+        write_json(config_path, self.run_config)
+        if (self.out / CHECKPOINT).exists():
+            self.load_state_dict(load_checkpoint(self.out / CHECKPOINT))
+
+
+CHECKPOINT = "checkpoint.pt"
+PROGRESS_COLUMNS = [
+    "epoch", "average_return", "average_discounted_return", "kl", "entropy", "surrogate_before",
+    "surrogate_after", "backtracks", "accepted", "explained_variance", "baseline_loss",
+    "batch_episodes", "decisions", "seconds_sim", "seconds_trpo", "seconds_baseline",
+    "seconds_update", "seconds",
+]
+TIMING_COLUMNS = [c for c in PROGRESS_COLUMNS if c.startswith("seconds")]
+
+
+def load_checkpoint(path: str | Path) -> dict[str, Any]:
+    # weights_only=False: the file holds numpy RNG state and plain rows, and is written by this code
+    return torch.load(path, weights_only=False)
+
+
+def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sampler:
+    """The trained policy of a run folder's checkpoint, ready to hand to an engine."""
+    state = load_checkpoint(path)
+    cfg = state["run_config"]["train"]
+    obs_dim = len(state["normalizer"]["mean"])
+    n_actions = state["policy"][next(reversed(state["policy"]))].shape[0]
+    policy = CategoricalPolicy(obs_dim, n_actions, cfg["hidden"])
+    policy.load_state_dict(state["policy"])
+    normalizer = ObsNormalizer(obs_dim)
+    normalizer.load_state_dict(state["normalizer"])
+    return Sampler(policy, normalizer, rng)
+
+
+def config_dict(cfg: Any) -> Any:
+    """A dataclass config as a dict (other configs unchanged), for config.json and sidecars."""
+    return to_dict(cfg) if dataclasses.is_dataclass(cfg) else cfg
+
+
+def _without_epochs(run_config: dict) -> dict:
+    return {**run_config, "train": {k: v for k, v in run_config["train"].items() if k != "epochs"}}
+
+
+# --- command line --------------------------------------------------------------------------------
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--env", required=True, help="environment: " + ", ".join(ENVS))
+    p.add_argument("--scale", default="quick", help="one of " + ", ".join(SCALES))
+    p.add_argument("--seed", type=int, default=0, help="root seed of every random stream")
+    p.add_argument("--out", help="run folder (default runs/<env>/seed<seed>); rerun to resume")
+    p.add_argument("--epochs", type=int, help="policy updates")
+    p.add_argument("--batch-episodes", type=int, help="episodes per epoch")
+    p.add_argument("--lam", type=float, help="M-GAE lambda (wildfire 1.0, bus 2.0)")
+    p.add_argument("--max-kl", type=float, help="TRPO max step (0.01)")
+    p.add_argument("--hidden", type=int, nargs="+", help="policy hidden sizes (32 32)")
+    p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
+    p.add_argument("--no-obs-norm", action="store_true", help="switch off observation normalisation")
+
+
+def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
+    """Add the chosen environment's own options (``--env`` decides which)."""
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--env")
+    name = pre.parse_known_args(argv)[0].env
+    if name is not None:
+        env_package(name).add_env_arguments(p)
+
+
+def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainConfig, BatchEnv, Any]:
+    """Train config, environment and environment config from parsed ``train``-style options."""
+    pkg = env_package(args.env)
+    cfg = train_config(args.scale, args.env, seed=args.seed, epochs=args.epochs,
+                       batch_episodes=args.batch_episodes, lam=args.lam, max_kl=args.max_kl,
+                       hidden=tuple(args.hidden) if args.hidden else None, baseline=args.baseline,
+                       normalize_obs=False if args.no_obs_norm else None, **overrides)
+    env_cfg = pkg.config_from_args(args)
+    return cfg, pkg.make_env(env_cfg), env_cfg
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg, env, env_cfg = make_from_args(args)
+    out = check_writable_dir(args.out or f"runs/{cfg.env}/seed{cfg.seed}", "--out")
+    frame = Trainer(cfg, env, out, env_cfg).train()
+    last = frame.iloc[-1]
+    print(f"{cfg.env}: {len(frame)} epochs, average return {last.average_return:.6g}, "
+          f"average discounted return {last.average_discounted_return:.6g} -> {out}")
+    return 0

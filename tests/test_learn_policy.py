@@ -1,0 +1,70 @@
+"""The shared policy's sampler and the observation normaliser."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from repro.core.rollout import DecisionBatch
+from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+
+
+def batch(obs: np.ndarray) -> DecisionBatch:
+    m = len(obs)
+    return DecisionBatch(obs=obs, episode=np.arange(m), agent=np.zeros(m, np.int64),
+                         index=np.zeros(m, np.int64))
+
+
+def test_normalizer_equals_moments_of_everything_seen():
+    rng = np.random.default_rng(0)
+    chunks = [rng.normal(3.0, 5.0, size=(n, 4)) * [1, 1e4, 1e-2, 0] for n in (7, 100, 1, 30)]
+    norm = ObsNormalizer(4)
+    for c in chunks:
+        norm.update(c)
+    every = np.concatenate(chunks)
+    np.testing.assert_allclose(norm.mean, every.mean(axis=0), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(norm.var, every.var(axis=0), rtol=1e-10, atol=1e-12)
+    z = norm(every)
+    np.testing.assert_allclose(z[:, :3].std(axis=0), 1.0, rtol=1e-5)
+    assert np.all(z[:, 3] == 0.0)  # a constant feature maps to 0
+
+
+def test_sampler_matches_network_and_its_probabilities():
+    torch.manual_seed(0)
+    policy = CategoricalPolicy(3, 4, (16, 16))
+    with torch.no_grad():
+        policy.net[-1].weight.mul_(50.0)  # a clearly non-uniform policy
+    norm = ObsNormalizer(3)
+    norm.update(np.random.default_rng(1).normal(size=(20, 3)) * 10)
+    obs = np.array([[1.0, -2.0, 5.0]])
+    sampler = Sampler(policy, norm, np.random.default_rng(2))
+    with torch.no_grad():
+        expected = policy(torch.as_tensor(norm(obs), dtype=torch.float32)).exp().double().numpy()
+    np.testing.assert_allclose(sampler.probabilities(obs), expected, atol=1e-6)
+    n = 40_000
+    actions = sampler(batch(np.repeat(obs, n, axis=0)))
+    freq = np.bincount(actions, minlength=4) / n
+    assert np.all(np.abs(freq - expected[0]) < 4 * np.sqrt(expected[0] * (1 - expected[0]) / n) + 1e-9)
+    # the generator alone decides the draws
+    again = Sampler(policy, norm, np.random.default_rng(2))(batch(np.repeat(obs, n, axis=0)))
+    np.testing.assert_array_equal(actions, again)
+
+
+def test_linear_baseline_recovers_linear_features_and_mlp_fits():
+    from repro.learn.baseline import LinearFeatureBaseline, MLPBaseline
+
+    rng = np.random.default_rng(0)
+    obs, index = rng.normal(size=(500, 3)), rng.integers(0, 50, 500)
+    feats = LinearFeatureBaseline.features(obs, index)
+    truth = rng.normal(size=feats.shape[1])
+    lin = LinearFeatureBaseline(3)
+    assert np.all(lin.predict(obs, index) == 0.0)
+    assert lin.fit(obs, index, feats @ truth) < 1e-10
+    new_obs, new_index = rng.normal(size=(50, 3)), rng.integers(0, 50, 50)
+    expected = LinearFeatureBaseline.features(new_obs, new_index) @ truth
+    np.testing.assert_allclose(lin.predict(new_obs, new_index), expected, rtol=1e-4, atol=1e-4)
+    torch.manual_seed(0)
+    net = MLPBaseline(3, (16,), iters=50)
+    assert np.all(net.predict(obs, index) == 0.0)
+    target = 1e4 + 3e3 * np.sin(obs[:, 0])  # bus-like scale
+    assert net.fit(obs, index, target) < 0.05

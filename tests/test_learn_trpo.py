@@ -1,0 +1,134 @@
+"""The pieces of the TRPO step: conjugate gradient, Fisher-vector product, line search, KL bound."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from torch.nn.utils import parameters_to_vector, vector_to_parameters
+
+from repro.learn.policy import CategoricalPolicy
+
+DTYPE = torch.float64
+from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, line_search, mean_kl,
+                              normalize, trpo_step)
+
+TRPO_KW = dict(max_kl=0.01, cg_iters=10, cg_damping=1e-5, backtrack_ratio=0.8, max_backtracks=15)
+
+
+def tiny_problem(seed: int, n: int = 64, obs_dim: int = 3, n_actions: int = 4, hidden=(5,)):
+    torch.manual_seed(seed)
+    # float64 (the trainer's networks are float32) so that comparisons can be tight
+    policy = CategoricalPolicy(obs_dim, n_actions, hidden).double()
+    # a larger output gain than the default, so the policy is far from uniform and F non-trivial
+    with torch.no_grad():
+        policy.net[-1].weight.mul_(100.0)
+    g = torch.Generator().manual_seed(seed)
+    obs = torch.randn(n, obs_dim, generator=g, dtype=DTYPE)
+    actions = torch.randint(0, n_actions, (n,), generator=g)
+    adv = torch.as_tensor(normalize(torch.randn(n, generator=g, dtype=DTYPE).numpy()))
+    return policy, obs, actions, adv
+
+
+def test_conjugate_gradient_solves_spd_system():
+    rng = np.random.default_rng(0)
+    m = rng.normal(size=(12, 12))
+    a = torch.as_tensor(m @ m.T + 0.5 * np.eye(12))
+    b = torch.as_tensor(rng.normal(size=12))
+    x = conjugate_gradient(lambda v: a @ v, b, iters=40, residual_tol=1e-24)
+    np.testing.assert_allclose((a @ x).numpy(), b.numpy(), atol=1e-8)
+    # fewer iterations: an approximation whose residual is smaller than b's
+    x3 = conjugate_gradient(lambda v: a @ v, b, iters=3)
+    assert torch.linalg.norm(a @ x3 - b) < torch.linalg.norm(b)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_fvp_matches_explicit_hessian_of_mean_kl(seed):
+    policy, obs, _, _ = tiny_problem(seed)
+    theta0 = parameters_to_vector(policy.parameters()).detach().clone()
+    with torch.no_grad():
+        logp_old = policy(obs)
+
+    def kl_of(theta: torch.Tensor) -> torch.Tensor:
+        params, i = {}, 0
+        for name, p in policy.named_parameters():
+            params[name] = theta[i:i + p.numel()].view_as(p)
+            i += p.numel()
+        return mean_kl(logp_old, torch.func.functional_call(policy, params, (obs,)))
+
+    hessian = torch.autograd.functional.hessian(kl_of, theta0)
+    assert torch.linalg.norm(hessian) > 1e-3  # the comparison is not trivially 0 == 0
+    damping = 0.1
+    fvp = fisher_vector_product(policy, obs, damping)
+    eye = torch.eye(len(theta0), dtype=DTYPE)
+    fisher = torch.stack([fvp(e) for e in eye], dim=1)
+    np.testing.assert_allclose(fisher.numpy(), (hessian + damping * eye).numpy(), atol=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_accepted_steps_respect_kl_bound(seed):
+    policy, obs, actions, adv = tiny_problem(seed)
+    with torch.no_grad():
+        logp_old = policy(obs)
+    stats = trpo_step(policy, obs, actions, adv, **TRPO_KW)
+    with torch.no_grad():
+        kl = float(mean_kl(logp_old, policy(obs)))
+    assert kl == pytest.approx(stats.kl, abs=1e-12)
+    if stats.accepted:
+        assert 0 < kl <= TRPO_KW["max_kl"]
+        assert stats.surrogate_after > stats.surrogate_before
+    else:
+        assert kl == 0.0
+
+
+def test_line_search_rejects_kl_violation_and_restores_parameters():
+    policy, obs, actions, adv = tiny_problem(3)
+    theta0 = parameters_to_vector(policy.parameters()).detach().clone()
+    with torch.no_grad():
+        logp_old = policy(obs)
+    grad_dir = torch.randn(len(theta0), generator=torch.Generator().manual_seed(1), dtype=DTYPE)
+
+    def evaluate():
+        with torch.no_grad():
+            logp = policy(obs)
+            surr = torch.exp(logp.gather(1, actions[:, None])[:, 0]
+                             - logp_old.gather(1, actions[:, None])[:, 0]) * adv
+            return float(surr.mean()), float(mean_kl(logp_old, logp))
+
+    surr0 = evaluate()[0]
+    seen = []
+
+    def recording_evaluate():
+        out = evaluate()
+        seen.append(out[1])
+        return out
+
+    # a huge step with too few backtracks to come back inside the trust region
+    accepted, backtracks, _, kl = line_search(policy, recording_evaluate, 1e3 * grad_dir,
+                                              surr0 - 1e9, 0.01, 0.8, 3)
+    assert not accepted and backtracks == 3 and kl == 0.0
+    assert min(seen) > 0.01  # every try violated the bound ...
+    assert torch.equal(parameters_to_vector(policy.parameters()), theta0)  # ... and nothing moved
+    # the same step, allowed to shrink far enough, is accepted inside the bound
+    accepted, backtracks, _, kl = line_search(policy, evaluate, 1e3 * grad_dir, surr0 - 1e9,
+                                              0.01, 0.5, 60)
+    assert accepted and backtracks > 3 and kl <= 0.01
+    vector_to_parameters(theta0, policy.parameters())
+
+
+def test_line_search_rejects_step_that_lowers_surrogate():
+    policy, obs, actions, adv = tiny_problem(4)
+    theta0 = parameters_to_vector(policy.parameters()).detach().clone()
+    accepted, _, _, _ = line_search(policy, lambda: (0.0, 0.0), torch.ones_like(theta0), 1.0,
+                                    0.01, 0.8, 5)
+    assert not accepted
+    assert torch.equal(parameters_to_vector(policy.parameters()), theta0)
+
+
+def test_step_improves_surrogate_along_natural_gradient():
+    policy, obs, actions, adv = tiny_problem(5, n=256)
+    stats = trpo_step(policy, obs, actions, adv, **TRPO_KW)
+    assert stats.accepted and stats.surrogate_after > stats.surrogate_before
+    # the quadratic model sizes the first try to the bound: the accepted KL is close to max_kl
+    assert stats.kl > 0.2 * TRPO_KW["max_kl"]
+    assert 0 < stats.entropy <= np.log(4) + 1e-12
