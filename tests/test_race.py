@@ -14,7 +14,7 @@ EXP = DISTRIBUTIONS["exponential"]
 @pytest.fixture(scope="module")
 def paper_study():
     # The paper's Monte Carlo settings (10,000 sets, N = 2..20, delta = 0.1); short exact curve.
-    cfg = RaceConfig(exact_n=(2, 3, 5, 10, 20, 30))
+    cfg = RaceConfig(exact_n=(2, 3, 5, 10, 20, 30, 50))
     return cfg, run_study(cfg, seed=0)
 
 

@@ -82,7 +82,7 @@ class RaceConfig:
     """Agent counts for the exact (sampling-free) curve, reaching well past the paper's range."""
 
     SCALES: ClassVar[dict] = {
-        "smoke": dict(exact_n=(2, 3, 5, 10, 20, 30)),
+        "smoke": dict(exact_n=(2, 3, 5, 10, 20, 30, 50)),
         "quick": {},
         "paper": dict(exact_n=(2, 3, 4, 5, 7, 10, 14, 20, 30, 50, 70, 100, 150, 200, 300)),
     }
