@@ -159,6 +159,21 @@ def race_probability_exact(dist: Distribution, dt: float, n: int) -> float:
     return float(1.0 - no_race_probabilities(dist, dt, n)[n])
 
 
+def exact_safe_dt(dist: Distribution, n: int, delta: float, upper: float, steps: int,
+                  shrink: float = 1e3) -> float:
+    """Largest dT with exact race probability < delta, for n agents.
+
+    ``upper`` must have race probability >= delta; the lower end of the bracket is the first of
+    upper/shrink, upper/shrink^2, ... below delta. A small ``shrink`` keeps the bisection away from
+    tiny dT, where the exact probability needs very many bins (one evaluation costs O(1/dT)).
+    """
+    prob = lambda d: race_probability_exact(dist, d, n)  # noqa: E731
+    lower = upper / shrink
+    while not prob(lower) < delta:
+        lower /= shrink
+    return largest_safe_dt(prob, delta, lower, upper, steps)
+
+
 # --- Fit -----------------------------------------------------------------------------------------
 
 def fit_power_law(n: np.ndarray, dt: np.ndarray) -> tuple[float, float, float]:
@@ -202,11 +217,7 @@ def run_study(cfg: RaceConfig, seed: int) -> dict[str, pd.DataFrame]:
         exact_dt = {}
         upper = hi
         for n in progress(cfg.exact_n, f"race exact {key}"):
-            prob = lambda d, n=n: race_probability_exact(dist, d, n)  # noqa: E731
-            lower = upper / 1e3
-            while not prob(lower) < cfg.delta:
-                lower /= 1e3
-            exact_dt[n] = largest_safe_dt(prob, cfg.delta, lower, upper, cfg.bisection_steps)
+            exact_dt[n] = exact_safe_dt(dist, n, cfg.delta, upper, cfg.bisection_steps)
             upper = exact_dt[n] * 1.5
         en = np.array(sorted(exact_dt))
         edt = np.array([exact_dt[n] for n in en])
@@ -292,5 +303,5 @@ def run(args: argparse.Namespace) -> int:
 
 
 __all__ = ["RaceConfig", "run_study", "race_probability_mc", "race_probability_exact",
-           "no_race_probabilities", "largest_safe_dt", "fit_power_law", "DISTRIBUTIONS",
-           "UsageError"]
+           "no_race_probabilities", "largest_safe_dt", "exact_safe_dt", "fit_power_law",
+           "DISTRIBUTIONS", "UsageError"]

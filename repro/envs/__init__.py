@@ -1,0 +1,1 @@
+"""Environments: one package per simulated process (``repro.envs.<name>``)."""
