@@ -12,7 +12,7 @@ ARGS   ?=
 TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup reproduce test claims table-race bench clean
+.PHONY: setup reproduce test claims table-race fig-scaling bench clean
 .DEFAULT_GOAL := help
 
 help:
@@ -38,6 +38,7 @@ test: $(STAMP) ## run the test suite
 
 reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) table-race SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) fig-scaling SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
 claims: $(STAMP) ## render paper_claims.md from results/
@@ -45,6 +46,9 @@ claims: $(STAMP) ## render paper_claims.md from results/
 
 table-race: $(STAMP) ## race-condition table and figure (C10)
 	$(REPRO) race --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+fig-scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and figure (C11)
+	$(REPRO) scaling --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -15,6 +15,7 @@ from repro.core.errors import UsageError
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
+    "scaling": ("repro.experiments.scaling", "event-driven vs time-stepped compute against N (C11)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
 }
 """command -> (module, one-line description)."""
