@@ -35,8 +35,8 @@ def check_c11(results: Path) -> Verdict:
         f"{r.exponent:.3f} ({r.exponent_se:.3f})" for r in fit.itertuples())
     detail += (". Steps count clock advances (the paper's measure); a time-stepped simulator that "
                "visits every agent each step does N times as much (agent_visits). Wall-time "
-               "exponents are flattened by fixed per-call overheads at small N and depend on the machine "
-               "and its load (see scaling_wall.provenance.json).")
+               "exponents are flattened by fixed per-call overheads at small N and depend on the "
+               "machine and its load (see scaling_wall.provenance.json).")
     return Verdict(ours, "PASS" if ok else "FAIL", detail, scale_of(path))
 
 
