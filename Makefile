@@ -13,7 +13,7 @@ TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
 .PHONY: setup reproduce test claims table-race table-thresholds fig-bus-arrivals fig-bus-load \
-	bench-bus bench-wildfire wildfire-eval bench-learn clean
+	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling clean
 .DEFAULT_GOAL := help
 
 help:
@@ -42,6 +42,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) table-thresholds SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) fig-bus-arrivals SCALE=$(SCALE)
 	$(MAKE) fig-bus-load SCALE=$(SCALE)
+	$(MAKE) fig-scaling SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
 claims: $(STAMP) ## render paper_claims.md from results/
@@ -70,6 +71,9 @@ wildfire-eval: $(STAMP) ## ADR of a heuristic wildfire policy (ARGS="--policy fl
 
 bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS="--env wildfire")
 	$(REPRO) bench-learn --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+fig-scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and figure (C11)
+	$(REPRO) scaling --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -24,6 +24,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "wildfire-eval": ("repro.experiments.wildfire_eval", "ADR of a heuristic wildfire policy"),
     "bench-wildfire": ("repro.experiments.bench_wildfire",
                        "decisions/s of the fast and SimPy wildfire engines (MLP policy)"),
+    "scaling": ("repro.experiments.scaling", "event-driven vs time-stepped compute against N (C11)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
     "train": ("repro.learn.trainer", "train a shared policy with PS-TRPO and M-GAE"),
     "bench-learn": ("repro.learn.bench", "seconds per training epoch: simulation vs update"),

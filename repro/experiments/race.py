@@ -51,6 +51,10 @@ class Distribution:
         x = t / self.scale
         return special.gammainc(self.shape, x), special.gammaincc(self.shape, x)
 
+    @property
+    def mean(self) -> float:
+        return self.shape * self.scale
+
     def isf(self, q: float) -> float:
         return float(special.gammainccinv(self.shape, q) * self.scale)
 
@@ -135,6 +139,27 @@ def safe_dt_exact(race_prob, delta: float, lo: float, hi: float) -> float:
     return float(np.exp(root))
 
 
+def exact_safe_dts(dist: Distribution, ns: tuple[int, ...], delta: float) -> dict[int, float]:
+    """For each N, the dT at which the exact race probability crosses delta.
+
+    dT falls at least as N^-2, so the previous N's answer brackets the next one tightly; brackets
+    widen by factors of 4 only, which keeps evaluations away from tiny dT (one costs O(1/dT)).
+    """
+    out: dict[int, float] = {}
+    prev_n, prev_dt = 1, dist.isf(1e-9) * 10  # one bin holds every time: a race for sure
+    for n in progress(sorted(ns), f"race exact {dist.name}"):
+        prob = lambda d, n=n: race_probability_exact(dist, d, n)  # noqa: E731
+        upper = prev_dt * 1.5
+        while prob(upper) < delta:
+            upper *= 4
+        lower = upper * (prev_n / n) ** 3 / 2
+        while not prob(lower) < delta:
+            lower /= 4
+        out[n] = safe_dt_exact(prob, delta, lower, upper)
+        prev_n, prev_dt = n, out[n]
+    return out
+
+
 # --- Exact ---------------------------------------------------------------------------------------
 
 def bin_probabilities(dist: Distribution, dt: float, chunk: int = 1 << 20):
@@ -215,18 +240,7 @@ def run_study(cfg: RaceConfig, seed: int) -> dict[str, pd.DataFrame]:
                           beta_se=se, alpha=alpha, n_sets=cfg.n_sets, delta=cfg.delta,
                           n_min=cfg.n_min, n_max=cfg.n_max))
 
-        # Exact curve: the same bisection on the sampling-free probability. dT falls at least
-        # as N^-2, so the previous N's answer brackets the next one tightly.
-        exact_dt: dict[int, float] = {}
-        prev_n, prev_dt = 1, hi
-        for n in progress(cfg.exact_n, f"race exact {key}"):
-            prob = lambda d, n=n: race_probability_exact(dist, d, n)  # noqa: E731
-            upper = min(hi, prev_dt * 1.5)
-            lower = upper * (prev_n / n) ** 3 / 2
-            while not prob(lower) < cfg.delta:
-                lower /= 4
-            exact_dt[n] = safe_dt_exact(prob, cfg.delta, lower, upper)
-            prev_n, prev_dt = n, exact_dt[n]
+        exact_dt = exact_safe_dts(dist, cfg.exact_n, cfg.delta)
         en = np.array(sorted(exact_dt))
         edt = np.array([exact_dt[n] for n in en])
         local = np.gradient(-np.log(edt), np.log(en))
