@@ -151,7 +151,8 @@ def _advance(actions, act_offset,
                 b = arg
                 k = bus_stop[e, b]
                 h = (t - stop_last_dep[e, k]) / 60.0
-                r = -rate[k] * (h - headway) ** 2
+                d = h - headway
+                r = -rate[k] * (d * d)  # as the reference: the correctly rounded square
                 ep_return[e] += r
                 for j in range(n_bus):
                     bus_buffer[e, j] += np.exp(-gamma * (t - bus_anchor[e, j])) * r
