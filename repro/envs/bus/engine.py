@@ -42,9 +42,11 @@ per-round and the per-event costs matter. Per round, Python does O(1) work: the 
 tuples of arrays (numba's dispatch costs about a microsecond per array), reads the actions in row
 order and gathers the next pending decisions into preallocated buffers. Per event, the state an
 episode touches is contiguous (one row per episode in each array below, fields last), so a round
-visits each episode's few cache lines once; a stop's FIFO queue is the waiting buses ordered by
-request ticket, a scan over N buses instead of a ring buffer per stop; the kernels run without
-reference counting (``_kernel``).
+visits each episode's few cache lines once, and the records are written once per row (a decision's
+row when its macro-action closes, an arrival's when the bus boards), never read back, so the state
+a round touches stays small; a stop's FIFO queue is the waiting buses ordered by request ticket, a
+scan over N buses instead of a ring buffer per stop; the kernels run without reference counting
+(``_kernel``).
 
 Packed state (``_State``; the field constants below name the last axis):
 
@@ -56,9 +58,11 @@ array              shape          fields
                                   N_PENDING, then the buses waiting for a decision, in arrival order
 ``ev_time``        (E, 2 N)       event time; inf marks a free slot
 ``ev_int``         (E, 2 N, 3)    ID (insertion id), KIND, ARG (bus or stop)
-``bus_real``       (E, N, 2)      ANCHOR (discount anchor T), BUFFER (reward buffer)
-``bus_int``        (E, N, 5)      STOP, LOAD, N_DEC (decisions so far), ARRIVAL (index of the latest
-                                  arrival), TICKET (request ticket while queued, else -1)
+``bus_real``       (E, N, 6)      ANCHOR (discount anchor T), BUFFER (reward buffer), then OBS: the
+                                  observation of the running macro-action
+``bus_int``        (E, N, 6)      STOP, LOAD, N_DEC (decisions so far), ARRIVAL (index of the latest
+                                  arrival), TICKET (request ticket while queued, else -1), ACTION (of
+                                  the running macro-action)
 ``stop_real``      (E, K)         last departure time
 ``stop_busy``      (E, K)         1 while a bus holds the stop
 =================  =============  =================================================================
@@ -85,11 +89,10 @@ INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL = range(6)
 NOW, RETURN = range(2)
 DONE, NEXT_ID, NEXT_TICKET, N_ARR, N_PENDING, PENDING = range(6)
 ID, KIND, ARG = range(3)
-ANCHOR, BUFFER = range(2)
-STOP, LOAD, N_DEC, ARRIVAL, TICKET = range(5)
-REWARD, DURATION = OBS_DIM, OBS_DIM + 1
-TIME, HEADWAY = range(2)
-A_BUS, A_STOP, A_LOAD, A_ALIGHT, A_BOARD = range(5)
+ANCHOR, BUFFER, OBS = range(3)  # OBS: the first of OBS_DIM fields
+STOP, LOAD, N_DEC, ARRIVAL, TICKET, ACTION = range(6)
+D_ACTION, D_REWARD, D_DURATION = range(OBS_DIM, OBS_DIM + 3)  # after the observation
+TIME, HEADWAY, A_BUS, A_STOP, A_LOAD, A_ALIGHT, A_BOARD = range(7)
 EPISODE, AGENT, INDEX = range(3)
 
 
@@ -129,16 +132,15 @@ class _State(NamedTuple):
 
 
 class _Record(NamedTuple):
-    """What the episodes have produced so far."""
+    """What the episodes have produced so far, one float row per item (the integers in them are
+    small, hence exact): a row is written whole, once, which keeps the writes cache-friendly."""
 
-    dec_real: np.ndarray
-    """(E, N, M, OBS_DIM + 2): each decision's observation, then REWARD and DURATION."""
-    dec_act: np.ndarray
-    """(E, N, M): each decision's action."""
-    arr_real: np.ndarray
-    """(E, N M, 2): each arrival's TIME (s) and HEADWAY h (min)."""
-    arr_int: np.ndarray
-    """(E, N M, 5): each arrival's A_BUS, A_STOP, A_LOAD (at arrival), A_ALIGHT U, A_BOARD B."""
+    dec: np.ndarray
+    """(E, N, M, OBS_DIM + 3): each closed macro-action's observation, D_ACTION, D_REWARD and
+    D_DURATION."""
+    arr: np.ndarray
+    """(E, N M, 7): each arrival's TIME (s), HEADWAY h (min), A_BUS, A_STOP, A_LOAD (at arrival),
+    A_ALIGHT U and A_BOARD B."""
 
 
 class _Pending(NamedTuple):
@@ -203,24 +205,15 @@ def _arrive(par, state, rec, e, b, t):
     state.ep_real[e, RETURN] += r
     for j in range(bus_real.shape[1]):
         bus_real[e, j, BUFFER] += np.exp(-par.gamma * (t - bus_real[e, j, ANCHOR])) * r
-    a = ep_int[e, N_ARR]
-    ep_int[e, N_ARR] = a + 1
-    rec.arr_real[e, a, TIME] = t
-    rec.arr_real[e, a, HEADWAY] = h
-    rec.arr_int[e, a, A_BUS] = b
-    rec.arr_int[e, a, A_STOP] = k
-    rec.arr_int[e, a, A_LOAD] = bus_int[e, b, LOAD]
-    bus_int[e, b, ARRIVAL] = a
+    bus_int[e, b, ARRIVAL] = ep_int[e, N_ARR]  # its row is written when the bus boards
+    ep_int[e, N_ARR] += 1
     n = bus_int[e, b, N_DEC]
     if n > 0:  # the observation closes the previous macro-action
-        rec.dec_real[e, b, n - 1, REWARD] = bus_real[e, b, BUFFER]
-        rec.dec_real[e, b, n - 1, DURATION] = t - bus_real[e, b, ANCHOR]
-        bus_real[e, b, BUFFER] = 0.0
-    obs = rec.dec_real[e, b, n]
-    obs[0] = k
-    obs[1] = h
-    obs[2] = bus_int[e, b, LOAD]
-    obs[3] = t - bus_real[e, b, ANCHOR]
+        _close(rec, bus_real, bus_int, e, b, t)
+    bus_real[e, b, OBS] = k
+    bus_real[e, b, OBS + 1] = h
+    bus_real[e, b, OBS + 2] = bus_int[e, b, LOAD]
+    bus_real[e, b, OBS + 3] = t - bus_real[e, b, ANCHOR]
     bus_real[e, b, ANCHOR] = t
     bus_int[e, b, N_DEC] = n + 1
     ep_int[e, PENDING + ep_int[e, N_PENDING]] = b
@@ -228,33 +221,46 @@ def _arrive(par, state, rec, e, b, t):
 
 
 @_kernel
+def _close(rec, bus_real, bus_int, e, b, t):
+    """Record bus b's running macro-action, ending at t, and empty its reward buffer."""
+    row = rec.dec[e, b, bus_int[e, b, N_DEC] - 1]
+    for i in range(OBS_DIM):
+        row[i] = bus_real[e, b, OBS + i]
+    row[D_ACTION] = bus_int[e, b, ACTION]
+    row[D_REWARD] = bus_real[e, b, BUFFER]
+    row[D_DURATION] = t - bus_real[e, b, ANCHOR]
+    bus_real[e, b, BUFFER] = 0.0
+
+
+@_kernel
 def _board(par, state, rec, e, b, t):
-    """The decision is in: alight, board, and dwell plus hold (a DWELL event)."""
-    bus_int = state.bus_int
+    """The decision is in: alight, board, record the arrival, and dwell plus hold (a DWELL event)."""
+    bus_real, bus_int = state.bus_real, state.bus_int
     k = bus_int[e, b, STOP]
-    a = bus_int[e, b, ARRIVAL]
+    h = bus_real[e, b, OBS + 1]
     load = bus_int[e, b, LOAD]
     u = np.int64(np.floor(par.alight[k] * load + 0.5))
-    bd = min(np.int64(np.floor(par.rate[k] * rec.arr_real[e, a, HEADWAY] + 0.5)),
-             par.l_max - load + u)
+    bd = min(np.int64(np.floor(par.rate[k] * h + 0.5)), par.l_max - load + u)
     bus_int[e, b, LOAD] = load - u + bd
-    rec.arr_int[e, a, A_ALIGHT] = u
-    rec.arr_int[e, a, A_BOARD] = bd
-    hold = rec.dec_act[e, b, bus_int[e, b, N_DEC] - 1]
+    row = rec.arr[e, bus_int[e, b, ARRIVAL]]
+    row[TIME] = bus_real[e, b, ANCHOR]  # the arrival's time
+    row[HEADWAY] = h
+    row[A_BUS] = b
+    row[A_STOP] = k
+    row[A_LOAD] = load
+    row[A_ALIGHT] = u
+    row[A_BOARD] = bd
     _schedule(state.ev_time, state.ev_int, state.ep_int, e,
-              t + (max(par.t_a * u, par.t_b * bd) + hold * par.t_hold), DWELL, b)
+              t + (max(par.t_a * u, par.t_b * bd) + bus_int[e, b, ACTION] * par.t_hold), DWELL, b)
 
 
 @_kernel
 def _end_episode(par, state, rec, e):
     """Cut every running macro-action at the horizon."""
     state.ep_int[e, DONE] = 1
-    bus_real, bus_int = state.bus_real, state.bus_int
-    for b in range(bus_int.shape[1]):
-        n = bus_int[e, b, N_DEC]
-        if n > 0:
-            rec.dec_real[e, b, n - 1, REWARD] = bus_real[e, b, BUFFER]
-            rec.dec_real[e, b, n - 1, DURATION] = par.horizon - bus_real[e, b, ANCHOR]
+    for b in range(state.bus_int.shape[1]):
+        if state.bus_int[e, b, N_DEC] > 0:
+            _close(rec, state.bus_real, state.bus_int, e, b, par.horizon)
 
 
 @_kernel
@@ -313,19 +319,18 @@ def _advance(actions, par, state, rec, pending):
             continue
         for p in range(ep_int[e, N_PENDING]):
             b = ep_int[e, PENDING + p]
-            rec.dec_act[e, b, bus_int[e, b, N_DEC] - 1] = actions[row]
+            bus_int[e, b, ACTION] = actions[row]
             row += 1
             _schedule(state.ev_time, state.ev_int, ep_int, e, state.ep_real[e, NOW], DECISION, b)
         ep_int[e, N_PENDING] = 0
         _run_episode(par, state, rec, e)
         for p in range(ep_int[e, N_PENDING]):
             b = ep_int[e, PENDING + p]
-            n = bus_int[e, b, N_DEC] - 1
             for i in range(OBS_DIM):  # element by element: a slice copy needs the runtime
-                pending.obs[rows, i] = rec.dec_real[e, b, n, i]
+                pending.obs[rows, i] = state.bus_real[e, b, OBS + i]
             pending.ids[EPISODE, rows] = e
             pending.ids[AGENT, rows] = b
-            pending.ids[INDEX, rows] = n
+            pending.ids[INDEX, rows] = bus_int[e, b, N_DEC] - 1
             rows += 1
     return rows
 
@@ -347,12 +352,9 @@ class BusBatch:
         self._state = _State(
             ep_real=np.zeros((e, 2)), ep_int=np.zeros((e, PENDING + n), np.int64),
             ev_time=np.full((e, cap), np.inf), ev_int=np.zeros((e, cap, 3), np.int64),
-            bus_real=np.zeros((e, n, 2)), bus_int=np.zeros((e, n, 5), np.int64),
+            bus_real=np.zeros((e, n, OBS + OBS_DIM)), bus_int=np.zeros((e, n, 6), np.int64),
             stop_real=np.zeros((e, k)), stop_busy=np.zeros((e, k), np.int64))
-        self._rec = _Record(dec_real=np.zeros((e, n, m, OBS_DIM + 2)),
-                            dec_act=np.zeros((e, n, m), np.int64),
-                            arr_real=np.zeros((e, n * m, 2)),
-                            arr_int=np.zeros((e, n * m, 5), np.int64))
+        self._rec = _Record(dec=np.zeros((e, n, m, OBS_DIM + 3)), arr=np.zeros((e, n * m, 7)))
         self._pending = _Pending(obs=np.zeros((e * n, OBS_DIM)), ids=np.zeros((3, e * n), np.int64))
         st = self._state
         st.bus_int[:, :, TICKET] = -1
@@ -403,23 +405,23 @@ class BusBatch:
     def arrivals(self) -> dict[str, np.ndarray]:
         """Every arrival of every episode, in processing order: episode, time (s), bus, stop
         (0-based), h (min), load at arrival, alighting U and boarding B."""
-        real, ints = self._rec.arr_real, self._rec.arr_int
-        mask = np.arange(real.shape[1])[None, :] < self._state.ep_int[:, N_ARR, None]
-        real, ints = real[mask], ints[mask]
-        return dict(episode=np.nonzero(mask)[0], time=real[:, TIME], bus=ints[:, A_BUS],
-                    stop=ints[:, A_STOP], h=real[:, HEADWAY], load=ints[:, A_LOAD],
+        mask = np.arange(self._rec.arr.shape[1])[None, :] < self._state.ep_int[:, N_ARR, None]
+        arr = self._rec.arr[mask]
+        ints = arr.astype(np.int64)
+        return dict(episode=np.nonzero(mask)[0], time=arr[:, TIME], bus=ints[:, A_BUS],
+                    stop=ints[:, A_STOP], h=arr[:, HEADWAY], load=ints[:, A_LOAD],
                     alight=ints[:, A_ALIGHT], board=ints[:, A_BOARD])
 
     def to_rollout(self) -> Rollout:
         require(bool(self.done.all()), "rollout", "taken after every episode has ended")
         n_dec = self._state.bus_int[:, :, N_DEC]
         e, n = n_dec.shape
-        mask = np.arange(self._rec.dec_act.shape[2])[None, None, :] < n_dec[:, :, None]
-        dec = self._rec.dec_real[mask]
+        mask = np.arange(self._rec.dec.shape[2])[None, None, :] < n_dec[:, :, None]
+        dec = self._rec.dec[mask]
         lengths = n_dec.reshape(-1)
         return Rollout(
-            obs=np.ascontiguousarray(dec[:, :OBS_DIM]), actions=self._rec.dec_act[mask],
-            rewards=dec[:, REWARD].copy(), durations=dec[:, DURATION].copy(),
+            obs=np.ascontiguousarray(dec[:, :OBS_DIM]), actions=dec[:, D_ACTION].astype(np.int64),
+            rewards=dec[:, D_REWARD].copy(), durations=dec[:, D_DURATION].copy(),
             path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
             path_episode=np.repeat(np.arange(e), n), path_agent=np.tile(np.arange(n), e),
             episode_return=self.ep_return.copy(), info={"arrivals": self.arrivals()})
