@@ -408,7 +408,7 @@ class BusBatch:
         (0-based), h (min), load at arrival, alighting U and boarding B."""
         counts = self._state.ep_int[:, N_ARR]
         arr = _compacted(self._rec.arr, counts)
-        ints = arr.astype(np.int64)
+        ints = arr.astype(np.int64)  # only the integer columns are read from it
         return dict(episode=np.repeat(np.arange(len(counts)), counts), time=arr[:, TIME],
                     bus=ints[:, A_BUS],
                     stop=ints[:, A_STOP], h=arr[:, HEADWAY], load=ints[:, A_LOAD],
