@@ -60,7 +60,10 @@ class _Episode:
                 yield granted
                 t = env.now
                 h = (t - self.last_departure[stop]) / 60.0
-                r = -cfg.arrival_rate[stop] * (h - cfg.headway) ** 2
+                # d * d, not d ** 2: CPython's ** calls libm pow, which can be 1 ulp off the
+                # correctly rounded square that compiled code (numba) computes
+                d = h - cfg.headway
+                r = -cfg.arrival_rate[stop] * (d * d)
                 self.episode_return += r
                 for j in range(cfg.n_buses):
                     self.buffer[j] += math.exp(-cfg.gamma * (t - self.anchor[j])) * r
