@@ -92,7 +92,7 @@ def test_rollout_structure():
     assert np.all(r.info["end_time"] <= cfg.t_max + 1e-9)
 
 
-def test_draws_come_from_episode_streams_in_order():
+def test_draws_are_deterministic_per_seed():
     cfg = WildfireConfig()
     d = draw_episodes(cfg, 3, 5)
     again = draw_episodes(cfg, 3, 5)
@@ -101,6 +101,17 @@ def test_draws_come_from_episode_streams_in_order():
     assert d.holds.shape == (3, cfg.n_agents, cfg.hold_table_size)
     assert abs(d.holds.mean() - cfg.hold_mean) < 0.05
     assert not np.array_equal(d.starts[0], d.starts[1])
+
+
+def test_draws_are_prefix_stable():
+    """Episode e's start positions and holds do not depend on the batch size; seeds differ."""
+    cfg = WildfireConfig()
+    small, large = draw_episodes(cfg, 3, 9), draw_episodes(cfg, 50, 9)
+    np.testing.assert_array_equal(small.starts, large.starts[:3])
+    np.testing.assert_array_equal(small.holds, large.holds[:3])
+    other = draw_episodes(cfg, 3, 10)
+    assert not np.array_equal(small.starts, other.starts)
+    assert not np.array_equal(small.holds, other.holds)
 
 
 def test_simpy_same_instant_order():

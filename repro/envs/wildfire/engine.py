@@ -37,85 +37,115 @@ OK, GROW_LOG, HEAP_FULL = range(3)
 HEAP_CAPACITY = 128
 """Pending events per episode: live waits (N UAVs, 9 fires, the clock) plus stale ones."""
 
-# Every kernel works on preallocated arrays only. Without the runtime's reference counting
-# (_nrt=False; nothing is allocated inside), passing the state tuple to a helper costs nothing,
-# whereas counting references to its ~35 arrays made each helper call cost ~0.5 us.
-jit = njit(cache=True, _nrt=False)
+# An episode's whole state is one numpy record (a row of a structured array), and so are the
+# parameters: numba passes a record to a helper as a bare pointer, whereas a tuple of arrays costs a
+# reference count update per array and call. Flags inside records are int8 (numba does not support
+# nested boolean arrays).
+jit = njit(cache=True)
 
 fs_delay_nb = jit(fs_delay)
 
-Params = namedtuple("Params", "n_agents n_fires n_obs v dt latency tol gamma r_ext r_pen "
-                              "t_health t_max q1 q2 fires")
-State = namedtuple("State", [
-    "now", "done", "t_end", "n_alive", "events",  # (B,) per episode
-    "pos", "origin", "goal", "t_dep", "length", "flying",  # (B, N, ...) UAV motion
-    "interest", "attacking", "in_party", "n_holds", "holds", "rank", "cur", "n_dec", "uwait",
-    "returns",  # (B, N, ...) UAV bookkeeping
-    "alive", "health", "t_update", "party", "fwait",  # (B, K) fires
-    "ht", "hp", "hs", "hk", "hw", "hn", "seq",  # event heap (B, CAP) and its size, next sequence
-    "n_rows",  # (2,) rows used in the log, rows already handed to the policy
-])
-Log = namedtuple("Log", "obs act rew dur time ep agent idx")
+
+def params_record(cfg: WildfireConfig) -> np.ndarray:
+    """The (1,) structured array of the kernels' parameters."""
+    fires = fire_positions(cfg)
+    rec = np.zeros(1, np.dtype([
+        ("n_agents", np.int64), ("n_fires", np.int64), ("n_obs", np.int64), ("v", np.float64),
+        ("dt", np.float64), ("latency", np.float64), ("tol", np.float64), ("gamma", np.float64),
+        ("r_ext", np.float64), ("r_pen", np.float64), ("t_health", np.float64),
+        ("t_max", np.float64), ("q1", np.bool_), ("q2", np.bool_),
+        ("fires", np.float64, fires.shape)], align=True))
+    rec[0] = (cfg.n_agents, len(fires), cfg.n_observed, cfg.v_uav, cfg.dt or 0.0,
+              cfg.decision_latency, cfg.at_fire_tol, cfg.gamma, cfg.r_ext, cfg.r_pen,
+              cfg.t_health, cfg.t_max, cfg.quirk_q1_stale_attack, cfg.quirk_q2_penalty_party_only,
+              fires)
+    return rec
+
+
+def state_dtype(cfg: WildfireConfig) -> np.dtype:
+    """One episode's state: scalars, then (N, ...) UAV fields, (K,) fire fields, the event heap."""
+    n, k, f8, i8, i1 = cfg.n_agents, len(fire_positions(cfg)), np.float64, np.int64, np.int8
+    return np.dtype([
+        ("now", f8), ("done", np.bool_), ("t_end", f8), ("n_alive", i8), ("events", i8),
+        # UAV motion
+        ("pos", f8, (n, 2)), ("origin", f8, (n, 2)), ("goal", f8, (n, 2)), ("t_dep", f8, n),
+        ("length", f8, n), ("flying", i1, n),
+        # UAV bookkeeping
+        ("interest", i8, n), ("attacking", i8, n), ("in_party", i1, n), ("n_holds", i8, n),
+        ("holds", f8, (n, cfg.hold_table_size)), ("rank", i8, (n, cfg.n_observed)),
+        ("cur", i8, n), ("n_dec", i8, n), ("uwait", i8, n), ("returns", f8, n),
+        # fires
+        ("alive", i1, k), ("health", f8, k), ("t_update", f8, k), ("party", i8, k),
+        ("fwait", i8, k),
+        # event heap: time, priority, sequence number, kind, who (narrow types: a smaller record
+        # stays in cache longer); its size; the next sequence
+        ("ht", f8, HEAP_CAPACITY), ("hp", i1, HEAP_CAPACITY), ("hs", i8, HEAP_CAPACITY),
+        ("hk", i1, HEAP_CAPACITY), ("hw", np.int32, HEAP_CAPACITY), ("hn", i8), ("seq", i8),
+    ], align=True)
+
+
+Log = namedtuple("Log", "obs act rew dur time ep agent idx used")
+"""One row per decision, in the order they were observed; ``used[0]`` rows are filled."""
 
 
 # --- event heap ----------------------------------------------------------------------------------
 
 @jit
-def _before(s, e, a, b):
-    if s.ht[e, a] != s.ht[e, b]:
-        return s.ht[e, a] < s.ht[e, b]
-    if s.hp[e, a] != s.hp[e, b]:
-        return s.hp[e, a] < s.hp[e, b]
-    return s.hs[e, a] < s.hs[e, b]
+def _before(s, a, b):
+    if s.ht[a] != s.ht[b]:
+        return s.ht[a] < s.ht[b]
+    if s.hp[a] != s.hp[b]:
+        return s.hp[a] < s.hp[b]
+    return s.hs[a] < s.hs[b]
 
 
 @jit
-def _swap(s, e, a, b):
-    s.ht[e, a], s.ht[e, b] = s.ht[e, b], s.ht[e, a]
-    s.hp[e, a], s.hp[e, b] = s.hp[e, b], s.hp[e, a]
-    s.hs[e, a], s.hs[e, b] = s.hs[e, b], s.hs[e, a]
-    s.hk[e, a], s.hk[e, b] = s.hk[e, b], s.hk[e, a]
-    s.hw[e, a], s.hw[e, b] = s.hw[e, b], s.hw[e, a]
+def _swap(s, a, b):
+    s.ht[a], s.ht[b] = s.ht[b], s.ht[a]
+    s.hp[a], s.hp[b] = s.hp[b], s.hp[a]
+    s.hs[a], s.hs[b] = s.hs[b], s.hs[a]
+    s.hk[a], s.hk[b] = s.hk[b], s.hk[a]
+    s.hw[a], s.hw[b] = s.hw[b], s.hw[a]
 
 
 @jit
-def _push(s, e, delay, prio, kind, who):
+def _push(s, delay, prio, kind, who):
     """Schedule an event ``delay`` after now (SimPy: time now + delay); return its sequence."""
-    n = s.hn[e]
-    s.ht[e, n] = s.now[e] + delay
-    s.hp[e, n] = prio
-    s.hs[e, n] = s.seq[e]
-    s.hk[e, n] = kind
-    s.hw[e, n] = who
-    s.seq[e] += 1
-    s.hn[e] = n + 1
+    n = s.hn
+    s.ht[n] = s.now + delay
+    s.hp[n] = prio
+    s.hs[n] = s.seq
+    s.hk[n] = kind
+    s.hw[n] = who
+    s.seq += 1
+    s.hn = n + 1
     while n > 0:
         parent = (n - 1) // 2
-        if not _before(s, e, n, parent):
+        if not _before(s, n, parent):
             break
-        _swap(s, e, n, parent)
+        _swap(s, n, parent)
         n = parent
-    return s.seq[e] - 1
+    return s.seq - 1
 
 
 @jit
-def _pop(s, e):
+def _pop(s):
     """Remove the first event and return (time, sequence, kind, who)."""
-    t, sq, kind, who = s.ht[e, 0], s.hs[e, 0], s.hk[e, 0], s.hw[e, 0]
-    n = s.hn[e] - 1
-    s.hn[e] = n
+    t, sq, kind, who = s.ht[0], s.hs[0], s.hk[0], s.hw[0]
+    n = s.hn - 1
+    s.hn = n
     if n > 0:
-        _swap(s, e, 0, n)
+        _swap(s, 0, n)
         i = 0
         while True:
             left, best = 2 * i + 1, i
-            if left < n and _before(s, e, left, best):
+            if left < n and _before(s, left, best):
                 best = left
-            if left + 1 < n and _before(s, e, left + 1, best):
+            if left + 1 < n and _before(s, left + 1, best):
                 best = left + 1
             if best == i:
                 break
-            _swap(s, e, i, best)
+            _swap(s, i, best)
             i = best
     return t, sq, kind, who
 
@@ -128,23 +158,23 @@ def _dist(ax, ay, bx, by):
 
 
 @jit
-def _health_now(s, e, j):
-    if not s.alive[e, j]:
+def _health_now(s, j):
+    if not s.alive[j]:
         return 0.0
-    return max(0.0, s.health[e, j] - s.party[e, j] * (s.now[e] - s.t_update[e, j]))
+    return max(0.0, s.health[j] - s.party[j] * (s.now - s.t_update[j]))
 
 
 @jit
 def _observe(s, lg, p, e, i):
-    now = s.now[e]
-    prev = s.cur[e, i]
+    now = s.now
+    prev = s.cur[i]
     sojourn = 0.0
     if prev >= 0:
         sojourn = now - lg.time[prev]
         lg.dur[prev] = sojourn
-    row = s.n_rows[0]
-    s.n_rows[0] = row + 1
-    x, y = s.pos[e, i, 0], s.pos[e, i, 1]
+    row = lg.used[0]
+    lg.used[0] = row + 1
+    x, y = s.pos[i, 0], s.pos[i, 1]
     o = lg.obs[row]
     o[0], o[1] = x, y
     prev_d, prev_j = -1.0, -1
@@ -156,17 +186,17 @@ def _observe(s, lg, p, e, i):
             if after and d < best_d:
                 best, best_d = j, d
         prev_d, prev_j = best_d, best
-        s.rank[e, i, r] = best
+        s.rank[i, r] = best
         interested = 0
         for a in range(p.n_agents):
-            if s.interest[e, a] == best:
+            if s.interest[a] == best:
                 interested += 1
         base = 2 + OBS_PER_FIRE * r
         o[base] = best_d
         o[base + 1] = 1.0
         o[base + 2] = interested
-        o[base + 3] = 1.0 if s.alive[e, best] else 0.0
-        o[base + 4] = _health_now(s, e, best)
+        o[base + 3] = 1.0 if s.alive[best] else 0.0
+        o[base + 4] = _health_now(s, best)
     o[2 + OBS_PER_FIRE * p.n_obs] = sojourn
     lg.act[row] = -1
     lg.rew[row] = 0.0
@@ -174,190 +204,186 @@ def _observe(s, lg, p, e, i):
     lg.time[row] = now
     lg.ep[row] = e
     lg.agent[row] = i
-    lg.idx[row] = s.n_dec[e, i]
-    s.n_dec[e, i] += 1
-    s.cur[e, i] = row
-    s.uwait[e, i] = _push(s, e, p.latency, NORMAL, LATENCY, i)
+    lg.idx[row] = s.n_dec[i]
+    s.n_dec[i] += 1
+    s.cur[i] = row
+    s.uwait[i] = _push(s, p.latency, NORMAL, LATENCY, i)
 
 
 @jit
-def _accrue(s, lg, p, e, i, r):
-    row = s.cur[e, i]
-    lg.rew[row] += math.exp(-p.gamma * (s.now[e] - lg.time[row])) * r
-    s.returns[e, i] += r
+def _accrue(s, lg, p, i, r):
+    row = s.cur[i]
+    lg.rew[row] += math.exp(-p.gamma * (s.now - lg.time[row])) * r
+    s.returns[i] += r
 
 
 @jit
-def _party_change(s, p, e, j, delta):
-    if not s.alive[e, j]:
+def _party_change(s, p, j, delta):
+    if not s.alive[j]:
         return
-    now = s.now[e]
-    s.health[e, j] = s.health[e, j] - s.party[e, j] * (now - s.t_update[e, j])
-    s.t_update[e, j] = now
-    s.party[e, j] += delta
-    _push(s, e, 0.0, URGENT, INT_FIRE, j)
+    now = s.now
+    s.health[j] = s.health[j] - s.party[j] * (now - s.t_update[j])
+    s.t_update[j] = now
+    s.party[j] += delta
+    _push(s, 0.0, URGENT, INT_FIRE, j)
 
 
 @jit
-def _penalise(s, lg, p, e, j):
-    if s.party[e, j] < 2:
+def _penalise(s, lg, p, j):
+    if s.party[j] < 2:
         return
     for i in range(p.n_agents):
-        member = s.in_party[e, i] and s.attacking[e, i] == j
+        member = s.in_party[i] and s.attacking[i] == j
         if member or not p.q2:
-            _accrue(s, lg, p, e, i, p.r_pen)
+            _accrue(s, lg, p, i, p.r_pen)
 
 
 @jit
-def _start_action(s, lg, p, e, i):
-    now = s.now[e]
-    a = lg.act[s.cur[e, i]]
-    s.interest[e, i] = -1
+def _start_action(s, lg, p, i):
+    now = s.now
+    a = lg.act[s.cur[i]]
+    s.interest[i] = -1
     if a < p.n_obs:
-        target = s.rank[e, i, a]
-        s.interest[e, i] = target
-        if s.in_party[e, i]:
-            s.in_party[e, i] = False
-            _party_change(s, p, e, s.attacking[e, i], -1)
+        target = s.rank[i, a]
+        s.interest[i] = target
+        if s.in_party[i]:
+            s.in_party[i] = False
+            _party_change(s, p, s.attacking[i], -1)
         if not p.q1:
-            s.attacking[e, i] = -1
-        ox, oy = s.pos[e, i, 0], s.pos[e, i, 1]
+            s.attacking[i] = -1
+        ox, oy = s.pos[i, 0], s.pos[i, 1]
         gx, gy = p.fires[target, 0], p.fires[target, 1]
         length = _dist(ox, oy, gx, gy)
-        s.origin[e, i, 0], s.origin[e, i, 1] = ox, oy
-        s.goal[e, i, 0], s.goal[e, i, 1] = gx, gy
-        s.t_dep[e, i] = now
-        s.length[e, i] = length
-        s.flying[e, i] = True
+        s.origin[i, 0], s.origin[i, 1] = ox, oy
+        s.goal[i, 0], s.goal[i, 1] = gx, gy
+        s.t_dep[i] = now
+        s.length[i] = length
+        s.flying[i] = True
         d = fs_delay_nb(now, length / p.v, p.dt)
     else:
-        x, y = s.pos[e, i, 0], s.pos[e, i, 1]
+        x, y = s.pos[i, 0], s.pos[i, 1]
         for j in range(p.n_fires):
             if _dist(x, y, p.fires[j, 0], p.fires[j, 1]) < p.tol:
-                s.interest[e, i] = j
-                if s.attacking[e, i] != j:
-                    s.attacking[e, i] = j
-                    if s.alive[e, j]:
-                        s.in_party[e, i] = True
-                        _party_change(s, p, e, j, 1)
-                        _penalise(s, lg, p, e, j)
+                s.interest[i] = j
+                if s.attacking[i] != j:
+                    s.attacking[i] = j
+                    if s.alive[j]:
+                        s.in_party[i] = True
+                        _party_change(s, p, j, 1)
+                        _penalise(s, lg, p, j)
                 break
-        size = s.holds.shape[2]
-        hold = s.holds[e, i, s.n_holds[e, i] % size]
-        s.n_holds[e, i] += 1
+        size = s.holds.shape[1]
+        hold = s.holds[i, s.n_holds[i] % size]
+        s.n_holds[i] += 1
         d = fs_delay_nb(now, hold, p.dt)
-    s.uwait[e, i] = _push(s, e, d, NORMAL, ACTION, i)
+    s.uwait[i] = _push(s, d, NORMAL, ACTION, i)
 
 
 @jit
-def _land(s, p, e, i, cut):
-    if not s.flying[e, i]:
+def _land(s, p, i, cut):
+    if not s.flying[i]:
         return
-    length = s.length[e, i]
+    length = s.length[i]
     if cut and length > 0:
-        frac = min(1.0, p.v * (s.now[e] - s.t_dep[e, i]) / length)
+        frac = min(1.0, p.v * (s.now - s.t_dep[i]) / length)
         for c in range(2):
-            s.pos[e, i, c] = s.origin[e, i, c] + frac * (s.goal[e, i, c] - s.origin[e, i, c])
+            s.pos[i, c] = s.origin[i, c] + frac * (s.goal[i, c] - s.origin[i, c])
     else:
-        s.pos[e, i, 0], s.pos[e, i, 1] = s.goal[e, i, 0], s.goal[e, i, 1]
-    s.flying[e, i] = False
+        s.pos[i, 0], s.pos[i, 1] = s.goal[i, 0], s.goal[i, 1]
+    s.flying[i] = False
 
 
 @jit
-def _replan(s, p, e, j):
-    if s.party[e, j] == 0:
-        s.fwait[e, j] = -1  # idle until the party changes
+def _replan(s, p, j):
+    if s.party[j] == 0:
+        s.fwait[j] = -1  # idle until the party changes
     else:
-        d = fs_delay_nb(s.now[e], s.health[e, j] / s.party[e, j], p.dt)
-        s.fwait[e, j] = _push(s, e, d, NORMAL, EXTINGUISH, j)
+        d = fs_delay_nb(s.now, s.health[j] / s.party[j], p.dt)
+        s.fwait[j] = _push(s, d, NORMAL, EXTINGUISH, j)
 
 
 @jit
-def _end(s, lg, p, e):
-    s.done[e] = True
-    s.t_end[e] = s.now[e]
+def _end(s, lg, p):
+    s.done = True
+    s.t_end = s.now
     for i in range(p.n_agents):
-        row = s.cur[e, i]
-        lg.dur[row] = s.t_end[e] - lg.time[row]
+        row = s.cur[i]
+        lg.dur[row] = s.t_end - lg.time[row]
 
 
 @jit
-def _extinguish(s, lg, p, e, j):
-    s.alive[e, j] = False
-    s.n_alive[e] -= 1
+def _extinguish(s, lg, p, j):
+    s.alive[j] = False
+    s.n_alive -= 1
     for i in range(p.n_agents):
-        _accrue(s, lg, p, e, i, p.r_ext)
+        _accrue(s, lg, p, i, p.r_ext)
     for i in range(p.n_agents):
-        if s.interest[e, i] == j:
-            _push(s, e, 0.0, URGENT, INT_UAV, i)
-    if s.n_alive[e] == 0:
-        _end(s, lg, p, e)
+        if s.interest[i] == j:
+            _push(s, 0.0, URGENT, INT_UAV, i)
+    if s.n_alive == 0:
+        _end(s, lg, p)
 
 
 # --- kernels -------------------------------------------------------------------------------------
 
 @jit
-def _setup(s, lg, p):
+def _setup(states, lg, params):
     """Time 0: every UAV observes (in index order), then the T_max clock starts."""
-    for e in range(s.now.shape[0]):
+    p = params[0]
+    for e in range(len(states)):
+        s = states[e]
         for i in range(p.n_agents):
             _observe(s, lg, p, e, i)
-        _push(s, e, p.t_max, NORMAL, CLOCK, 0)
+        _push(s, p.t_max, NORMAL, CLOCK, 0)
 
 
 @jit
-def _advance(s, lg, p, pending):
-    """Run every live episode until it is blocked or over; list the rows awaiting an action."""
-    log_capacity = lg.act.shape[0]
-    heap_capacity = s.ht.shape[1]
-    for e in range(s.now.shape[0]):
-        while not s.done[e]:
-            kind, who, sq = s.hk[e, 0], s.hw[e, 0], s.hs[e, 0]
-            if kind == LATENCY and sq == s.uwait[e, who] and lg.act[s.cur[e, who]] < 0:
+def _advance(states, lg, params):
+    """Run every live episode until it is blocked (its next event is the end of a decision latency
+    whose action is still -1) or over, or until the log or a heap is full (the status says)."""
+    p = params[0]
+    for e in range(len(states)):
+        s = states[e]
+        while not s.done:
+            kind, who, sq = s.hk[0], s.hw[0], s.hs[0]
+            if kind == LATENCY and sq == s.uwait[who] and lg.act[s.cur[who]] < 0:
                 break  # the policy has not decided yet
-            if s.n_rows[0] >= log_capacity:
-                return GROW_LOG, 0
-            if s.hn[e] + p.n_agents + 2 > heap_capacity:
-                return HEAP_FULL, 0
-            t, sq, kind, who = _pop(s, e)
-            s.now[e] = t
-            s.events[e] += 1
+            if lg.used[0] >= len(lg.act):
+                return GROW_LOG
+            if s.hn + p.n_agents + 2 > len(s.ht):
+                return HEAP_FULL
+            t, sq, kind, who = _pop(s)
+            s.now = t
+            s.events += 1
             if kind == LATENCY:
-                if sq == s.uwait[e, who]:
-                    _start_action(s, lg, p, e, who)
+                if sq == s.uwait[who]:
+                    _start_action(s, lg, p, who)
             elif kind == ACTION:
-                if sq == s.uwait[e, who]:
-                    _land(s, p, e, who, False)
+                if sq == s.uwait[who]:
+                    _land(s, p, who, False)
                     _observe(s, lg, p, e, who)
             elif kind == INT_UAV:
-                _land(s, p, e, who, True)
+                _land(s, p, who, True)
                 _observe(s, lg, p, e, who)
             elif kind == EXTINGUISH:
-                if sq == s.fwait[e, who]:
-                    _extinguish(s, lg, p, e, who)
+                if sq == s.fwait[who]:
+                    _extinguish(s, lg, p, who)
             elif kind == INT_FIRE:
-                if s.alive[e, who]:
-                    _replan(s, p, e, who)
+                if s.alive[who]:
+                    _replan(s, p, who)
             else:
-                _end(s, lg, p, e)
-    # Every new row, including decisions superseded at once (interrupted within their latency),
-    # which the dynamics never needed but the rollout records; the caller answers them all.
-    n = 0
-    for row in range(s.n_rows[1], s.n_rows[0]):
-        if lg.act[row] < 0:
-            pending[n] = row
-            n += 1
-    s.n_rows[1] = s.n_rows[0]
-    return OK, n
+                _end(s, lg, p)
+    return OK
 
 
 # --- Python side ---------------------------------------------------------------------------------
 
 def _new_log(capacity: int, obs_dim: int) -> Log:
-    return Log(obs=np.empty((capacity, obs_dim)), act=np.full(capacity, -1, dtype=np.int64),
-               rew=np.zeros(capacity), dur=np.full(capacity, np.nan), time=np.zeros(capacity),
-               ep=np.zeros(capacity, dtype=np.int64), agent=np.zeros(capacity, dtype=np.int64),
-               idx=np.zeros(capacity, dtype=np.int64))
+    """Uninitialised: ``_observe`` writes every field of a row."""
+    return Log(obs=np.empty((capacity, obs_dim)), act=np.empty(capacity, dtype=np.int64),
+               rew=np.empty(capacity), dur=np.empty(capacity), time=np.empty(capacity),
+               ep=np.empty(capacity, dtype=np.int64), agent=np.empty(capacity, dtype=np.int64),
+               idx=np.empty(capacity, dtype=np.int64), used=np.zeros(1, dtype=np.int64))
 
 
 def _grow(lg: Log) -> Log:
@@ -379,12 +405,8 @@ class WildfireEnv:
         self.n_actions = cfg.n_actions
         self.n_agents = cfg.n_agents
         self.gamma = cfg.gamma
-        fires = fire_positions(cfg)
-        self.params = Params(
-            n_agents=cfg.n_agents, n_fires=len(fires), n_obs=cfg.n_observed, v=cfg.v_uav,
-            dt=cfg.dt or 0.0, latency=cfg.decision_latency, tol=cfg.at_fire_tol, gamma=cfg.gamma,
-            r_ext=cfg.r_ext, r_pen=cfg.r_pen, t_health=cfg.t_health, t_max=cfg.t_max,
-            q1=cfg.quirk_q1_stale_attack, q2=cfg.quirk_q2_penalty_party_only, fires=fires)
+        self.params = params_record(cfg)
+        self.state_dtype = state_dtype(cfg)
 
     def rollout(self, policy: Policy, n_episodes: int,
                 seed: int | np.random.SeedSequence) -> Rollout:
@@ -392,52 +414,44 @@ class WildfireEnv:
 
     def simulate(self, policy: Policy, draws: EpisodeDraws) -> Rollout:
         """Run the episodes of ``draws`` (tests script start positions and hold durations)."""
-        p, b = self.params, draws.n_episodes
-        s = self._initial_state(draws)
-        lg = _new_log(max(1024, 64 * b * p.n_agents), self.obs_dim)
-        _setup(s, lg, p)
-        pending = np.empty(len(lg.act), dtype=np.int64)
+        states = self._initial_states(draws)
+        lg = _new_log(max(1024, 64 * draws.n_episodes * self.n_agents), self.obs_dim)
+        _setup(states, lg, self.params)
+        # A round's new rows are contiguous; all of them await an action, including decisions
+        # superseded at once (interrupted within their latency), which the dynamics never needed
+        # but the rollout records. So the policy reads views of the log: no gathering.
+        first = 0
         while True:
-            status, n = _advance(s, lg, p, pending)
+            status = _advance(states, lg, self.params)
             if status == GROW_LOG:
                 lg = _grow(lg)
-                pending = np.empty(len(lg.act), dtype=np.int64)
                 continue
             if status == HEAP_FULL:
                 raise RuntimeError(f"event heap of {HEAP_CAPACITY} entries is full")
-            if n == 0:
+            end = int(lg.used[0])
+            if end == first:
                 break
-            rows = pending[:n]
+            rows = slice(first, end)
             batch = DecisionBatch(obs=lg.obs[rows], episode=lg.ep[rows], agent=lg.agent[rows],
                                   index=lg.idx[rows])
-            lg.act[rows] = check_actions(policy(batch), n, self.n_actions)
-        used = s.n_rows[0]
+            lg.act[rows] = check_actions(policy(batch), end - first, self.n_actions)
+            first = end
+        used = slice(0, first)
         return rollout_from_records(
-            episode=lg.ep[:used], agent=lg.agent[:used], index=lg.idx[:used],
-            time=lg.time[:used], obs=lg.obs[:used], actions=lg.act[:used], rewards=lg.rew[:used],
-            durations=lg.dur[:used], agent_returns=s.returns, end_time=s.t_end, events=s.events)
+            episode=lg.ep[used], agent=lg.agent[used], index=lg.idx[used], time=lg.time[used],
+            obs=lg.obs[used], actions=lg.act[used], rewards=lg.rew[used],
+            durations=lg.dur[used], agent_returns=states["returns"].copy(),
+            end_time=states["t_end"].copy(), events=states["events"].copy())
 
-    def _initial_state(self, draws: EpisodeDraws) -> State:
-        p, b = self.params, draws.n_episodes
-        n, k = p.n_agents, p.n_fires
-
-        def full(shape, value, dtype=np.float64):
-            return np.full(shape, value, dtype=dtype)
-
-        return State(
-            now=full(b, 0.0), done=full(b, False, np.bool_), t_end=full(b, np.nan),
-            n_alive=full(b, k, np.int64), events=full(b, 0, np.int64),
-            pos=draws.starts.astype(np.float64, copy=True), origin=full((b, n, 2), 0.0),
-            goal=full((b, n, 2), 0.0), t_dep=full((b, n), 0.0), length=full((b, n), 0.0),
-            flying=full((b, n), False, np.bool_), interest=full((b, n), -1, np.int64),
-            attacking=full((b, n), -1, np.int64), in_party=full((b, n), False, np.bool_),
-            n_holds=full((b, n), 0, np.int64), holds=np.ascontiguousarray(draws.holds, np.float64),
-            rank=full((b, n, p.n_obs), -1, np.int64), cur=full((b, n), -1, np.int64),
-            n_dec=full((b, n), 0, np.int64), uwait=full((b, n), -1, np.int64),
-            returns=full((b, n), 0.0), alive=full((b, k), True, np.bool_),
-            health=full((b, k), p.t_health), t_update=full((b, k), 0.0),
-            party=full((b, k), 0, np.int64), fwait=full((b, k), -1, np.int64),
-            ht=full((b, HEAP_CAPACITY), 0.0), hp=full((b, HEAP_CAPACITY), 0, np.int64),
-            hs=full((b, HEAP_CAPACITY), 0, np.int64), hk=full((b, HEAP_CAPACITY), 0, np.int64),
-            hw=full((b, HEAP_CAPACITY), 0, np.int64), hn=full(b, 0, np.int64),
-            seq=full(b, 0, np.int64), n_rows=full(2, 0, np.int64))
+    def _initial_states(self, draws: EpisodeDraws) -> np.ndarray:
+        cfg = self.cfg
+        states = np.zeros(draws.n_episodes, self.state_dtype)
+        states["t_end"] = np.nan
+        states["n_alive"] = self.params["n_fires"][0]
+        states["pos"] = draws.starts
+        states["holds"] = draws.holds
+        for field in ("interest", "attacking", "rank", "cur", "uwait", "fwait"):
+            states[field] = -1
+        states["alive"] = 1
+        states["health"] = cfg.t_health
+        return states

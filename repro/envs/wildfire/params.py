@@ -136,13 +136,17 @@ class EpisodeDraws:
 
 def draw_episodes(cfg: WildfireConfig, n_episodes: int,
                   seed: int | np.random.SeedSequence) -> EpisodeDraws:
-    """Episode e draws from ``episode_streams(seed, n)[e]``: start positions, then hold durations."""
-    from repro.core.rollout import episode_streams
+    """The randomness of a batch of episodes in two vectorised draws (both engines use this).
 
-    starts = np.empty((n_episodes, cfg.n_agents, 2))
-    holds = np.empty((n_episodes, cfg.n_agents, cfg.hold_table_size))
-    for e, ss in enumerate(episode_streams(seed, n_episodes)):
-        rng = np.random.default_rng(ss)
-        starts[e] = rng.uniform(-1.0, 1.0, size=(cfg.n_agents, 2))
-        holds[e] = rng.normal(cfg.hold_mean, cfg.hold_std, size=(cfg.n_agents, cfg.hold_table_size))
+    The seed's two spawned children drive one generator each: start positions (uniform on
+    [-1, 1]^2) and hold durations (Normal). Each fills its array episode by episode, so the draws
+    of episode e do not depend on ``n_episodes``: a batch is a prefix of any larger batch of the
+    same seed. One generator per batch, not per episode: creating a generator costs more than
+    simulating a short episode.
+    """
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    start_ss, hold_ss = ss.spawn(2)
+    starts = np.random.default_rng(start_ss).uniform(-1.0, 1.0, size=(n_episodes, cfg.n_agents, 2))
+    holds = np.random.default_rng(hold_ss).normal(
+        cfg.hold_mean, cfg.hold_std, size=(n_episodes, cfg.n_agents, cfg.hold_table_size))
     return EpisodeDraws(starts, holds)
