@@ -64,7 +64,8 @@ def check_c2(results: Path) -> Verdict:
     ours = (f"spread over lambda {spread[0]:.0f} [{spread[1]:.0f}, {spread[2]:.0f}] vs gap to "
             f"thresholds {gap[0]:.0f} [{gap[1]:.0f}, {gap[2]:.0f}]")
     return Verdict(ours, _verdict(spread[2] < gap[1], spread[0] < gap[0]),
-                   f"range over lambda in {sorted(runs['lambda'].unique())} of the final-return "
+                   f"range over lambda in {{{', '.join(f'{x:g}' for x in sorted(runs['lambda'].unique()))}}} "
+                   "of the final-return "
                    f"IQM, {scores.shape[0]} seeds each", scale_of(path))
 
 

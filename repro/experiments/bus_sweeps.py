@@ -148,7 +148,7 @@ def summary(cfg: BusSweepConfig, finals: pd.DataFrame, baselines: dict[str, floa
         if runs is not None:
             rows.append(dict(policy="mlp-run", **{"lambda": lam}, batch=batch, runs=1,
                              final_iqm=ret, ci_low=ret, ci_high=ret, run=str(runs[(lam, batch, s)])))
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows).astype({"batch": "Int64"})  # the baselines have no batch
 
 
 def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[str, float],
