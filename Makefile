@@ -12,7 +12,8 @@ ARGS   ?=
 TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup reproduce test claims table-race table-thresholds fig-bus-arrivals fig-bus-load \
+.PHONY: setup reproduce test claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
+	fig-bus-arrivals fig-bus-load \
 	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling clean
 .DEFAULT_GOAL := help
 
@@ -40,6 +41,8 @@ test: $(STAMP) ## run the test suite
 reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) table-race SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) table-thresholds SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) fig-bus-lambda SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) fig-bus-batch SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) fig-bus-arrivals SCALE=$(SCALE)
 	$(MAKE) fig-bus-load SCALE=$(SCALE)
 	$(MAKE) fig-scaling SCALE=$(SCALE) SEED=$(SEED)
@@ -54,10 +57,16 @@ table-race: $(STAMP) ## race-condition table and figure (C10)
 table-thresholds: $(STAMP) ## Optimized Thresholds by differential evolution (bus baseline)
 	$(REPRO) bus-thresholds --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-fig-bus-arrivals: $(STAMP) ## bus arrival times per policy (C5; needs table-thresholds)
+fig-bus-lambda: $(STAMP) ## bus training curves over lambda (C1, C2; needs table-thresholds)
+	$(REPRO) fig-bus-lambda --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+fig-bus-batch: $(STAMP) ## bus training curves over the batch size (C3; needs table-thresholds)
+	$(REPRO) fig-bus-batch --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+fig-bus-arrivals: $(STAMP) ## bus arrival times per policy (C5; needs table-thresholds, fig-bus-lambda)
 	$(REPRO) fig-bus-arrivals --scale $(SCALE) $(ARGS)
 
-fig-bus-load: $(STAMP) ## bus 4th-cycle loads per policy (C4; needs table-thresholds)
+fig-bus-load: $(STAMP) ## bus 4th-cycle loads per policy (C4, C5; needs table-thresholds, fig-bus-lambda)
 	$(REPRO) fig-bus-load --scale $(SCALE) $(ARGS)
 
 bench-bus: $(STAMP) ## episodes/s of the fast bus engine and its SimPy reference

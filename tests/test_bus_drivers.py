@@ -23,7 +23,9 @@ def smoke(tmp_path_factory):
     common = ["--scale", "smoke", "--results-dir", str(res)]
     assert main(["bus-thresholds", *common]) == 0
     for cmd in ("fig-bus-load", "fig-bus-arrivals"):
-        assert main([cmd, *common, "--figures-dir", str(fig)]) == 0
+        # the trained-MLP panel is tested with the training sweeps (tests/test_bus_sweeps.py)
+        assert main([cmd, *common, "--figures-dir", str(fig), "--policies", "nohold",
+                     "thresholds"]) == 0
     return res, fig
 
 
@@ -56,7 +58,7 @@ def test_eval_json(smoke, capsys):
 @pytest.mark.parametrize("args", [
     ["bus-eval", "--policy", "thresholds", "--thresholds", "3", "5", "1"],
     ["bus-eval", "--policy", "mystery"],
-    ["fig-bus-load", "--thresholds", "6", "6", "1"],
+    ["fig-bus-load", "--policies", "nohold", "thresholds", "--thresholds", "6", "6", "1"],
     ["fig-bus-load", "--policies", "nohold", "mystery"],
 ])
 def test_bad_input(args, tmp_path):

@@ -141,9 +141,14 @@ def test_bad_actions(make):
 def test_time_to_regularity():
     import pandas as pd
     df = pd.DataFrame({"time_min": [0.0, 10.0, 20.0, 30.0], "h_min": [0.0, 9.0, 6.5, 5.5]})
-    assert time_to_regularity(df, 6.0) == 10.0
-    assert np.isnan(time_to_regularity(df.assign(h_min=[6, 6, 6, 0]), 6.0))
-    assert time_to_regularity(df.assign(h_min=6.0), 6.0) == 0.0
+    assert time_to_regularity(df, 6.0, share=1.0, min_tail=1) == 20.0
+    # one stray arrival among four is tolerated at share 0.75, not at 0.9
+    stray = df.assign(h_min=[6, 6, 6, 0])
+    assert time_to_regularity(stray, 6.0, share=0.75, min_tail=4) == 0.0
+    assert np.isnan(time_to_regularity(stray, 6.0, share=0.9, min_tail=2))
+    assert time_to_regularity(df.assign(h_min=6.0), 6.0, min_tail=1) == 0.0
+    # a regular tail shorter than min_tail does not count
+    assert np.isnan(time_to_regularity(df, 6.0, share=1.0, min_tail=3))
 
 
 def test_drive_stops_when_all_done():

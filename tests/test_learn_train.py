@@ -119,6 +119,8 @@ def test_cli_smoke_and_checkpoint_policy(tmp_path):
     (["--epochs", "0"], "--epochs"),
     (["--gamma", "0"], "--gamma"),
     (["--hidden", "0"], "--hidden"),
+    (["--fvp-subsample", "0"], "--fvp-subsample"),
+    (["--fvp-subsample", "1.5"], "--fvp-subsample"),
     (["--scale", "huge"], "--scale"),
 ])
 def test_bad_options_exit_2_with_one_line(tmp_path, capsys, bad, param):

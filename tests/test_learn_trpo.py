@@ -132,3 +132,20 @@ def test_step_improves_surrogate_along_natural_gradient():
     # the quadratic model sizes the first try to the bound: the accepted KL is close to max_kl
     assert stats.kl > 0.2 * TRPO_KW["max_kl"]
     assert 0 < stats.entropy <= np.log(4) + 1e-12
+
+
+def test_fvp_subsample_all_rows_is_the_full_step_and_a_subsample_keeps_the_kl_bound():
+    """fvp_rows = every row reproduces the full-batch update exactly; a subsample changes the step
+    (so the option is live) yet the line search still enforces the KL bound on the whole batch."""
+    results = {}
+    for name, rows in (("none", None), ("all", torch.arange(64)), ("half", torch.arange(0, 64, 2))):
+        policy, obs, actions, adv = tiny_problem(3)
+        with torch.no_grad():
+            logp_old = policy(obs)
+        stats = trpo_step(policy, obs, actions, adv, fvp_rows=rows, **TRPO_KW)
+        with torch.no_grad():
+            assert float(mean_kl(logp_old, policy(obs))) <= TRPO_KW["max_kl"] + 1e-12
+        results[name] = (parameters_to_vector(policy.parameters()).detach(), stats.accepted)
+    assert all(accepted for _, accepted in results.values())
+    assert torch.equal(results["none"][0], results["all"][0])
+    assert not torch.allclose(results["none"][0], results["half"][0])

@@ -25,9 +25,11 @@ CYCLE = 4
 
 
 def policy_from_args(name: str, args: argparse.Namespace) -> Policy:
-    """The named policy; --thresholds or, for thresholds, the optimised ones in --results-dir."""
+    """The named policy; --thresholds / --mlp-run, else the optimised thresholds and the best
+    trained run recorded in --results-dir."""
     thresholds = None if args.thresholds is None else np.array(args.thresholds, float)
-    return make_policy(name, thresholds=thresholds, results_dir=args.results_dir)
+    return make_policy(name, thresholds=thresholds, results_dir=args.results_dir,
+                       mlp_run=args.mlp_run)
 
 
 def _finite_or_none(x: float) -> float | None:
@@ -58,6 +60,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", required=True, help="one of " + ", ".join(POLICIES))
     p.add_argument("--thresholds", type=float, nargs=3, metavar=("T1", "T2", "T3"),
                    help="thresholds in minutes (default: results/bus_thresholds.csv)")
+    p.add_argument("--mlp-run", help="training run folder of the mlp policy "
+                   "(default: the best run in results/bus_lambda_summary.csv)")
     p.add_argument("--episodes", type=int, default=1, help="episodes to average (default 1)")
     p.add_argument("--results-dir", default="results", help="where bus_thresholds.csv is read")
     p.add_argument("--json", action="store_true", help="print one JSON object")

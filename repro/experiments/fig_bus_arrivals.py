@@ -1,7 +1,8 @@
 """Arrival times of the six buses at the ten stops, one panel per policy (paper Fig. bbarrival_times).
 
 Writes results/bus_arrivals.csv (every arrival of one episode per policy) and figures/bus_arrivals.
-A new policy (e.g. a trained MLP) is one more name in ``POLICIES`` / ``make_policy``.
+The trained MLP panel is the lambda sweep's best run (highest final return; ``--mlp-run`` names
+another), acting greedily. A new policy is one more name in ``POLICIES`` / ``make_policy``.
 """
 
 from __future__ import annotations
@@ -14,10 +15,10 @@ import pandas as pd
 from repro.cli import add_common
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.envs.bus import BusConfig
-from repro.envs.bus.policies import POLICIES
+from repro.envs.bus.policies import POLICIES, best_run
 from repro.experiments.bus_eval import evaluate, policy_from_args
 
-TITLES = {"nohold": "No Holding", "thresholds": "Optimized Thresholds"}
+TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy", "thresholds": "Optimized Thresholds"}
 
 
 def add_policy_arguments(p: argparse.ArgumentParser) -> None:
@@ -27,6 +28,15 @@ def add_policy_arguments(p: argparse.ArgumentParser) -> None:
                    help="panels, in order: " + ", ".join(POLICIES))
     p.add_argument("--thresholds", type=float, nargs=3, metavar=("T1", "T2", "T3"),
                    help="thresholds in minutes (default: results/bus_thresholds.csv)")
+    p.add_argument("--mlp-run", help="training run folder of the mlp panel, acting greedily "
+                   "(default: the lambda sweep's best run, from results/bus_lambda_summary.csv)")
+
+
+def mlp_source(args: argparse.Namespace) -> str | None:
+    """The run folder the mlp panel comes from (None without an mlp panel), for the provenance."""
+    if "mlp" not in args.policies:
+        return None
+    return str(args.mlp_run if args.mlp_run is not None else best_run(args.results_dir))
 
 
 def collect(args: argparse.Namespace) -> pd.DataFrame:
@@ -74,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     arrivals = collect(args)
     prov = provenance(BusConfig(), command="fig-bus-arrivals", scale=args.scale, seed=None,
-                      wall_seconds=time.perf_counter() - t0, extra={"policies": args.policies})
+                      wall_seconds=time.perf_counter() - t0, extra={"policies": args.policies, "mlp_run": mlp_source(args)})
     write_result(results / "bus_arrivals.csv", arrivals, prov)
     plot(arrivals, figures / "bus_arrivals")
     print(f"wrote {results / 'bus_arrivals.csv'} and {figures / 'bus_arrivals'}.png/.pdf")

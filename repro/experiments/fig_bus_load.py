@@ -13,7 +13,7 @@ from repro.core.io import check_writable_dir, provenance, save_figure, write_res
 from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import cycle_loads
 from repro.experiments.bus_eval import CYCLE
-from repro.experiments.fig_bus_arrivals import TITLES, add_policy_arguments, collect
+from repro.experiments.fig_bus_arrivals import TITLES, add_policy_arguments, collect, mlp_source
 
 LOAD_CSV = "bus_load.csv"
 
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     table = loads(collect(args))
     prov = provenance(BusConfig(), command="fig-bus-load", scale=args.scale, seed=None,
-                      wall_seconds=time.perf_counter() - t0, extra={"policies": args.policies})
+                      wall_seconds=time.perf_counter() - t0, extra={"policies": args.policies, "mlp_run": mlp_source(args)})
     write_result(results / LOAD_CSV, table, prov)
     plot(table, figures / "bus_load")
     print(f"wrote {results / LOAD_CSV} and {figures / 'bus_load'}.png/.pdf")

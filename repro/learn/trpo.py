@@ -113,9 +113,11 @@ def line_search(policy: nn.Module, evaluate: Callable[[], tuple[float, float]],
 
 def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, adv: torch.Tensor, *,
               max_kl: float, cg_iters: int, cg_damping: float, backtrack_ratio: float,
-              max_backtracks: int) -> TRPOStats:
+              max_backtracks: int, fvp_rows: torch.Tensor | None = None) -> TRPOStats:
     """One constrained update of ``policy`` (log-probabilities of normalised observations) on a
-    batch; ``adv`` should already be normalised."""
+    batch; ``adv`` should already be normalised. ``fvp_rows`` (indices into the batch) restricts the
+    Fisher-vector products, and so the step size, to those rows (rllab's ``subsample_factor``); the
+    gradient and the line search always use the whole batch."""
     with torch.no_grad():
         logp_old = policy(obs)
     logp_old_a = logp_old.gather(1, actions[:, None])[:, 0]
@@ -128,7 +130,7 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, adv: 
     surr = surrogate(policy(obs))
     grad = torch.cat([g.reshape(-1) for g in torch.autograd.grad(surr, params)])
     surr0 = float(surr.detach())
-    fvp = fisher_vector_product(policy, obs, cg_damping)
+    fvp = fisher_vector_product(policy, obs if fvp_rows is None else obs[fvp_rows], cg_damping)
     direction = conjugate_gradient(fvp, grad, cg_iters)
     shs = float(direction @ fvp(direction))
     if not shs > 0.0:  # zero gradient (e.g. all advantages equal): nothing to do

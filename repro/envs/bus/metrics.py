@@ -13,6 +13,10 @@ from repro.core.rollout import Rollout
 
 REGULARITY_BAND_MIN = 1.0
 """Half-width (minutes) of the headway band around H that counts as regular."""
+REGULARITY_SHARE = 0.9
+"""Share of the later headways that must lie in the band for the arrivals to count as regular."""
+REGULARITY_MIN_TAIL = 60
+"""Arrivals that must follow the time of regularity: one cycle of the fleet (6 buses x 10 stops)."""
 
 
 def arrival_table(rollout: Rollout, n_stops: int) -> pd.DataFrame:
@@ -39,18 +43,23 @@ def cycle_loads(arrivals: pd.DataFrame, cycle: int = 4) -> pd.DataFrame:
 
 
 def time_to_regularity(arrivals: pd.DataFrame, headway_min: float,
-                       band_min: float = REGULARITY_BAND_MIN) -> float:
-    """Minutes from the episode start until every later headway stays within H +- band.
+                       band_min: float = REGULARITY_BAND_MIN, share: float = REGULARITY_SHARE,
+                       min_tail: int = REGULARITY_MIN_TAIL) -> float:
+    """Minutes from the episode start until the arrivals are regular (one episode's table, in
+    time order): the time of the earliest arrival from which on at least ``share`` of the
+    headways lie within H +- band and at least ``min_tail`` arrivals remain; NaN if there is none.
 
-    It is the time of the last arrival whose |h - H| > band (0 if there is none), and NaN when the
-    episode's last arrival is itself irregular (regularity never reached). One episode's table.
+    A share rather than "every later headway" so that one stray arrival (typically the last one
+    before the horizon) cannot decide the answer; the minimum tail so that a short lucky stretch
+    just before the horizon does not count as regularity reached.
     """
-    bad = (arrivals.h_min - headway_min).abs() > band_min
-    if not bad.any():
-        return 0.0
-    if bool(bad.iloc[-1]):
+    ok = np.abs(arrivals.h_min.to_numpy() - headway_min) <= band_min
+    tail_n = np.arange(len(ok), 0, -1)
+    tail_ok = np.cumsum(ok[::-1])[::-1]
+    regular = (tail_ok >= share * tail_n) & (tail_n >= min_tail)
+    if not regular.any():
         return float("nan")
-    return float(arrivals.time_min[bad].max())
+    return float(arrivals.time_min.to_numpy()[np.argmax(regular)])
 
 
 def load_variance_per_stop(loads: pd.DataFrame) -> pd.Series:

@@ -45,10 +45,30 @@ class ThresholdPolicy:
         return (h <= t).sum(axis=1).astype(np.int64)
 
 
-POLICIES = ("nohold", "thresholds")
-"""Policy names the bus drivers accept (a trained "mlp" policy plugs in through make_policy)."""
+class GreedyPolicy:
+    """A trained policy acting greedily: the most probable action of its MLP (ties: the lowest).
+
+    The figures show one episode per policy; acting greedily makes that episode the trained
+    policy's exact behaviour, as it is for the deterministic baselines.
+    """
+
+    def __init__(self, run: str | Path):
+        from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
+
+        path = Path(run) / CHECKPOINT
+        require(path.exists(), "--mlp-run", "a training run folder holding " + CHECKPOINT, str(run))
+        # the generator is never drawn from: greedy actions need no randomness
+        self.sampler = policy_from_checkpoint(path, np.random.default_rng(0))
+
+    def __call__(self, batch: DecisionBatch) -> np.ndarray:
+        return self.sampler.probabilities(batch.obs).argmax(axis=1).astype(np.int64)
+
+
+POLICIES = ("nohold", "mlp", "thresholds")
+"""Policy names the bus drivers accept, in the paper's panel order."""
 
 THRESHOLDS_CSV = "bus_thresholds.csv"
+LAMBDA_SUMMARY_CSV = "bus_lambda_summary.csv"
 
 
 def read_thresholds(results_dir: str | Path) -> np.ndarray:
@@ -60,10 +80,24 @@ def read_thresholds(results_dir: str | Path) -> np.ndarray:
     return np.array([row.T1, row.T2, row.T3], float)
 
 
+def best_run(results_dir: str | Path) -> Path:
+    """The run folder of the lambda sweep's best run (highest final return), from
+    results/bus_lambda_summary.csv, written by `make fig-bus-lambda`."""
+    path = Path(results_dir) / LAMBDA_SUMMARY_CSV
+    if not path.exists():
+        raise UsageError("--mlp-run", f"given, or {path} written first by `make fig-bus-lambda`")
+    runs = pd.read_csv(path)
+    runs = runs[runs.policy == "mlp-run"]
+    return Path(runs.run.iloc[int(np.argmax(runs.final_iqm.to_numpy()))])
+
+
 def make_policy(name: str, *, thresholds: np.ndarray | None = None,
-                results_dir: str | Path = "results") -> Policy:
-    """The policy called ``name``; thresholds default to the optimised ones in ``results_dir``."""
+                results_dir: str | Path = "results", mlp_run: str | Path | None = None) -> Policy:
+    """The policy called ``name``; thresholds default to the optimised ones in ``results_dir``, the
+    trained MLP to the best run of the lambda sweep recorded there."""
     require(name in POLICIES, "--policy", "one of " + ", ".join(POLICIES), name)
     if name == "nohold":
         return no_holding
+    if name == "mlp":
+        return GreedyPolicy(best_run(results_dir) if mlp_run is None else mlp_run)
     return ThresholdPolicy(read_thresholds(results_dir) if thresholds is None else thresholds)

@@ -1,0 +1,215 @@
+"""The bus training sweeps (paper Figs. bbtraining and bbtest; claims C1-C3): PS-TRPO + M-GAE
+training curves over lambda (at 540 episodes per epoch) and over the batch size (at lambda = 2),
+with the No Holding and Optimized Thresholds returns as horizontal lines.
+
+Every (lambda, batch, seed) is one checkpointed run under ``<runs-dir>/bus/`` (see
+``repro.experiments.sweep``); the two sweeps share the lambda = 2, batch = 540 runs, and re-running a
+driver skips what is finished. Outputs, for sweep ``s`` in {lambda, batch}:
+
+- ``results/bus_<s>.csv``: one row per run and epoch (lambda, batch, seed, epoch, average_return,
+  average_discounted_return);
+- ``results/bus_<s>_summary.csv``: per setting the final return (mean of a run's last
+  ``final_epochs`` epochs) as IQM with a 95% bootstrap CI over seeds, and the two baselines' returns
+  (deterministic: one episode each, so no interval); for the lambda sweep also one row per run
+  (``policy = mlp-run``) naming its run folder, from which the figure drivers take the best policy;
+- ``figures/bus_<s>.png/.pdf``: mean curve per setting with a 95% t-interval band over seeds.
+
+Epoch count: the paper gives none. In a pilot run (lambda = 2, 540 episodes per epoch, seed 0,
+70 epochs) the average return rose steeply for about 20 epochs and plateaued from about epoch 25
+(epoch-to-epoch noise of a few percent, no trend after); ``paper`` scale trains 100 epochs, four
+times that, so that slower settings (small lambda) plateau too; ``quick`` trains 30.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import pandas as pd
+from scipy import stats as sps
+
+from repro.cli import add_common
+from repro.core.config import for_scale
+from repro.core.errors import require
+from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.stats import bootstrap_ci, iqm
+from repro.envs.bus import BusConfig, make_env
+from repro.envs.bus.policies import ThresholdPolicy, no_holding, read_thresholds
+from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
+                                     run_dir, run_sweep)
+from repro.learn.trainer import train_config
+
+SWEEPS = ("lambda", "batch")
+
+
+@dataclass(frozen=True)
+class BusSweepConfig:
+    """What the two bus sweeps train, and how their final returns are summarised."""
+
+    lambdas: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0)
+    """M-GAE lambdas of the lambda sweep (paper Fig. bbtraining)."""
+    lambda_batch: int = 540
+    """Episodes per epoch in the lambda sweep (the paper's batch size)."""
+    batches: tuple[int, ...] = (54, 135, 270, 540)
+    """Episodes per epoch of the batch sweep (paper Fig. bbtest)."""
+    batch_lambda: float = 2.0
+    """lambda in the batch sweep (the paper's bus lambda)."""
+    seeds: int = 5
+    """Training runs per setting (seeds seed, seed + 1, ...)."""
+    epochs: int = 100
+    """Policy updates per run; the paper gives none: the curves plateau from about epoch 25."""
+    final_epochs: int = 10
+    """A run's final return is the mean average return of its last final_epochs epochs."""
+    fvp_subsample: float = 0.1
+    """Fraction of decisions for TRPO's Fisher-vector products (rllab's subsample_factor); at 540
+    episodes (~1.1e5 decisions) the full-batch products would take ~75% of an epoch."""
+    n_boot: int = 2000
+    """Bootstrap replicates of the confidence intervals."""
+
+    SCALES: ClassVar[dict[str, dict[str, Any]]] = {
+        # smoke shrinks the batch sizes too, so that a whole sweep runs in seconds in the tests
+        "smoke": dict(lambda_batch=24, batches=(6, 12, 24), seeds=2, epochs=4, final_epochs=2,
+                      n_boot=200),
+        "quick": dict(seeds=3, epochs=30, final_epochs=5),
+        "paper": {},
+    }
+
+    def validate(self) -> None:
+        require(len(self.lambdas) >= 1 and min(self.lambdas) >= 0, "lambdas", ">= 0", self.lambdas)
+        require(len(self.batches) >= 1 and min(self.batches) >= 1, "batches", ">= 1", self.batches)
+        require(self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
+        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
+        require(1 <= self.final_epochs <= self.epochs, "--final-epochs", "in [1, epochs]",
+                self.final_epochs)
+
+    def settings(self, sweep: str) -> list[tuple[float, int]]:
+        """(lambda, batch) of every setting of ``sweep``, in plotting order."""
+        if sweep == "lambda":
+            return [(lam, self.lambda_batch) for lam in self.lambdas]
+        return [(self.batch_lambda, b) for b in self.batches]
+
+
+def jobs(cfg: BusSweepConfig, sweep: str, seed: int) -> list[TrainJob]:
+    bus = BusConfig()
+    out = []
+    for lam, batch in cfg.settings(sweep):
+        for s in range(seed, seed + cfg.seeds):
+            train = train_config("quick", "bus", seed=s, epochs=cfg.epochs, batch_episodes=batch,
+                                 lam=lam, fvp_subsample=cfg.fvp_subsample)
+            out.append(TrainJob(f"lam{lam:g}_batch{batch}_seed{s}", train, bus))
+    return out
+
+
+def curves(cfg: BusSweepConfig, job_list: list[TrainJob], root: Path) -> pd.DataFrame:
+    """Per-run-per-epoch returns of the finished jobs."""
+    frames = []
+    for job in job_list:
+        prog = pd.read_csv(run_dir(root, job) / "progress.csv").iloc[:cfg.epochs]
+        frames.append(pd.DataFrame({
+            "lambda": job.train.lam, "batch": job.train.batch_episodes, "seed": job.train.seed,
+            "epoch": prog.epoch, "average_return": prog.average_return,
+            "average_discounted_return": prog.average_discounted_return}))
+    return pd.concat(frames, ignore_index=True)
+
+
+def final_returns(cfg: BusSweepConfig, table: pd.DataFrame) -> pd.DataFrame:
+    """One row per run: lambda, batch, seed, final_return (mean of its last final_epochs)."""
+    last = table[table.epoch >= cfg.epochs - cfg.final_epochs]
+    return (last.groupby(["lambda", "batch", "seed"], sort=False).average_return.mean()
+            .rename("final_return").reset_index())
+
+
+def baseline_returns(results: Path) -> dict[str, float]:
+    """Average return of No Holding and of the Optimized Thresholds in ``results``."""
+    thresholds = ThresholdPolicy(read_thresholds(results))
+    env = make_env(BusConfig())
+    return {name: float(env.rollout(policy, 1).episode_return[0])
+            for name, policy in (("nohold", no_holding), ("thresholds", thresholds))}
+
+
+def summary(cfg: BusSweepConfig, finals: pd.DataFrame, baselines: dict[str, float], seed: int,
+            runs: dict[tuple[float, int, int], Path] | None = None) -> pd.DataFrame:
+    """IQM and bootstrap CI of the final return per setting, the baselines, and (given ``runs``,
+    (lambda, batch, seed) -> run folder) one row per run."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for (lam, batch), grp in finals.groupby(["lambda", "batch"], sort=False):
+        point, lo, hi = bootstrap_ci(grp.final_return.to_numpy(), iqm, n_boot=cfg.n_boot, rng=rng)
+        rows.append(dict(policy="mlp", **{"lambda": lam}, batch=batch, runs=len(grp),
+                         final_iqm=point, ci_low=lo, ci_high=hi, run=""))
+    for name, ret in baselines.items():
+        rows.append(dict(policy=name, **{"lambda": np.nan}, batch=np.nan, runs=1, final_iqm=ret,
+                         ci_low=ret, ci_high=ret, run=""))
+    for lam, batch, s, ret in zip(finals["lambda"], finals.batch, finals.seed, finals.final_return):
+        if runs is not None:
+            rows.append(dict(policy="mlp-run", **{"lambda": lam}, batch=batch, runs=1,
+                             final_iqm=ret, ci_low=ret, ci_high=ret, run=str(runs[(lam, batch, s)])))
+    return pd.DataFrame(rows).astype({"batch": "Int64"})  # the baselines have no batch
+
+
+def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[str, float],
+         stem: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for lam, batch in cfg.settings(sweep):
+        sel = table[(table["lambda"] == lam) & (table.batch == batch)]
+        by_epoch = sel.groupby("epoch").average_return
+        mean, n = by_epoch.mean(), by_epoch.count()
+        half = by_epoch.sem().fillna(0.0) * sps.t.ppf(0.975, np.maximum(n - 1, 1))
+        label = f"$\\lambda$ = {lam:g}" if sweep == "lambda" else f"batch {batch}"
+        line, = ax.plot(mean.index, mean, lw=1.2, label=label)
+        ax.fill_between(mean.index, mean - half, mean + half, color=line.get_color(), alpha=0.2)
+    ax.axhline(baselines["thresholds"], color="k", ls="--", lw=1, label="Optimized Thresholds")
+    ax.axhline(baselines["nohold"], color="k", ls=":", lw=1, label="No Holding")
+    fixed = (f"batch {cfg.lambda_batch} episodes/epoch" if sweep == "lambda"
+             else f"$\\lambda$ = {cfg.batch_lambda:g}")
+    ax.set_title(f"Bus holding, PS-TRPO + M-GAE ({fixed}; {cfg.seeds} seeds, 95% CI)")
+    ax.set_xlabel("Epoch")
+    ax.set_ylabel("Average return per episode")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, stem)
+    plt.close(fig)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_common(p)
+    add_sweep_arguments(p)
+    p.add_argument("--seeds", type=int, help="runs per setting")
+    p.add_argument("--epochs", type=int, help="policy updates per run")
+    p.add_argument("--final-epochs", type=int, help="epochs averaged into a run's final return")
+
+
+def run_named(sweep: str, args: argparse.Namespace) -> int:
+    cfg = for_scale(BusSweepConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
+                    final_epochs=args.final_epochs)
+    cfg.validate()
+    check_sweep_arguments(args)
+    results = check_writable_dir(args.results_dir, "--results-dir")
+    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    root = check_writable_dir(Path(args.runs_dir) / "bus", "--runs-dir")
+    t0 = time.perf_counter()
+    baselines = baseline_returns(results)  # fails (needs table-thresholds) before any training
+    job_list = jobs(cfg, sweep, args.seed)
+    run_sweep(job_list, root, n_jobs=args.n_jobs, scheduler=args.scheduler)
+    table = curves(cfg, job_list, root)
+    finals = final_returns(cfg, table)
+    # the lambda sweep names its run folders: the figure drivers take the best policy from there
+    runs = {(j.train.lam, j.train.batch_episodes, j.train.seed): run_dir(root, j) for j in job_list}
+    summ = summary(cfg, finals, baselines, args.seed, runs if sweep == "lambda" else None)
+    prov = provenance(cfg, command=f"fig-bus-{sweep}", scale=args.scale, seed=args.seed,
+                      wall_seconds=time.perf_counter() - t0, extra={"runs_dir": str(root)})
+    write_result(results / f"bus_{sweep}.csv", table, prov)
+    write_result(results / f"bus_{sweep}_summary.csv", summ, prov)
+    plot(cfg, sweep, table, baselines, figures / f"bus_{sweep}")
+    print(summ[summ.policy != "mlp-run"].to_string(index=False))
+    return 0
