@@ -60,9 +60,9 @@ class TransferConfig:
 
     seeds: int = 3
     """Policies trained from scratch per training simulator (paper: 5)."""
-    epochs: int = 100
+    epochs: int = 60
     """Training epochs per policy (paper: 300)."""
-    batch_episodes: int = 200
+    batch_episodes: int = 150
     """Training episodes per epoch (paper: 600 to 1,200)."""
     test_episodes: int = 2000
     """ED test episodes per trained policy."""
