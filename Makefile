@@ -13,7 +13,7 @@ TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
 .PHONY: setup reproduce test claims table-race table-thresholds fig-bus-arrivals fig-bus-load \
-	bench-bus bench-wildfire wildfire-eval bench-learn clean
+	bench-bus bench-wildfire wildfire-eval bench-learn fig-transfer wildfire-behaviour clean
 .DEFAULT_GOAL := help
 
 help:
@@ -42,6 +42,9 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) table-thresholds SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) fig-bus-arrivals SCALE=$(SCALE)
 	$(MAKE) fig-bus-load SCALE=$(SCALE)
+	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
+	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
 claims: $(STAMP) ## render paper_claims.md from results/
@@ -70,6 +73,12 @@ wildfire-eval: $(STAMP) ## ADR of a heuristic wildfire policy (ARGS="--policy fl
 
 bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS="--env wildfire")
 	$(REPRO) bench-learn --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+fig-transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARGS="--corrected")
+	$(REPRO) fig-transfer --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the flowchart (C6, C7)
+	$(REPRO) wildfire-behaviour --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -143,7 +143,7 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     return jobs
 
 
-def test_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]], folders: list[Path],
+def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]], folders: list[Path],
                   seed: int) -> pd.DataFrame:
     """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths)."""
     from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
@@ -245,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
     folders = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
                         scheduler=args.scheduler)
     t_train = time.perf_counter() - t0
-    per_policy = test_policies(cfg, labelled, folders, args.seed)
+    per_policy = evaluate_policies(cfg, labelled, folders, args.seed)
     summary = summarise(per_policy, cfg.n_boot, args.seed)
     wall = time.perf_counter() - t0
     seconds = [pd.read_csv(f / "progress.csv").seconds for f in folders]
