@@ -73,28 +73,42 @@ def test_sweep_on_a_local_dask_cluster_matches_joblib_and_skips_finished_runs(tm
     assert list(a.simulator) == ["ED", "FS-10"] and (a.epochs == 2).all()
 
 
-def test_fig_transfer_cli_smoke_is_deterministic(tmp_path, cli):
+def _main(argv: list[str]) -> int:
+    from repro.cli import main
+
+    try:
+        return main(argv)
+    except SystemExit as exit_:  # argparse's errors
+        return int(exit_.code)
+
+
+def test_fig_transfer_cli_smoke(tmp_path, monkeypatch):
+    """The whole command in process (n_jobs=1 runs the sweep sequentially here); a second run
+    skips the finished training runs and rewrites byte-identical CSVs."""
+    monkeypatch.setenv("REPRO_QUIET", "1")
     outs = []
     for i in range(2):
-        r = cli("fig-transfer", "--scale", "smoke", "--test-episodes", "5", "--n-jobs", "2",
-                "--runs-dir", str(tmp_path / f"runs{i}"), "--results-dir", str(tmp_path / f"r{i}"),
-                "--figures-dir", str(tmp_path / "fig"), timeout=300)
-        assert r.returncode == 0, r.stderr
+        assert _main(["fig-transfer", "--scale", "smoke", "--test-episodes", "5", "--n-jobs", "1",
+                      "--runs-dir", str(tmp_path / "runs"),
+                      "--results-dir", str(tmp_path / f"r{i}"),
+                      "--figures-dir", str(tmp_path / "fig")]) == 0
         outs.append([(tmp_path / f"r{i}" / n).read_bytes()
                      for n in ("transfer.csv", "transfer_summary.csv")])
     assert outs[0] == outs[1]
     summary = pd.read_csv(tmp_path / "r0" / "transfer_summary.csv")
-    assert list(summary.simulator) == list(PAPER)
-    assert (tmp_path / "fig" / "transfer.png").exists() and (tmp_path / "fig" / "transfer.pdf").exists()
+    assert list(summary.simulator) == list(PAPER) and (summary.n_policies == 1).all()
+    assert all((tmp_path / "fig" / f"transfer.{ext}").exists() for ext in ("png", "pdf"))
 
 
+@pytest.mark.parametrize("command", ["fig-transfer", "wildfire-behaviour"])
 @pytest.mark.parametrize("argv", [["--seeds", "0"], ["--test-episodes", "0"], ["--n-jobs", "0"],
-                                  ["--scale", "huge"]])
-def test_fig_transfer_bad_input_writes_nothing(tmp_path, cli, argv):
-    r = cli("fig-transfer", *argv, "--runs-dir", str(tmp_path / "runs"),
-            "--results-dir", str(tmp_path / "r"), "--figures-dir", str(tmp_path / "f"))
-    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
-    assert not any(tmp_path.iterdir())
+                                  ["--epochs", "0"], ["--scale", "huge"]])
+def test_bad_input_writes_nothing(tmp_path, monkeypatch, capsys, command, argv):
+    monkeypatch.chdir(tmp_path)
+    assert _main([command, *argv]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1, err
+    assert list(tmp_path.iterdir()) == []
 
 
 def _summary(means: dict[str, float], half_width: float, n: int = 5) -> pd.DataFrame:

@@ -45,11 +45,12 @@ def check_c6(results: Path) -> Verdict:
         ok.append(abs(mean - paper) <= C6_TOLERANCE)
         parts.append(f"{key} {_pct(mean)} [{_pct(lo)}, {_pct(hi)}] (paper {_pct(paper)})")
     verdict = "PASS" if all(ok) else "PARTIAL" if any(ok) else "FAIL"
+    outside = [k for k, good in zip(C6_PAPER, ok) if not good]
     ours = ", ".join(f"{_pct(t[k].mean())}" for k in C6_PAPER)
     detail = (f"{len(t)} policies x {t.epochs.iloc[0]} epochs x {t.batch_episodes.iloc[0]} "
               f"episodes on ED, measured on {t.test_episodes.iloc[0]} ED episodes each; mean over "
               f"policies [95% bootstrap CI]: " + "; ".join(parts)
-              + f". Outside tolerance: {[k for k, good in zip(C6_PAPER, ok) if not good] or 'none'}")
+              + f". Outside tolerance: {outside or 'none'}")
     return Verdict(ours, verdict, detail, scale_of(path))
 
 
@@ -133,7 +134,8 @@ def _corrected_line(results: Path, judge) -> str:
     try:
         s, path = _summary(results, "transfer_corrected")
     except FileNotFoundError:
-        return " Corrected semantics (Q1, Q2 off): not yet run (`make fig-transfer ARGS=--corrected`)."
+        return (" Corrected semantics (Q1, Q2 off): not yet run "
+                "(`make fig-transfer ARGS=--corrected`).")
     verdict, why = judge(s)
     return (f" Corrected semantics (Q1, Q2 off; {scale_of(path)} scale): {verdict}: "
             f"{_means(s)}; {why}.")

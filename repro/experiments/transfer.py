@@ -143,8 +143,8 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     return jobs
 
 
-def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]], folders: list[Path],
-                  seed: int) -> pd.DataFrame:
+def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
+                      folders: list[Path], seed: int) -> pd.DataFrame:
     """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths)."""
     from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
 
