@@ -149,17 +149,15 @@ def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
     from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
 
     env = make_env(cfg.test_simulator())
-    root = np.random.SeedSequence(seed)
     env_seed = int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])
     rows = []
     for i, ((label, job), folder) in enumerate(zip(labelled, folders)):
-        rng = np.random.default_rng(np.random.SeedSequence(root.entropy,
-                                                           spawn_key=(_TEST_POLICY_STREAM, i)))
-        policy = policy_from_checkpoint(folder / CHECKPOINT, rng)
+        stream = np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i))
+        policy = policy_from_checkpoint(folder / CHECKPOINT, np.random.default_rng(stream))
         mean, err = adr(evaluate(env, policy, cfg.test_episodes, env_seed), env.gamma)
         curve = pd.read_csv(folder / "progress.csv")
         last = curve.average_discounted_return.iloc[-max(1, len(curve) // 10):]
-        rows.append(dict(simulator=label, dt=job.env_config.dt if job.env_config.dt else 0.0,
+        rows.append(dict(simulator=label, dt=job.env_config.dt or 0.0,  # 0 stands for ED
                          t_health=job.env_config.t_health, train_seed=job.train.seed,
                          epochs=len(curve), batch_episodes=job.train.batch_episodes,
                          test_episodes=cfg.test_episodes, adr_ed=mean, adr_ed_sem=err,
