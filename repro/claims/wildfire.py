@@ -106,7 +106,7 @@ def check_c8(results: Path) -> Verdict:
     verdict, caveat = _at_most_partial(verdict, s)
     detail = (f"{int(s.n_policies.min())} policies per simulator, tested on ED (T_health = 3.0); "
               f"95% bootstrap CIs of the mean: {_cis(s)}. {why}.{caveat}")
-    detail += _corrected_line(results, c8_verdict)
+    detail += _corrected_line(results, c8_verdict, means=True)
     return Verdict(_means(s.drop(index=C9_PAIR[0])), verdict, detail, scale_of(path))
 
 
@@ -124,12 +124,12 @@ def check_c9(results: Path) -> Verdict:
     verdict, why = c9_verdict(s)
     verdict, caveat = _at_most_partial(verdict, s)
     detail = f"FS-1 trained with T_health = 2.9999 vs 3.0, both tested on ED: {why}.{caveat}"
-    detail += _corrected_line(results, c9_verdict)
+    detail += _corrected_line(results, c9_verdict, means=False)
     low, ref = s.loc[C9_PAIR[0]], s.loc[C9_PAIR[1]]
     return Verdict(f"{low['mean']:.3f} vs {ref['mean']:.3f}", verdict, detail, scale_of(path))
 
 
-def _corrected_line(results: Path, judge) -> str:
+def _corrected_line(results: Path, judge, means: bool) -> str:
     """The same check on the run with quirks Q1 and Q2 corrected, when it exists."""
     try:
         s, path = _summary(results, "transfer_corrected")
@@ -137,8 +137,8 @@ def _corrected_line(results: Path, judge) -> str:
         return (" Corrected semantics (Q1, Q2 off): not yet run "
                 "(`make fig-transfer ARGS=--corrected`).")
     verdict, why = judge(s)
-    return (f" Corrected semantics (Q1, Q2 off; {scale_of(path)} scale): {verdict}: "
-            f"{_means(s)}; {why}.")
+    shown = f"{_means(s)}; " if means else ""
+    return f" Corrected semantics (Q1, Q2 off; {scale_of(path)} scale): {verdict}: {shown}{why}."
 
 
 CLAIMS = [
