@@ -14,7 +14,7 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: setup reproduce test claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
 	fig-bus-arrivals fig-bus-load \
-	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling clean
+	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour clean
 .DEFAULT_GOAL := help
 
 help:
@@ -46,6 +46,9 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) fig-bus-arrivals SCALE=$(SCALE)
 	$(MAKE) fig-bus-load SCALE=$(SCALE)
 	$(MAKE) fig-scaling SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
+	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
 claims: $(STAMP) ## render paper_claims.md from results/
@@ -83,6 +86,12 @@ bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS=
 
 fig-scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and figure (C11)
 	$(REPRO) scaling --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+fig-transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARGS="--corrected")
+	$(REPRO) fig-transfer --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the flowchart (C6, C7)
+	$(REPRO) wildfire-behaviour --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -20,7 +20,8 @@ from repro.core.io import check_writable_dir, sidecar_path, write_text
 
 NOT_RUN = "not yet run"
 VERDICTS = ("PASS", "FAIL", "PARTIAL", NOT_RUN)
-TOPICS = ("repro.claims.race", "repro.claims.bus", "repro.claims.wildfire")
+TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
+          "repro.claims.wildfire")
 
 
 @dataclass(frozen=True)

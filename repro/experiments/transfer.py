@@ -1,0 +1,263 @@
+"""Policy transfer from fixed-step to event-driven simulation (paper Fig. "transferperformance",
+claims C8 and C9; SPEC section 3).
+
+Policies are trained from scratch (PS-TRPO + M-GAE, ``repro.learn``) on each training simulator:
+ED, FS-dT for the paper's five dT values, and FS-1 with T_health = 2.9999. Every trained policy is
+then tested on the ED simulator with T_health = 3.0: its ADR (SPEC 3) over ``test_episodes``
+episodes. All policies see the same test episodes (one environment seed), so differences between
+them are not test-episode noise; each policy samples its actions from its own generator.
+
+The paper averages the test ADR of the last epochs' policies; we test each run's final policy (the
+one its checkpoint holds) on many episodes, which estimates the same quantity once training has
+reached its asymptote (the per-run ``train_adr_last`` column shows the training-curve plateau).
+
+Per simulator the summary gives the mean over the trained policies with its standard error (the
+paper's error bars), the IQM, and a bootstrap CI of the mean (``repro.core.stats``).
+
+``--corrected`` trains and tests with quirks Q1 and Q2 switched off (the paper's prose) and writes
+``transfer_corrected*.csv`` and ``figures/transfer_corrected.*`` instead.
+
+Training runs are checkpointed under ``--runs-dir``/transfer[-corrected]/<scale>/; re-running
+skips finished runs and resumes interrupted ones (``repro.experiments.sweep``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+
+from repro.cli import add_common
+from repro.core.config import for_scale
+from repro.core.errors import require
+from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.stats import bootstrap_ci, iqm, sem
+from repro.envs.wildfire import WildfireConfig, make_env
+from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
+                                     run_sweep)
+from repro.experiments.wildfire_eval import adr, evaluate
+
+PAPER = {
+    "ED": (2.780, 0.014), "FS-0.1": (2.771, 0.018), "FS-0.316": (2.745, 0.015),
+    "FS-1": (2.789, 0.009), "FS-3.16": (2.212, 0.082), "FS-10": (1.841, 0.179),
+    "FS-1 (T_health=2.9999)": (1.937, 0.041),
+}
+"""Paper, Fig. "transferperformance": ADR on ED, mean and standard error over 5 policies."""
+
+# Independent child streams of the root seed.
+_TEST_ENV_STREAM, _TEST_POLICY_STREAM, _BOOT_STREAM = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class TransferConfig:
+    """Sizes of the transfer study; the simulators and their semantics never change with scale."""
+
+    seeds: int = 3
+    """Policies trained from scratch per training simulator (paper: 5)."""
+    epochs: int = 60
+    """Training epochs per policy (paper: 300)."""
+    batch_episodes: int = 150
+    """Training episodes per epoch (paper: 600 to 1,200)."""
+    test_episodes: int = 2000
+    """ED test episodes per trained policy."""
+    log10_dts: tuple[float, ...] = (-1.0, -0.5, 0.0, 0.5, 1.0)
+    """The FS training simulators: dT = 10^x seconds (the paper's five)."""
+    variant_t_health: float = 2.9999
+    """T_health of the extra FS training simulator of C9 (tested with 3.0 like every policy)."""
+    variant_log10_dt: float = 0.0
+    """dT = 10^x of that extra simulator (paper: 1 s)."""
+    corrected: bool = False
+    """Train and test with quirks Q1 and Q2 switched off (the paper's prose semantics)."""
+    n_boot: int = 2000
+    """Bootstrap replicates of each simulator's CI."""
+
+    SCALES: ClassVar[dict] = {
+        "smoke": dict(seeds=1, epochs=2, batch_episodes=8, test_episodes=20, n_boot=200),
+        "quick": {},
+        "paper": dict(seeds=5, epochs=300, batch_episodes=600, test_episodes=10000),
+    }
+
+    def validate(self) -> None:
+        require(self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
+        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
+        require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
+                self.batch_episodes)
+        require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
+        require(self.variant_t_health > 0, "variant_t_health", "> 0", self.variant_t_health)
+        require(self.n_boot >= 1, "n_boot", "an integer >= 1", self.n_boot)
+
+    def quirks(self) -> dict[str, bool]:
+        """The quirk switches of every simulator of the study (train and test alike)."""
+        on = not self.corrected
+        return dict(quirk_q1_stale_attack=on, quirk_q2_penalty_party_only=on)
+
+    def simulators(self) -> dict[str, WildfireConfig]:
+        """Training simulators by label (the paper's figure order)."""
+        sims = {"ED": WildfireConfig(**self.quirks())}
+        for x in self.log10_dts:
+            sims[fs_label(10.0 ** x)] = WildfireConfig(dt=10.0 ** x, **self.quirks())
+        dt = 10.0 ** self.variant_log10_dt
+        sims[f"{fs_label(dt)} (T_health={self.variant_t_health:g})"] = WildfireConfig(
+            dt=dt, t_health=self.variant_t_health, **self.quirks())
+        return sims
+
+    def test_simulator(self) -> WildfireConfig:
+        """ED with T_health = 3.0, the simulator every policy is tested on."""
+        return WildfireConfig(**self.quirks())
+
+    @property
+    def name(self) -> str:
+        """File stem of the results: transfer or transfer_corrected."""
+        return "transfer_corrected" if self.corrected else "transfer"
+
+
+def fs_label(dt: float) -> str:
+    """The paper's label of FS-dT (three significant digits: FS-0.316, FS-3.16)."""
+    return f"FS-{dt:.3g}"
+
+
+def job_name(env: WildfireConfig, seed: int) -> str:
+    """A folder-safe run name, e.g. ``fs0.316-th3-seed2``."""
+    sim = "ed" if env.dt is None else f"fs{env.dt:.3g}"
+    return f"{sim}-th{env.t_health:g}-seed{seed}"
+
+
+def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, TrainJob]]:
+    """(simulator label, job) for every simulator and training seed seed .. seed + seeds - 1.
+
+    Replicate r uses the same training seed on every simulator (common initial policies)."""
+    from repro.learn.trainer import train_config
+
+    jobs = []
+    for label, env in cfg.simulators().items():
+        for s in range(seed, seed + cfg.seeds):
+            train = train_config(scale, "wildfire", seed=s, epochs=cfg.epochs,
+                                 batch_episodes=cfg.batch_episodes)
+            jobs.append((label, TrainJob(job_name(env, s), train, env)))
+    return jobs
+
+
+def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
+                      folders: list[Path], seed: int) -> pd.DataFrame:
+    """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths)."""
+    from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
+
+    env = make_env(cfg.test_simulator())
+    env_seed = int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])
+    rows = []
+    for i, ((label, job), folder) in enumerate(zip(labelled, folders)):
+        stream = np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i))
+        policy = policy_from_checkpoint(folder / CHECKPOINT, np.random.default_rng(stream))
+        mean, err = adr(evaluate(env, policy, cfg.test_episodes, env_seed), env.gamma)
+        curve = pd.read_csv(folder / "progress.csv")
+        last = curve.average_discounted_return.iloc[-max(1, len(curve) // 10):]
+        rows.append(dict(simulator=label, dt=job.env_config.dt or 0.0,  # 0 stands for ED
+                         t_health=job.env_config.t_health, train_seed=job.train.seed,
+                         epochs=len(curve), batch_episodes=job.train.batch_episodes,
+                         test_episodes=cfg.test_episodes, adr_ed=mean, adr_ed_sem=err,
+                         train_adr_last=float(last.mean()), run=job.name))
+    return pd.DataFrame(rows)
+
+
+def summarise(per_policy: pd.DataFrame, n_boot: int, seed: int) -> pd.DataFrame:
+    """Per training simulator: mean, SEM over policies, IQM and a bootstrap CI of the mean."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_BOOT_STREAM,)))
+    rows = []
+    for label, grp in per_policy.groupby("simulator", sort=False):
+        x = grp.adr_ed.to_numpy()
+        _, lo, hi = bootstrap_ci(x, np.mean, n_boot=n_boot, rng=rng)
+        paper_mean, paper_sem = PAPER.get(label, (np.nan, np.nan))
+        rows.append(dict(simulator=label, dt=grp.dt.iloc[0], t_health=grp.t_health.iloc[0],
+                         n_policies=len(x), mean=float(x.mean()), sem=sem(x), iqm=float(iqm(x)),
+                         ci_low=lo, ci_high=hi, paper_mean=paper_mean, paper_sem=paper_sem))
+    return pd.DataFrame(rows)
+
+
+def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> None:
+    """The paper's figure: x = training simulator, y = ADR on ED, error bars = SEM over policies;
+    the T_health variant sits at its dT beside the T_health = 3.0 point; the paper's points beside
+    ours."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tested = summary.t_health == WildfireConfig.t_health
+    main, variant = summary[tested].reset_index(drop=True), summary[~tested]
+    xpos = {label: i for i, label in enumerate(main.simulator)}
+    for row in variant.itertuples():  # placed at the FS simulator of the same dT
+        xpos[row.simulator] = xpos[fs_label(row.dt)]
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for frame, marker, color, name in ((main, "o", "C0", "ours"),
+                                       (variant, "s", "C3", "ours")):
+        x = np.array([xpos[s] for s in frame.simulator], dtype=float)
+        for label in frame.simulator:
+            dots = per_policy[per_policy.simulator == label].adr_ed
+            ax.plot(np.full(len(dots), xpos[label] - 0.12), dots, ".", color=color, alpha=0.4,
+                    ms=4)
+        th = frame.t_health.iloc[0] if len(frame) else 0
+        ax.errorbar(x - 0.06, frame["mean"], yerr=frame["sem"], fmt=marker, color=color,
+                    capsize=3, label=f"{name}, T_health = {th:g}")
+        ax.errorbar(x + 0.06, frame.paper_mean, yerr=frame.paper_sem, fmt=marker, mfc="none",
+                    color=color, alpha=0.7, capsize=3, label=f"paper, T_health = {th:g}")
+    ax.set_xticks(range(len(main)), main.simulator)
+    ax.set_xlabel("training simulator")
+    ax.set_ylabel("ADR on ED (T_health = 3.0)")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, stem)
+    plt.close(fig)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_common(p)
+    add_sweep_arguments(p)
+    p.add_argument("--seeds", type=int, help="policies per training simulator (paper: 5)")
+    p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
+    p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
+    p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
+    p.add_argument("--corrected", action="store_true",
+                   help="quirks Q1 and Q2 off (paper's prose); writes transfer_corrected*")
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
+                    batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
+                    corrected=args.corrected or None)
+    cfg.validate()
+    check_sweep_arguments(args)
+    results = check_writable_dir(args.results_dir, "--results-dir")
+    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    runs = check_writable_dir(Path(args.runs_dir) / cfg.name.replace("_", "-") / args.scale,
+                              "--runs-dir")
+    labelled = make_jobs(cfg, args.scale, args.seed)
+    t0 = time.perf_counter()
+    folders = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
+                        scheduler=args.scheduler)
+    t_train = time.perf_counter() - t0
+    per_policy = evaluate_policies(cfg, labelled, folders, args.seed)
+    summary = summarise(per_policy, cfg.n_boot, args.seed)
+    wall = time.perf_counter() - t0
+    seconds = [pd.read_csv(f / "progress.csv").seconds for f in folders]
+    # the median skips each worker's first epoch, which includes numba's start-up
+    extra = dict(runs_dir=str(runs), sweep_seconds=round(t_train, 3),
+                 median_seconds_per_epoch=round(float(np.median(np.concatenate(seconds))), 4))
+    prov = provenance(dataclasses.asdict(cfg), command="fig-transfer", scale=args.scale,
+                      seed=args.seed, wall_seconds=wall, extra=extra)
+    write_result(results / f"{cfg.name}.csv", per_policy, prov)
+    write_result(results / f"{cfg.name}_summary.csv", summary, prov)
+    semantics = "quirks Q1, Q2 corrected" if cfg.corrected else "released semantics (Q1, Q2 on)"
+    plot(per_policy, summary, figures / cfg.name,
+         f"Transfer to ED, {semantics}; {args.scale} scale: {cfg.seeds} policies x "
+         f"{cfg.epochs} epochs x {cfg.batch_episodes} episodes")
+    print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high",
+                   "paper_mean"]].to_string(index=False))
+    return 0

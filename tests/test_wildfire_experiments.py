@@ -1,0 +1,142 @@
+"""Wildfire experiments: transfer sweep (C8, C9), behaviour frequencies (C6, C7), their checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from repro.claims import wildfire as claims
+from repro.envs.wildfire import WildfireConfig, make_env
+from repro.envs.wildfire.policies import (FLOWCHART_HOLD_ALONE, FLOWCHART_HOLD_SHARED,
+                                          FLOWCHART_TARGET, FlowchartPolicy)
+from repro.experiments.sweep import run_sweep
+from repro.experiments.transfer import PAPER, TransferConfig, make_jobs, evaluate_policies
+from repro.experiments.wildfire_behaviour import frequencies
+from repro.experiments.wildfire_eval import evaluate
+from tests.conftest import tree_snapshot
+
+
+def test_simulators_are_the_papers():
+    sims = TransferConfig().simulators()
+    assert list(sims) == list(PAPER)
+    assert [s.dt for s in sims.values()] == [None, *(10.0 ** x for x in (-1, -0.5, 0, 0.5, 1)),
+                                             1.0]
+    assert [s.t_health for s in sims.values()] == [3.0] * 6 + [2.9999]
+    assert all(s.quirk_q1_stale_attack and s.quirk_q2_penalty_party_only for s in sims.values())
+    corrected = TransferConfig(corrected=True)
+    assert not any(s.quirk_q1_stale_attack or s.quirk_q2_penalty_party_only
+                   for s in [*corrected.simulators().values(), corrected.test_simulator()])
+    assert corrected.test_simulator().dt is None and corrected.test_simulator().t_health == 3.0
+
+
+def test_frequencies_recover_the_flowchart_probabilities():
+    """The C6 classification applied to the flowchart's own decisions gives back the flowchart's
+    probabilities (within 4 binomial standard errors of each conditional count)."""
+    cfg = WildfireConfig()
+    rollout = evaluate(make_env(cfg), FlowchartPolicy(np.random.default_rng(3)), 150, 11)
+    f = frequencies(rollout, cfg)
+    target = np.asarray(FLOWCHART_TARGET) / np.sum(FLOWCHART_TARGET)
+    expected = [("hold_alone", FLOWCHART_HOLD_ALONE, "n_alone"),
+                ("hold_shared", FLOWCHART_HOLD_SHARED, "n_shared"),
+                *((f"fly_rank_{k + 1}", target[k], "n_fly") for k in range(5))]
+    for key, p, n in expected:
+        assert f[n] > 200, key
+        assert abs(f[key] - p) < 4 * np.sqrt(p * (1 - p) / f[n]), (key, f[key], p)
+    # flying to the 3rd closest fire or closer stays in the cluster of the closest fire (clusters
+    # are 1 m apart, fires 0.02 m), so the closest-cluster share is at least ranks 1-3's
+    assert f["closest_cluster"] >= f["fly_rank_1"] + f["fly_rank_2"] + f["fly_rank_3"] - 0.02
+
+
+def _jobs(labels):
+    cfg = TransferConfig(seeds=1, epochs=2, batch_episodes=4, test_episodes=10)
+    return cfg, [(lab, job) for lab, job in make_jobs(cfg, "smoke", 0) if lab in labels]
+
+
+def test_sweep_on_a_local_dask_cluster_matches_joblib_and_skips_finished_runs(tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    cfg, labelled = _jobs(("ED", "FS-10"))
+    jobs = [job for _, job in labelled]
+    # in-process workers (fast to start), but a real TCP scheduler on loopback
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  protocol="tcp://", host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        on_dask = run_sweep(jobs, tmp_path / "dask", scheduler=cluster.scheduler_address)
+        before = tree_snapshot(tmp_path / "dask")
+        run_sweep(jobs, tmp_path / "dask", scheduler=cluster.scheduler_address)
+        assert tree_snapshot(tmp_path / "dask") == before  # finished runs are skipped
+    on_joblib = run_sweep(jobs, tmp_path / "joblib", n_jobs=1)
+    a, b = (evaluate_policies(cfg, labelled, f, 0).drop(columns="run")
+            for f in (on_dask, on_joblib))
+    pd.testing.assert_frame_equal(a, b)
+    assert list(a.simulator) == ["ED", "FS-10"] and (a.epochs == 2).all()
+
+
+def _main(argv: list[str]) -> int:
+    from repro.cli import main
+
+    try:
+        return main(argv)
+    except SystemExit as exit_:  # argparse's errors
+        return int(exit_.code)
+
+
+def test_fig_transfer_cli_smoke(tmp_path, monkeypatch):
+    """The whole command in process (n_jobs=1 runs the sweep sequentially here); a second run
+    skips the finished training runs and rewrites byte-identical CSVs."""
+    monkeypatch.setenv("REPRO_QUIET", "1")
+    outs = []
+    for i in range(2):
+        assert _main(["fig-transfer", "--scale", "smoke", "--test-episodes", "5", "--n-jobs", "1",
+                      "--runs-dir", str(tmp_path / "runs"),
+                      "--results-dir", str(tmp_path / f"r{i}"),
+                      "--figures-dir", str(tmp_path / "fig")]) == 0
+        outs.append([(tmp_path / f"r{i}" / n).read_bytes()
+                     for n in ("transfer.csv", "transfer_summary.csv")])
+    assert outs[0] == outs[1]
+    summary = pd.read_csv(tmp_path / "r0" / "transfer_summary.csv")
+    assert list(summary.simulator) == list(PAPER) and (summary.n_policies == 1).all()
+    assert all((tmp_path / "fig" / f"transfer.{ext}").exists() for ext in ("png", "pdf"))
+
+
+@pytest.mark.parametrize("command", ["fig-transfer", "wildfire-behaviour"])
+@pytest.mark.parametrize("argv", [["--seeds", "0"], ["--test-episodes", "0"], ["--n-jobs", "0"],
+                                  ["--epochs", "0"], ["--scale", "huge"]])
+def test_bad_input_writes_nothing(tmp_path, monkeypatch, capsys, command, argv):
+    monkeypatch.chdir(tmp_path)
+    assert _main([command, *argv]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def _summary(means: dict[str, float], half_width: float, n: int = 5) -> pd.DataFrame:
+    return pd.DataFrame([dict(simulator=k, mean=m, sem=half_width / 2, ci_low=m - half_width,
+                              ci_high=m + half_width, n_policies=n) for k, m in means.items()]
+                        ).set_index("simulator")
+
+
+def test_c8_c9_verdicts_follow_the_intervals():
+    paper = {k: m for k, (m, _) in PAPER.items()}
+    s = _summary(paper, 0.03)
+    assert claims.c8_verdict(s)[0] == "PASS" and claims.c9_verdict(s)[0] == "PASS"
+    flat = _summary({k: 2.7 for k in PAPER}, 0.03)
+    assert claims.c8_verdict(flat)[0] == "PARTIAL"  # the small-dT part holds, degradation not
+    assert claims.c9_verdict(flat)[0] == "FAIL"
+    inverted = _summary({**paper, "ED": 1.0}, 0.03)
+    assert claims.c8_verdict(inverted)[0] == "FAIL"
+    assert claims._at_most_partial("PASS", _summary(paper, 0.0, n=1))[0] == "PARTIAL"
+
+
+def test_fs1_trained_with_t_health_2_9999_transfers_worse_than_with_3(tmp_path):
+    """C9 at a small budget (30 epochs x 60 episodes, 300 ED test episodes): the FS-1 policy trained
+    with T_health = 2.9999 scores clearly below the one trained with 3.0. Measured while choosing
+    this budget, ADR on ED (3.0 vs 2.9999): seed 0 1.93 vs 1.10, seed 1 1.66 vs 1.25, seed 2 1.87
+    vs 1.09; the test-episode standard error is about 0.05, so the margin asserted is not luck."""
+    cfg = TransferConfig(seeds=1, epochs=30, batch_episodes=60, test_episodes=300,
+                         log10_dts=(0.0,))
+    labelled = [(lab, job) for lab, job in make_jobs(cfg, "smoke", 0) if lab.startswith("FS-1")]
+    folders = run_sweep([job for _, job in labelled], tmp_path, n_jobs=1)
+    adr = evaluate_policies(cfg, labelled, folders, 0).set_index("simulator").adr_ed
+    assert adr["FS-1 (T_health=2.9999)"] < adr["FS-1"] - 0.3, adr.to_dict()
