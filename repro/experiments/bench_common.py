@@ -13,6 +13,7 @@ The fast engine runs ``fast_repeats`` batches of ``fast_episodes`` (the environm
 batch); the reference one batch of ``reference_episodes`` (its cost per episode does not depend on
 the batch). Batch r draws its episodes from child r of the seed, and each engine gets the same
 freshly seeded sampler. The warm-up rollout also compiles the fast engine (or loads it from cache).
+Everything runs on one thread, numpy's BLAS included, as in training.
 
 Rates are per second of this process's CPU time, which is what one core achieves when the machine
 is shared, and per wall second. ``policy_cpu_seconds`` is the time inside the policy, about the same
@@ -37,7 +38,7 @@ from repro.core.config import for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
-from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
 from repro.learn.trainer import ENV_DEFAULTS, TrainConfig
 
 CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
@@ -118,12 +119,13 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
         cheap_name: cheap,
     }
     rows = []
-    for engine, env, episodes, repeats in (("fast", fast, cfg.fast_episodes, cfg.fast_repeats),
-                                           ("reference", reference, cfg.reference_episodes, 1)):
-        for name, make in policies.items():
-            policy = make(env, np.random.default_rng(seed))
-            rows.append(dict(engine=engine, policy=name,
-                             **_time(env, policy, episodes, repeats, seed)))
+    with blas_on_one_thread():  # as in training
+        for engine, env, episodes, repeats in (("fast", fast, cfg.fast_episodes, cfg.fast_repeats),
+                                               ("reference", reference, cfg.reference_episodes, 1)):
+            for name, make in policies.items():
+                policy = make(env, np.random.default_rng(seed))
+                rows.append(dict(engine=engine, policy=name,
+                                 **_time(env, policy, episodes, repeats, seed)))
     frame = pd.DataFrame(rows)
     ref = frame[frame.engine == "reference"].set_index("policy")
     for column, rate in (("speedup_vs_reference", "decisions_per_cpu_second"),
