@@ -9,14 +9,16 @@ A benchmark runs an environment's fast engine and its SimPy reference under two 
   of the scale it sees in training;
 - a cheap policy of the environment, which shows what the engine costs nearly alone.
 
-The fast engine runs ``fast_repeats`` batches of ``fast_episodes`` (the environment's training
-batch); the reference one batch of ``reference_episodes`` (its cost per episode does not depend on
+Each engine runs ``repeats`` batches per policy: the fast engine batches of ``fast_episodes`` (the
+environment's training batch), the reference smaller ones (its cost per episode does not depend on
 the batch). Batch r draws its episodes from child r of the seed, and each engine gets the same
 freshly seeded sampler. The warm-up rollout also compiles the fast engine (or loads it from cache).
 Everything runs on one thread, numpy's BLAS included, as in training.
 
 Rates are per second of this process's CPU time, which is what one core achieves when the machine
-is shared, and per wall second. ``policy_cpu_seconds`` is the time inside the policy, about the same
+is shared, and per wall second; each is the median over the batches, as other processes' bursts of
+load on a shared machine slow single batches by up to 3x, even in CPU time. Counts and seconds are
+totals. ``policy_cpu_seconds`` is the time inside the policy, about the same
 per decision for both engines: ``speedup_vs_reference`` compares whole rollouts (decisions per CPU
 second), ``engine_speedup_vs_reference`` the time outside the policy, what the engine itself costs.
 """
@@ -52,25 +54,26 @@ class BenchConfig:
     fast_episodes: int
     """Episodes per batch of the fast engine (the environment's training batch at every scale but
     smoke)."""
-    fast_repeats: int
-    """Batches the fast engine runs per policy (their times add up)."""
     reference_episodes: int
-    """Episodes in the SimPy reference's one batch."""
+    """Episodes per batch of the SimPy reference."""
+    repeats: int
+    """Batches each engine runs per policy."""
 
     def validate(self) -> None:
         require(self.fast_episodes >= 1, "--fast-episodes", "an integer >= 1", self.fast_episodes)
-        require(self.fast_repeats >= 1, "--fast-repeats", "an integer >= 1", self.fast_repeats)
         require(self.reference_episodes >= 1, "--reference-episodes", "an integer >= 1",
                 self.reference_episodes)
+        require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
 
 
 def scales(env: str) -> dict[str, dict[str, int]]:
-    """The ``SCALES`` of ``env``'s benchmark config: its training batch, timed 1, 3 or 10 times."""
+    """The ``SCALES`` of ``env``'s benchmark config, from its training batch (the reference's
+    batches take seconds at the quick scale)."""
     batch = ENV_DEFAULTS[env]["batch_episodes"]
     return {
-        "smoke": dict(fast_episodes=batch // 10, fast_repeats=1, reference_episodes=2),
-        "quick": dict(fast_episodes=batch, fast_repeats=3, reference_episodes=20),
-        "paper": dict(fast_episodes=batch, fast_repeats=10, reference_episodes=100),
+        "smoke": dict(fast_episodes=batch // 10, reference_episodes=2, repeats=1),
+        "quick": dict(fast_episodes=batch, reference_episodes=batch // 20, repeats=5),
+        "paper": dict(fast_episodes=batch, reference_episodes=batch // 10, repeats=15),
     }
 
 
@@ -91,17 +94,22 @@ class _Counted:
 
 
 def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int) -> dict:
+    """Totals over the batches, and rates as medians over them."""
     counted = _Counted(policy)
-    children = np.random.SeedSequence(seed).spawn(repeats)
-    cpu, wall = time.process_time(), time.perf_counter()
-    for child in children:
+    batches = []
+    for child in np.random.SeedSequence(seed).spawn(repeats):
+        decisions, policy_cpu = counted.decisions, counted.cpu
+        cpu, wall = time.process_time(), time.perf_counter()
         env.rollout(counted, episodes, child)
-    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
-    n, d = episodes * repeats, counted.decisions
-    return dict(batch_episodes=episodes, episodes=n, decisions=d, wall_seconds=wall,
-                cpu_seconds=cpu, policy_cpu_seconds=counted.cpu, decisions_per_second=d / wall,
-                decisions_per_cpu_second=d / cpu, episodes_per_cpu_second=n / cpu,
-                engine_decisions_per_cpu_second=d / (cpu - counted.cpu))
+        batches.append((counted.decisions - decisions, time.perf_counter() - wall,
+                        time.process_time() - cpu, counted.cpu - policy_cpu))
+    d, wall, cpu, policy_cpu = np.array(batches).T
+    return dict(batch_episodes=episodes, batches=repeats, episodes=episodes * repeats,
+                decisions=int(d.sum()), wall_seconds=wall.sum(), cpu_seconds=cpu.sum(),
+                policy_cpu_seconds=policy_cpu.sum(), decisions_per_second=np.median(d / wall),
+                decisions_per_cpu_second=np.median(d / cpu),
+                episodes_per_cpu_second=np.median(episodes / cpu),
+                engine_decisions_per_cpu_second=np.median(d / (cpu - policy_cpu)))
 
 
 def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,
@@ -120,12 +128,12 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
     }
     rows = []
     with blas_on_one_thread():  # as in training
-        for engine, env, episodes, repeats in (("fast", fast, cfg.fast_episodes, cfg.fast_repeats),
-                                               ("reference", reference, cfg.reference_episodes, 1)):
+        for engine, env, episodes in (("fast", fast, cfg.fast_episodes),
+                                      ("reference", reference, cfg.reference_episodes)):
             for name, make in policies.items():
                 policy = make(env, np.random.default_rng(seed))
                 rows.append(dict(engine=engine, policy=name,
-                                 **_time(env, policy, episodes, repeats, seed)))
+                                 **_time(env, policy, episodes, cfg.repeats, seed)))
     frame = pd.DataFrame(rows)
     ref = frame[frame.engine == "reference"].set_index("policy")
     for column, rate in (("speedup_vs_reference", "decisions_per_cpu_second"),
@@ -138,15 +146,15 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
     p.add_argument("--fast-episodes", type=int, help="episodes per batch of the fast engine")
-    p.add_argument("--fast-repeats", type=int, help="batches the fast engine runs per policy")
-    p.add_argument("--reference-episodes", type=int, help="episodes for the SimPy reference")
+    p.add_argument("--reference-episodes", type=int, help="episodes per batch of the reference")
+    p.add_argument("--repeats", type=int, help="batches each engine runs per policy")
 
 
 def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
         measure_env: Callable[[BenchConfig, int], pd.DataFrame]) -> int:
     """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``."""
     cfg = for_scale(config, args.scale, fast_episodes=args.fast_episodes,
-                    fast_repeats=args.fast_repeats, reference_episodes=args.reference_episodes)
+                    reference_episodes=args.reference_episodes, repeats=args.repeats)
     cfg.validate()
     results = check_writable_dir(args.results_dir, "--results-dir")
     load_before = os.getloadavg()[0]
