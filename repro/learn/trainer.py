@@ -6,7 +6,10 @@ the baseline to the batch's discounted returns (in the new normalisation, which 
 written checkpoint and ``progress.csv``; running the same command again resumes from the checkpoint
 and ends with exactly the parameters of an uninterrupted run.
 
-Determinism: torch runs on one thread and is seeded from the run seed; the policy's sampling draws
+Threads: torch and numpy's BLAS run on one thread (:func:`~repro.learn.policy.blas_on_one_thread`
+says why).
+
+Determinism: torch is seeded from the run seed; the policy's sampling draws
 come from one numpy Generator owned by the trainer (its state is checkpointed); epoch e's environment
 seed is derived from (seed, e). Timing columns are the only run-to-run differences in the outputs.
 """
@@ -34,7 +37,8 @@ from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
 from repro.learn.baseline import BASELINES, make_baseline
 from repro.learn.m_gae import m_gae_paths
-from repro.learn.policy import DTYPE, CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
+                                blas_on_one_thread)
 from repro.learn.trpo import normalize, trpo_step
 
 ENVS = ("toy", "wildfire", "bus")
@@ -217,15 +221,16 @@ class Trainer:
         """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table."""
         if self.out is not None:
             self._start_or_resume()
-        for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
-                          total=self.cfg.epochs - self.epoch):
-            t0 = time.perf_counter()
-            row = self.run_epoch()
-            row["seconds"] = time.perf_counter() - t0
-            self.rows.append(row)
-            if self.out is not None:
-                self.save_checkpoint(self.out / CHECKPOINT)
-                write_csv(self.out / "progress.csv", self.progress())
+        with blas_on_one_thread():
+            for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
+                              total=self.cfg.epochs - self.epoch):
+                t0 = time.perf_counter()
+                row = self.run_epoch()
+                row["seconds"] = time.perf_counter() - t0
+                self.rows.append(row)
+                if self.out is not None:
+                    self.save_checkpoint(self.out / CHECKPOINT)
+                    write_csv(self.out / "progress.csv", self.progress())
         return self.progress()
 
     def progress(self) -> pd.DataFrame:

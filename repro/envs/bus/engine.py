@@ -38,42 +38,24 @@ is accrued before the arriving bus observes. At the horizon each running macro-a
 (duration horizon - start) and recorded with its buffer.
 
 Speed. A rollout of the training batch (540 episodes) takes a few hundred rounds, so both the
-per-round and the per-event costs matter. Per round, Python does O(1) work: the kernel takes four
-tuples of arrays (numba's dispatch costs about a microsecond per array), reads the actions in row
-order and gathers the next pending decisions into preallocated buffers. Per event, the state an
-episode touches is contiguous (one row per episode in each array below, fields last), so a round
-visits each episode's few cache lines once, and the records are written once per row (a decision's
-row when its macro-action closes, an arrival's when the bus boards), never read back, so the state
-a round touches stays small; a stop's FIFO queue is the waiting buses ordered by request ticket, a
-scan over N buses instead of a ring buffer per stop; the kernels run without reference counting
-(``_kernel``).
-
-Packed state (``_State``; the field constants below name the last axis):
-
-=================  =============  =================================================================
-array              shape          fields
-=================  =============  =================================================================
-``ep_real``        (E, 2)         NOW, RETURN (the undiscounted episode return)
-``ep_int``         (E, 5 + N)     DONE, NEXT_ID (insertion ids), NEXT_TICKET (queue order), N_ARR,
-                                  N_PENDING, then the buses waiting for a decision, in arrival order
-``ev_time``        (E, 2 N)       event time; inf marks a free slot
-``ev_int``         (E, 2 N, 3)    ID (insertion id), KIND, ARG (bus or stop)
-``bus_real``       (E, N, 6)      ANCHOR (discount anchor T), BUFFER (reward buffer), then OBS: the
-                                  observation of the running macro-action
-``bus_int``        (E, N, 6)      STOP, LOAD, N_DEC (decisions so far), ARRIVAL (index of the latest
-                                  arrival), TICKET (request ticket while queued, else -1), ACTION (of
-                                  the running macro-action)
-``stop_real``      (E, K)         last departure time
-``stop_busy``      (E, K)         1 while a bus holds the stop
-=================  =============  =================================================================
+per-round and the per-event costs matter. Per round, Python does O(1) work: the kernel reads the
+actions in row order and gathers the next pending decisions into preallocated buffers. Per event,
+an episode's whole state is one numpy record (a row of a structured array, ``episode_dtype``), and
+so are the parameters (``params_record``): numba hands a record to a function as a bare pointer,
+whereas every array of a tuple costs a reference-count update per call, which doubled the cost of an
+event. A round visits each episode's record once; the records of closed macro-actions and of
+arrivals (``dec``, ``arr``) are written once per row (a decision's row when its macro-action closes,
+an arrival's when the bus boards) and never read back, so the state a round touches stays small. A
+stop's FIFO queue is the waiting buses ordered by request ticket, a scan over N buses instead of a
+ring buffer per stop.
 """
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
-import numba as nb
 import numpy as np
+from numba import njit
 
 from repro.core.errors import UsageError, require
 from repro.core.rollout import DecisionBatch, Policy, Rollout
@@ -85,253 +67,229 @@ OBS_DIM = 4
 INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL = range(6)
 """Event kinds (see the table above)."""
 
-# Fields (last axis) of the packed state, the records and the decision buffers; see the tables.
-NOW, RETURN = range(2)
-DONE, NEXT_ID, NEXT_TICKET, N_ARR, N_PENDING, PENDING = range(6)
-ID, KIND, ARG = range(3)
-ANCHOR, BUFFER, OBS = range(3)  # OBS: the first of OBS_DIM fields
-STOP, LOAD, N_DEC, ARRIVAL, TICKET, ACTION = range(6)
-D_ACTION, D_REWARD, D_DURATION = range(OBS_DIM, OBS_DIM + 3)  # after the observation
+D_ACTION, D_REWARD, D_DURATION = range(OBS_DIM, OBS_DIM + 3)
+"""Fields of a ``dec`` row after the observation."""
 TIME, HEADWAY, A_BUS, A_STOP, A_LOAD, A_ALIGHT, A_BOARD = range(7)
+"""Fields of an ``arr`` row."""
 EPISODE, AGENT, INDEX = range(3)
+"""Rows of the pending decisions' ``ids`` buffer."""
+
+jit = njit(cache=True)
 
 
-_kernel = nb.njit(cache=True, _nrt=False)
-"""How the engine's functions are compiled. They allocate nothing (every array is made once, in
-:class:`BusBatch`), so they run without numba's reference-counting runtime: with it, each array a
-call passes or a tuple field it reads is counted atomically, which doubled the cost of an event."""
+def params_record(cfg: BusConfig) -> np.ndarray:
+    """The (1,) structured array of the kernels' parameters."""
+    k = cfg.n_stops
+    rec = np.zeros(1, np.dtype([
+        ("n_actions", np.int64), ("l_max", np.int64), ("rt", np.float64), ("t_a", np.float64),
+        ("t_b", np.float64), ("headway", np.float64), ("t_hold", np.float64),
+        ("gamma", np.float64), ("horizon", np.float64), ("alight", np.float64, k),
+        ("rate", np.float64, k)], align=True))
+    rec[0] = (cfg.n_actions, cfg.l_max, cfg.travel_time, cfg.t_alight, cfg.t_board, cfg.headway,
+              cfg.t_hold, cfg.gamma, cfg.horizon, cfg.alight_fraction, cfg.arrival_rate)
+    return rec
 
 
-class _Params(NamedTuple):
-    """The configuration as the kernel reads it (fixed types, so the compiled kernel is reused)."""
-
-    n_actions: int
-    alight: np.ndarray
-    rate: np.ndarray
-    l_max: int
-    rt: float
-    t_a: float
-    t_b: float
-    headway: float
-    t_hold: float
-    gamma: float
-    horizon: float
-
-
-class _State(NamedTuple):
-    """The simulation state of every episode (module docstring, "Packed state")."""
-
-    ep_real: np.ndarray
-    ep_int: np.ndarray
-    ev_time: np.ndarray
-    ev_int: np.ndarray
-    bus_real: np.ndarray
-    bus_int: np.ndarray
-    stop_real: np.ndarray
-    stop_busy: np.ndarray
+def episode_dtype(cfg: BusConfig) -> np.dtype:
+    """One episode's state: scalars, the event slots, (N,) bus fields, (K,) stop fields, records."""
+    n, k, m, f8, i8 = cfg.n_buses, cfg.n_stops, cfg.max_arrivals_per_bus, np.float64, np.int64
+    cap = 2 * n  # scheduled at once: one event of each bus, plus the RELEASE of the stop it left
+    return np.dtype([
+        # the episode: time, undiscounted return, insertion ids and queue tickets handed out,
+        # arrivals so far, and the buses waiting for a decision, in arrival order
+        ("now", f8), ("ret", f8), ("done", np.bool_), ("next_id", i8), ("next_ticket", i8),
+        ("n_arr", i8), ("n_pending", i8), ("pending", i8, n),
+        # event slots: time (inf marks a free slot), insertion id, kind, bus or stop
+        ("ev_time", f8, cap), ("ev_id", i8, cap), ("ev_kind", i8, cap), ("ev_arg", i8, cap),
+        # buses: discount anchor T, reward buffer, the running macro-action's observation and
+        # action, stop, load, decisions so far, index of the latest arrival, request ticket while
+        # queued (else -1)
+        ("anchor", f8, n), ("buffer", f8, n), ("obs", f8, (n, OBS_DIM)), ("action", i8, n),
+        ("stop", i8, n), ("load", i8, n), ("n_dec", i8, n), ("arrival", i8, n),
+        ("ticket", i8, n),
+        # stops: last departure time, 1 while a bus holds the stop
+        ("departed", f8, k), ("busy", np.int8, k),
+        # records, one float row per item (the integers in them are small, hence exact): each
+        # closed macro-action's observation, D_ACTION, D_REWARD, D_DURATION; each arrival's TIME
+        # (s), HEADWAY h (min), A_BUS, A_STOP, A_LOAD (at arrival), A_ALIGHT U and A_BOARD B
+        ("dec", f8, (n, m, OBS_DIM + 3)), ("arr", f8, (n * m, 7)),
+    ], align=True)
 
 
-class _Record(NamedTuple):
-    """What the episodes have produced so far, one float row per item (the integers in them are
-    small, hence exact): a row is written whole, once, which keeps the writes cache-friendly."""
-
-    dec: np.ndarray
-    """(E, N, M, OBS_DIM + 3): each closed macro-action's observation, D_ACTION, D_REWARD and
-    D_DURATION."""
-    arr: np.ndarray
-    """(E, N M, 7): each arrival's TIME (s), HEADWAY h (min), A_BUS, A_STOP, A_LOAD (at arrival),
-    A_ALIGHT U and A_BOARD B."""
-
-
-class _Pending(NamedTuple):
-    """Preallocated buffers the kernel gathers the pending decisions into (the first rows)."""
-
-    obs: np.ndarray
-    """(E N, OBS_DIM)."""
-    ids: np.ndarray
-    """(3, E N): EPISODE, AGENT, INDEX of each row."""
-
-
-@_kernel
-def _schedule(ev_time, ev_int, ep_int, e, t, kind, arg):
-    """Schedule an event of episode e in a free slot, with the next insertion id."""
-    for s in range(ev_time.shape[1]):
-        if ev_time[e, s] == np.inf:
-            ev_time[e, s] = t
-            ev_int[e, s, ID] = ep_int[e, NEXT_ID]
-            ev_int[e, s, KIND] = kind
-            ev_int[e, s, ARG] = arg
-            ep_int[e, NEXT_ID] += 1
+@jit
+def _schedule(s, t, kind, arg):
+    """Schedule an event in a free slot, with the next insertion id."""
+    for slot in range(s.ev_time.shape[0]):
+        if s.ev_time[slot] == np.inf:
+            s.ev_time[slot] = t
+            s.ev_id[slot] = s.next_id
+            s.ev_kind[slot] = kind
+            s.ev_arg[slot] = arg
+            s.next_id += 1
             return
     raise RuntimeError("bus engine: more than 2 N events scheduled at once")
 
 
-@_kernel
-def _next_event(ev_time, ev_int, e):
+@jit
+def _next_event(s):
     """Slot of the smallest (time, id) key; its time is inf when nothing is scheduled."""
     best = 0
-    for s in range(1, ev_time.shape[1]):
-        if ev_time[e, s] < ev_time[e, best] or (
-                ev_time[e, s] == ev_time[e, best] and ev_int[e, s, ID] < ev_int[e, best, ID]):
-            best = s
+    for slot in range(1, s.ev_time.shape[0]):
+        if s.ev_time[slot] < s.ev_time[best] or (
+                s.ev_time[slot] == s.ev_time[best] and s.ev_id[slot] < s.ev_id[best]):
+            best = slot
     return best
 
 
-@_kernel
-def _grant_stop(state, e, k, t):
+@jit
+def _grant_stop(s, k, t):
     """If stop k is free, grant it to the bus that requested it first (a GRANT event at t)."""
-    if state.stop_busy[e, k]:
+    if s.busy[k]:
         return
-    bus_int = state.bus_int
     first = -1
-    for b in range(bus_int.shape[1]):
-        if bus_int[e, b, TICKET] >= 0 and bus_int[e, b, STOP] == k and (
-                first < 0 or bus_int[e, b, TICKET] < bus_int[e, first, TICKET]):
+    for b in range(s.stop.shape[0]):
+        if s.ticket[b] >= 0 and s.stop[b] == k and (first < 0 or s.ticket[b] < s.ticket[first]):
             first = b
     if first >= 0:
-        bus_int[e, first, TICKET] = -1
-        state.stop_busy[e, k] = 1
-        _schedule(state.ev_time, state.ev_int, state.ep_int, e, t, GRANT, first)
+        s.ticket[first] = -1
+        s.busy[k] = 1
+        _schedule(s, t, GRANT, first)
 
 
-@_kernel
-def _arrive(par, state, rec, e, b, t):
+@jit
+def _arrive(p, s, b, t):
     """Bus b gets its stop: reward every agent, record the arrival, observe, await a decision."""
-    ep_int, bus_real, bus_int = state.ep_int, state.bus_real, state.bus_int
-    k = bus_int[e, b, STOP]
-    h = (t - state.stop_real[e, k]) / 60.0
-    d = h - par.headway
-    r = -par.rate[k] * (d * d)  # as the reference: the correctly rounded square
-    state.ep_real[e, RETURN] += r
-    for j in range(bus_real.shape[1]):
-        bus_real[e, j, BUFFER] += np.exp(-par.gamma * (t - bus_real[e, j, ANCHOR])) * r
-    bus_int[e, b, ARRIVAL] = ep_int[e, N_ARR]  # its row is written when the bus boards
-    ep_int[e, N_ARR] += 1
-    n = bus_int[e, b, N_DEC]
+    k = s.stop[b]
+    h = (t - s.departed[k]) / 60.0
+    d = h - p.headway
+    r = -p.rate[k] * (d * d)  # as the reference: the correctly rounded square
+    s.ret += r
+    for j in range(s.buffer.shape[0]):
+        s.buffer[j] += np.exp(-p.gamma * (t - s.anchor[j])) * r
+    s.arrival[b] = s.n_arr  # its row is written when the bus boards
+    s.n_arr += 1
+    n = s.n_dec[b]
     if n > 0:  # the observation closes the previous macro-action
-        _close(rec, bus_real, bus_int, e, b, t)
-    bus_real[e, b, OBS] = k
-    bus_real[e, b, OBS + 1] = h
-    bus_real[e, b, OBS + 2] = bus_int[e, b, LOAD]
-    bus_real[e, b, OBS + 3] = t - bus_real[e, b, ANCHOR]
-    bus_real[e, b, ANCHOR] = t
-    bus_int[e, b, N_DEC] = n + 1
-    ep_int[e, PENDING + ep_int[e, N_PENDING]] = b
-    ep_int[e, N_PENDING] += 1
+        _close(s, b, t)
+    s.obs[b, 0] = k
+    s.obs[b, 1] = h
+    s.obs[b, 2] = s.load[b]
+    s.obs[b, 3] = t - s.anchor[b]
+    s.anchor[b] = t
+    s.n_dec[b] = n + 1
+    s.pending[s.n_pending] = b
+    s.n_pending += 1
 
 
-@_kernel
-def _close(rec, bus_real, bus_int, e, b, t):
+@jit
+def _close(s, b, t):
     """Record bus b's running macro-action, ending at t, and empty its reward buffer."""
-    row = rec.dec[e, b, bus_int[e, b, N_DEC] - 1]
+    row = s.dec[b, s.n_dec[b] - 1]
     for i in range(OBS_DIM):
-        row[i] = bus_real[e, b, OBS + i]
-    row[D_ACTION] = bus_int[e, b, ACTION]
-    row[D_REWARD] = bus_real[e, b, BUFFER]
-    row[D_DURATION] = t - bus_real[e, b, ANCHOR]
-    bus_real[e, b, BUFFER] = 0.0
+        row[i] = s.obs[b, i]
+    row[D_ACTION] = s.action[b]
+    row[D_REWARD] = s.buffer[b]
+    row[D_DURATION] = t - s.anchor[b]
+    s.buffer[b] = 0.0
 
 
-@_kernel
-def _board(par, state, rec, e, b, t):
+@jit
+def _board(p, s, b, t):
     """The decision is in: alight, board, record the arrival, and dwell plus hold (a DWELL event)."""
-    bus_real, bus_int = state.bus_real, state.bus_int
-    k = bus_int[e, b, STOP]
-    h = bus_real[e, b, OBS + 1]
-    load = bus_int[e, b, LOAD]
-    u = np.int64(np.floor(par.alight[k] * load + 0.5))
-    bd = min(np.int64(np.floor(par.rate[k] * h + 0.5)), par.l_max - load + u)
-    bus_int[e, b, LOAD] = load - u + bd
-    row = rec.arr[e, bus_int[e, b, ARRIVAL]]
-    row[TIME] = bus_real[e, b, ANCHOR]  # the arrival's time
+    k = s.stop[b]
+    h = s.obs[b, 1]
+    load = s.load[b]
+    u = np.int64(np.floor(p.alight[k] * load + 0.5))
+    bd = min(np.int64(np.floor(p.rate[k] * h + 0.5)), p.l_max - load + u)
+    s.load[b] = load - u + bd
+    row = s.arr[s.arrival[b]]
+    row[TIME] = s.anchor[b]  # the arrival's time
     row[HEADWAY] = h
     row[A_BUS] = b
     row[A_STOP] = k
     row[A_LOAD] = load
     row[A_ALIGHT] = u
     row[A_BOARD] = bd
-    _schedule(state.ev_time, state.ev_int, state.ep_int, e,
-              t + (max(par.t_a * u, par.t_b * bd) + bus_int[e, b, ACTION] * par.t_hold), DWELL, b)
+    _schedule(s, t + (max(p.t_a * u, p.t_b * bd) + s.action[b] * p.t_hold), DWELL, b)
 
 
-@_kernel
-def _end_episode(par, state, rec, e):
+@jit
+def _end_episode(p, s):
     """Cut every running macro-action at the horizon."""
-    state.ep_int[e, DONE] = 1
-    for b in range(state.bus_int.shape[1]):
-        if state.bus_int[e, b, N_DEC] > 0:
-            _close(rec, state.bus_real, state.bus_int, e, b, par.horizon)
+    s.done = True
+    for b in range(s.n_dec.shape[0]):
+        if s.n_dec[b] > 0:
+            _close(s, b, p.horizon)
 
 
-# inlined into _advance: a call would push each array of the tuples on the stack, field by field
-@nb.njit(cache=True, _nrt=False, inline="always")
-def _run_episode(par, state, rec, e):
-    """Process episode e's events until it is blocked on decisions or reaches the horizon."""
-    ep_int, ev_time, ev_int, bus_int = state.ep_int, state.ev_time, state.ev_int, state.bus_int
-    n_stop = state.stop_busy.shape[1]
+@jit
+def _run_episode(p, s):
+    """Process the episode's events until it is blocked on decisions or reaches the horizon."""
+    n_stop = s.busy.shape[0]
     while True:
-        s = _next_event(ev_time, ev_int, e)
-        t = ev_time[e, s]
-        if ep_int[e, N_PENDING] > 0 and t > state.ep_real[e, NOW]:
+        slot = _next_event(s)
+        t = s.ev_time[slot]
+        if s.n_pending > 0 and t > s.now:
             return  # blocked on decisions
-        if t >= par.horizon:  # includes inf: nothing scheduled
-            _end_episode(par, state, rec, e)
+        if t >= p.horizon:  # includes inf: nothing scheduled
+            _end_episode(p, s)
             return
-        kind = ev_int[e, s, KIND]
-        arg = ev_int[e, s, ARG]
-        ev_time[e, s] = np.inf
-        state.ep_real[e, NOW] = t
+        kind = s.ev_kind[slot]
+        arg = s.ev_arg[slot]
+        s.ev_time[slot] = np.inf
+        s.now = t
         if kind == INIT or kind == TRAVEL:  # request a stop (the next one after a trip)
             if kind == TRAVEL:
-                bus_int[e, arg, STOP] = (bus_int[e, arg, STOP] + 1) % n_stop
-            bus_int[e, arg, TICKET] = ep_int[e, NEXT_TICKET]
-            ep_int[e, NEXT_TICKET] += 1
-            _grant_stop(state, e, bus_int[e, arg, STOP], t)  # a request triggers the queue at once
+                s.stop[arg] = (s.stop[arg] + 1) % n_stop
+            s.ticket[arg] = s.next_ticket
+            s.next_ticket += 1
+            _grant_stop(s, s.stop[arg], t)  # a request triggers the queue at once
         elif kind == RELEASE:
-            _grant_stop(state, e, arg, t)
+            _grant_stop(s, arg, t)
         elif kind == GRANT:
-            _arrive(par, state, rec, e, arg, t)
+            _arrive(p, s, arg, t)
         elif kind == DECISION:
-            _board(par, state, rec, e, arg, t)
+            _board(p, s, arg, t)
         else:  # DWELL: depart, free the stop, travel on
-            k = bus_int[e, arg, STOP]
-            state.stop_real[e, k] = t
-            state.stop_busy[e, k] = 0
-            _schedule(ev_time, ev_int, ep_int, e, t, RELEASE, k)
-            _schedule(ev_time, ev_int, ep_int, e, t + par.rt, TRAVEL, arg)
+            k = s.stop[arg]
+            s.departed[k] = t
+            s.busy[k] = 0
+            _schedule(s, t, RELEASE, k)
+            _schedule(s, t + p.rt, TRAVEL, arg)
 
 
-@_kernel
-def _advance(actions, par, state, rec, pending):
+@jit
+def _advance(actions, params, states, obs, ids):
     """Deliver the actions of the pending decisions, run every episode until it is blocked, and
-    gather the new pending decisions into the first rows of ``pending``.
+    gather the new pending decisions into the first rows of ``obs`` and ``ids``.
 
     ``actions`` answer the previous round's rows in order (episode, then arrival order). Returns the
     number of new rows, or -1 if an action is out of range (nothing is changed then).
     """
+    p = params[0]
     for i in range(actions.shape[0]):
-        if actions[i] < 0 or actions[i] >= par.n_actions:
+        if actions[i] < 0 or actions[i] >= p.n_actions:
             return -1
-    ep_int, bus_int = state.ep_int, state.bus_int
     row = 0
     rows = 0
-    for e in range(ep_int.shape[0]):
-        if ep_int[e, DONE]:
+    for e in range(states.shape[0]):
+        s = states[e]
+        if s.done:
             continue
-        for p in range(ep_int[e, N_PENDING]):
-            b = ep_int[e, PENDING + p]
-            bus_int[e, b, ACTION] = actions[row]
+        for q in range(s.n_pending):
+            b = s.pending[q]
+            s.action[b] = actions[row]
             row += 1
-            _schedule(state.ev_time, state.ev_int, ep_int, e, state.ep_real[e, NOW], DECISION, b)
-        ep_int[e, N_PENDING] = 0
-        _run_episode(par, state, rec, e)
-        for p in range(ep_int[e, N_PENDING]):
-            b = ep_int[e, PENDING + p]
-            for i in range(OBS_DIM):  # element by element: a slice copy needs the runtime
-                pending.obs[rows, i] = state.bus_real[e, b, OBS + i]
-            pending.ids[EPISODE, rows] = e
-            pending.ids[AGENT, rows] = b
-            pending.ids[INDEX, rows] = bus_int[e, b, N_DEC] - 1
+            _schedule(s, s.now, DECISION, b)
+        s.n_pending = 0
+        _run_episode(p, s)
+        for q in range(s.n_pending):
+            b = s.pending[q]
+            for i in range(OBS_DIM):
+                obs[rows, i] = s.obs[b, i]
+            ids[EPISODE, rows] = e
+            ids[AGENT, rows] = b
+            ids[INDEX, rows] = s.n_dec[b] - 1
             rows += 1
     return rows
 
@@ -342,40 +300,30 @@ class BusBatch:
     def __init__(self, cfg: BusConfig, n_episodes: int):
         require(n_episodes >= 1, "n_episodes", "an integer >= 1", n_episodes)
         self.cfg = cfg
-        e, n, k = n_episodes, cfg.n_buses, cfg.n_stops
-        m = cfg.max_arrivals_per_bus
-        cap = 2 * n  # scheduled at once: one event of each bus, plus the RELEASE of the stop it left
-        self._par = _Params(int(cfg.n_actions), np.asarray(cfg.alight_fraction, float),
-                            np.asarray(cfg.arrival_rate, float), int(cfg.l_max),
-                            float(cfg.travel_time), float(cfg.t_alight), float(cfg.t_board),
-                            float(cfg.headway), float(cfg.t_hold), float(cfg.gamma),
-                            float(cfg.horizon))
-        self._state = _State(
-            ep_real=np.zeros((e, 2)), ep_int=np.zeros((e, PENDING + n), np.int64),
-            ev_time=np.full((e, cap), np.inf), ev_int=np.zeros((e, cap, 3), np.int64),
-            bus_real=np.zeros((e, n, OBS + OBS_DIM)), bus_int=np.zeros((e, n, 6), np.int64),
-            stop_real=np.zeros((e, k)), stop_busy=np.zeros((e, k), np.int64))
-        self._rec = _Record(dec=np.zeros((e, n, m, OBS_DIM + 3)), arr=np.zeros((e, n * m, 7)))
-        self._pending = _Pending(obs=np.zeros((e * n, OBS_DIM)), ids=np.zeros((3, e * n), np.int64))
-        st = self._state
-        st.bus_int[:, :, TICKET] = -1
+        e, n = n_episodes, cfg.n_buses
+        self._params = params_record(cfg)
+        st = self._states = np.zeros(e, episode_dtype(cfg))
+        st["ticket"] = -1
+        st["ev_time"] = np.inf
         # SimPy starts one process per bus with an URGENT initialisation event, in bus order.
-        st.ev_time[:, :n] = 0.0
-        st.ev_int[:, :n, ID] = np.arange(n)
-        st.ev_int[:, :n, KIND] = INIT
-        st.ev_int[:, :n, ARG] = np.arange(n)
-        st.ep_int[:, NEXT_ID] = n
+        st["ev_time"][:, :n] = 0.0
+        st["ev_id"][:, :n] = np.arange(n)
+        st["ev_kind"][:, :n] = INIT
+        st["ev_arg"][:, :n] = np.arange(n)
+        st["next_id"] = n
+        self._obs = np.zeros((e * n, OBS_DIM))
+        self._ids = np.zeros((3, e * n), np.int64)
         self._decisions = self._gathered(0)
 
     @property
     def done(self) -> np.ndarray:
         """(E,) bool: the episode has reached the horizon."""
-        return self._state.ep_int[:, DONE] == 1
+        return self._states["done"].copy()
 
     @property
     def ep_return(self) -> np.ndarray:
         """(E,) the undiscounted return so far (sum of every arrival's reward)."""
-        return self._state.ep_real[:, RETURN]
+        return self._states["ret"].copy()
 
     def advance(self, actions: np.ndarray) -> DecisionBatch:
         """Answer the pending decisions (one action per row of the last batch), run until blocked,
@@ -385,8 +333,8 @@ class BusBatch:
                 len(actions))
         require(len(actions) == 0 or np.issubdtype(actions.dtype, np.integer), "actions",
                 "integers", actions.dtype)
-        rows = _advance(np.ascontiguousarray(actions, np.int64), self._par, self._state, self._rec,
-                        self._pending)
+        rows = _advance(np.ascontiguousarray(actions, np.int64), self._params, self._states,
+                        self._obs, self._ids)
         if rows < 0:
             raise UsageError("action", f"an integer in 0..{self.cfg.n_actions - 1} "
                              "(a hold of a * T_hold)", actions.tolist())
@@ -395,8 +343,8 @@ class BusBatch:
 
     def _gathered(self, rows: int) -> DecisionBatch:
         """The first ``rows`` rows of the decision buffers, copied (the policy may keep them)."""
-        obs, ids = self._pending
-        return DecisionBatch(obs=obs[:rows].copy(), episode=ids[EPISODE, :rows].copy(),
+        ids = self._ids
+        return DecisionBatch(obs=self._obs[:rows].copy(), episode=ids[EPISODE, :rows].copy(),
                              agent=ids[AGENT, :rows].copy(), index=ids[INDEX, :rows].copy())
 
     def decisions(self) -> DecisionBatch:
@@ -406,8 +354,8 @@ class BusBatch:
     def arrivals(self) -> dict[str, np.ndarray]:
         """Every arrival of every episode, in processing order: episode, time (s), bus, stop
         (0-based), h (min), load at arrival, alighting U and boarding B."""
-        counts = self._state.ep_int[:, N_ARR]
-        arr = _compacted(self._rec.arr, counts)
+        counts = self._states["n_arr"]
+        arr = _compacted(self._states["arr"][:, None], counts[:, None])
         ints = arr.astype(np.int64)  # only the integer columns are read from it
         return dict(episode=np.repeat(np.arange(len(counts)), counts), time=arr[:, TIME],
                     bus=ints[:, A_BUS],
@@ -416,32 +364,33 @@ class BusBatch:
 
     def to_rollout(self) -> Rollout:
         require(bool(self.done.all()), "rollout", "taken after every episode has ended")
-        n_dec = self._state.bus_int[:, :, N_DEC]
+        n_dec = self._states["n_dec"]
         e, n = n_dec.shape
         lengths = n_dec.reshape(-1)
-        dec = _compacted(self._rec.dec.reshape(e * n, *self._rec.dec.shape[2:]), lengths)
+        dec = _compacted(self._states["dec"], n_dec)
         return Rollout(
             obs=np.ascontiguousarray(dec[:, :OBS_DIM]), actions=dec[:, D_ACTION].astype(np.int64),
             rewards=dec[:, D_REWARD].copy(), durations=dec[:, D_DURATION].copy(),
             path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
             path_episode=np.repeat(np.arange(e), n), path_agent=np.tile(np.arange(n), e),
-            episode_return=self.ep_return.copy(), info={"arrivals": self.arrivals()})
+            episode_return=self.ep_return, info={"arrivals": self.arrivals()})
 
 
-@_kernel
+@jit
 def _compact(rows, counts, out):
     o = 0
-    for g in range(rows.shape[0]):
-        for i in range(counts[g]):
-            for w in range(rows.shape[2]):
-                out[o, w] = rows[g, i, w]
-            o += 1
+    for e in range(rows.shape[0]):
+        for g in range(rows.shape[1]):
+            for i in range(counts[e, g]):
+                for w in range(rows.shape[3]):
+                    out[o, w] = rows[e, g, i, w]
+                o += 1
 
 
 def _compacted(rows: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """The first ``counts[g]`` rows of each group ``rows[g]``, one after another (a compiled loop:
-    numpy's boolean-mask indexing took a quarter of a rollout)."""
-    out = np.empty((int(counts.sum()), rows.shape[2]))
+    """The first ``counts[e, g]`` rows of each group ``rows[e, g]`` (E, G, rows, width), in order
+    (a compiled loop: numpy's boolean-mask indexing took a quarter of a rollout)."""
+    out = np.empty((int(counts.sum()), rows.shape[3]))
     _compact(rows, counts, out)
     return out
 

@@ -1,0 +1,169 @@
+"""What the engine benchmarks (``bench-bus``, ``bench-wildfire``) share: sizes, policies, timing.
+
+A benchmark runs an environment's fast engine and its SimPy reference under two policies:
+
+- ``mlp``: the learner's policy exactly as training runs it: a :class:`CategoricalPolicy` with the
+  trainer's default hidden layers, evaluated by the :class:`Sampler` the trainer hands to the
+  engines (one batched numpy forward per round, inverse-CDF sampling). Its normaliser is fitted to
+  the warm-up rollout, as the trainer's is after its first epoch, so the network sees observations
+  of the scale it sees in training;
+- a cheap policy of the environment, which shows what the engine costs nearly alone.
+
+Each engine runs ``repeats`` batches per policy: the fast engine batches of ``fast_episodes`` (the
+environment's training batch), the reference smaller ones (its cost per episode does not depend on
+the batch). Batch r draws its episodes from child r of the seed, and each engine gets the same
+freshly seeded sampler. The warm-up rollout also compiles the fast engine (or loads it from cache).
+Everything runs on one thread, numpy's BLAS included, as in training.
+
+Rates are per second of this process's CPU time, which is what one core achieves when the machine
+is shared, and per wall second; each is the median over the batches, as other processes' bursts of
+load on a shared machine slow single batches by up to 3x, even in CPU time. Counts and seconds are
+totals. ``policy_cpu_seconds`` is the time inside the policy, about the same
+per decision for both engines: ``speedup_vs_reference`` compares whole rollouts (decisions per CPU
+second), ``engine_speedup_vs_reference`` the time outside the policy, what the engine itself costs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from dataclasses import dataclass
+from typing import Callable, ClassVar
+
+import numpy as np
+import pandas as pd
+import torch
+
+from repro.cli import add_common
+from repro.core.config import for_scale
+from repro.core.errors import require
+from repro.core.io import check_writable_dir, provenance, write_result
+from repro.core.rollout import BatchEnv, DecisionBatch, Policy
+from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
+from repro.learn.trainer import ENV_DEFAULTS, TrainConfig
+
+CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
+"""Makes an environment's cheap policy from the benchmark's random source."""
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """Sizes of an engine benchmark (the timings are its result; a scale changes only sizes)."""
+
+    fast_episodes: int
+    """Episodes per batch of the fast engine (the environment's training batch at every scale but
+    smoke)."""
+    reference_episodes: int
+    """Episodes per batch of the SimPy reference."""
+    repeats: int
+    """Batches each engine runs per policy."""
+
+    def validate(self) -> None:
+        require(self.fast_episodes >= 1, "--fast-episodes", "an integer >= 1", self.fast_episodes)
+        require(self.reference_episodes >= 1, "--reference-episodes", "an integer >= 1",
+                self.reference_episodes)
+        require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
+
+
+def scales(env: str) -> dict[str, dict[str, int]]:
+    """The ``SCALES`` of ``env``'s benchmark config, from its training batch (the reference's
+    batches take seconds at the quick scale)."""
+    batch = ENV_DEFAULTS[env]["batch_episodes"]
+    return {
+        "smoke": dict(fast_episodes=batch // 10, reference_episodes=2, repeats=1),
+        "quick": dict(fast_episodes=batch, reference_episodes=batch // 20, repeats=5),
+        "paper": dict(fast_episodes=batch, reference_episodes=batch // 10, repeats=15),
+    }
+
+
+class _Counted:
+    """A policy that counts the decisions it answers and the CPU time it takes."""
+
+    def __init__(self, policy: Policy):
+        self.policy = policy
+        self.decisions = 0
+        self.cpu = 0.0
+
+    def __call__(self, batch: DecisionBatch) -> np.ndarray:
+        self.decisions += len(batch)
+        t0 = time.process_time()
+        actions = self.policy(batch)
+        self.cpu += time.process_time() - t0
+        return actions
+
+
+def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int) -> dict:
+    """Totals over the batches, and rates as medians over them."""
+    counted = _Counted(policy)
+    batches = []
+    for child in np.random.SeedSequence(seed).spawn(repeats):
+        decisions, policy_cpu = counted.decisions, counted.cpu
+        cpu, wall = time.process_time(), time.perf_counter()
+        env.rollout(counted, episodes, child)
+        batches.append((counted.decisions - decisions, time.perf_counter() - wall,
+                        time.process_time() - cpu, counted.cpu - policy_cpu))
+    d, wall, cpu, policy_cpu = np.array(batches).T
+    return dict(batch_episodes=episodes, batches=repeats, episodes=episodes * repeats,
+                decisions=int(d.sum()), wall_seconds=wall.sum(), cpu_seconds=cpu.sum(),
+                policy_cpu_seconds=policy_cpu.sum(), decisions_per_second=np.median(d / wall),
+                decisions_per_cpu_second=np.median(d / cpu),
+                episodes_per_cpu_second=np.median(episodes / cpu),
+                engine_decisions_per_cpu_second=np.median(d / (cpu - policy_cpu)))
+
+
+def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,
+            cfg: BenchConfig, seed: int) -> pd.DataFrame:
+    """One row per engine and policy (see the module docstring)."""
+    warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
+    normalizer = ObsNormalizer(fast.obs_dim)
+    normalizer.update(warm_up.obs)
+    hidden = TrainConfig.hidden
+    torch.manual_seed(seed)
+    network = CategoricalPolicy(fast.obs_dim, fast.n_actions, hidden)
+    policies: dict[str, CheapPolicy] = {
+        "mlp-" + "x".join(map(str, hidden)) + "-tanh":
+            lambda env, rng: Sampler(network, normalizer, rng),
+        cheap_name: cheap,
+    }
+    rows = []
+    with blas_on_one_thread():  # as in training
+        for engine, env, episodes in (("fast", fast, cfg.fast_episodes),
+                                      ("reference", reference, cfg.reference_episodes)):
+            for name, make in policies.items():
+                policy = make(env, np.random.default_rng(seed))
+                rows.append(dict(engine=engine, policy=name,
+                                 **_time(env, policy, episodes, cfg.repeats, seed)))
+    frame = pd.DataFrame(rows)
+    ref = frame[frame.engine == "reference"].set_index("policy")
+    for column, rate in (("speedup_vs_reference", "decisions_per_cpu_second"),
+                         ("wall_speedup_vs_reference", "decisions_per_second"),
+                         ("engine_speedup_vs_reference", "engine_decisions_per_cpu_second")):
+        frame[column] = frame[rate] / frame.policy.map(ref[rate])
+    return frame
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_common(p)
+    p.add_argument("--fast-episodes", type=int, help="episodes per batch of the fast engine")
+    p.add_argument("--reference-episodes", type=int, help="episodes per batch of the reference")
+    p.add_argument("--repeats", type=int, help="batches each engine runs per policy")
+
+
+def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
+        measure_env: Callable[[BenchConfig, int], pd.DataFrame]) -> int:
+    """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``."""
+    cfg = for_scale(config, args.scale, fast_episodes=args.fast_episodes,
+                    reference_episodes=args.reference_episodes, repeats=args.repeats)
+    cfg.validate()
+    results = check_writable_dir(args.results_dir, "--results-dir")
+    load_before = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    frame = measure_env(cfg, args.seed)
+    prov = provenance(cfg, command=command, scale=args.scale, seed=args.seed,
+                      wall_seconds=time.perf_counter() - t0,
+                      extra={"note": "timings vary between runs and machines; one thread",
+                             "load_average_1min": [load_before, os.getloadavg()[0]]})
+    write_result(results / f"{command.replace('-', '_')}.csv", frame, prov)
+    print(frame.to_string(index=False))
+    return 0
