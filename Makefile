@@ -22,13 +22,14 @@ help:
 	@echo "make test        # the test suite"
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed 's/:.*## /\t/' | sort
 
-# torch is installed first and on its own so that pip takes a CPU build: a local wheel where the
-# machine has one, else PyTorch's CPU index, else (e.g. macOS) the default index.
+# torch is installed first and on its own so that pip takes a CPU build: the `+cpu` build from a
+# local wheel or index where the machine has one (PyPI has none, so this fails fast elsewhere), else
+# from PyTorch's CPU index, else the default build (macOS, where it is CPU-only anyway).
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
-	$(BIN)/pip install -q --no-index "torch==$(TORCH_VERSION)" 2>/dev/null \
-	  || $(BIN)/pip install -q "torch==$(TORCH_VERSION)" --index-url https://download.pytorch.org/whl/cpu \
+	$(BIN)/pip install -q "torch==$(TORCH_VERSION)+cpu" 2>/dev/null \
+	  || $(BIN)/pip install -q "torch==$(TORCH_VERSION)+cpu" --extra-index-url https://download.pytorch.org/whl/cpu \
 	  || $(BIN)/pip install -q "torch==$(TORCH_VERSION)"
 	$(BIN)/pip install -q -e ".[test]"
 	touch $@
