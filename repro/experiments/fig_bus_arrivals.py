@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
+from typing import Callable
 
 import pandas as pd
 
@@ -78,14 +80,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_policy_arguments(p)
 
 
-def run(args: argparse.Namespace) -> int:
+def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
+                      table_of: Callable[[pd.DataFrame], pd.DataFrame],
+                      plot_table: Callable[[pd.DataFrame, Path], None]) -> int:
+    """Shared body of the per-policy bus figures: simulate each policy's episode, derive the
+    figure's table from the arrival records, write it with provenance, and draw it."""
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
-    arrivals = collect(args)
-    prov = provenance(BusConfig(), command="fig-bus-arrivals", scale=args.scale, seed=None,
-                      wall_seconds=time.perf_counter() - t0, extra={"policies": args.policies, "mlp_run": mlp_source(args)})
-    write_result(results / "bus_arrivals.csv", arrivals, prov)
-    plot(arrivals, figures / "bus_arrivals")
-    print(f"wrote {results / 'bus_arrivals.csv'} and {figures / 'bus_arrivals'}.png/.pdf")
+    table = table_of(collect(args))
+    prov = provenance(BusConfig(), command=command, scale=args.scale, seed=None,
+                      wall_seconds=time.perf_counter() - t0,
+                      extra={"policies": args.policies, "mlp_run": mlp_source(args)})
+    write_result(results / csv_name, table, prov)
+    stem = figures / Path(csv_name).stem
+    plot_table(table, stem)
+    print(f"wrote {results / csv_name} and {stem}.png/.pdf")
     return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    return run_policy_figure(args, command="fig-bus-arrivals", csv_name="bus_arrivals.csv",
+                             table_of=lambda arrivals: arrivals, plot_table=plot)

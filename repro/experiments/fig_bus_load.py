@@ -5,15 +5,14 @@ Stop 1 in that cycle) and figures/bus_load."""
 from __future__ import annotations
 
 import argparse
-import time
 
 import pandas as pd
 
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import save_figure
 from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import cycle_loads
 from repro.experiments.bus_eval import CYCLE
-from repro.experiments.fig_bus_arrivals import TITLES, add_policy_arguments, collect, mlp_source
+from repro.experiments.fig_bus_arrivals import TITLES, add_policy_arguments, run_policy_figure
 
 LOAD_CSV = "bus_load.csv"
 
@@ -55,13 +54,5 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    results = check_writable_dir(args.results_dir, "--results-dir")
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
-    t0 = time.perf_counter()
-    table = loads(collect(args))
-    prov = provenance(BusConfig(), command="fig-bus-load", scale=args.scale, seed=None,
-                      wall_seconds=time.perf_counter() - t0, extra={"policies": args.policies, "mlp_run": mlp_source(args)})
-    write_result(results / LOAD_CSV, table, prov)
-    plot(table, figures / "bus_load")
-    print(f"wrote {results / LOAD_CSV} and {figures / 'bus_load'}.png/.pdf")
-    return 0
+    return run_policy_figure(args, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
+                             plot_table=plot)
