@@ -407,6 +407,8 @@ class BusEnv:
 
     name = "bus"
     obs_dim = OBS_DIM
+    batch_type: type = BusBatch
+    """The batch class that simulates; the SimPy reference swaps in its own."""
 
     def __init__(self, cfg: BusConfig | None = None):
         self.cfg = cfg or BusConfig()
@@ -414,8 +416,8 @@ class BusEnv:
         self.n_agents = self.cfg.n_buses
         self.gamma = self.cfg.gamma
 
-    def start(self, n_episodes: int) -> BusBatch:
-        return BusBatch(self.cfg, n_episodes)
+    def start(self, n_episodes: int):
+        return self.batch_type(self.cfg, n_episodes)
 
     def rollout(self, policy: Policy, n_episodes: int,
                 seed: int | np.random.SeedSequence = 0) -> Rollout:

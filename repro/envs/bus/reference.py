@@ -22,8 +22,8 @@ import numpy as np
 import simpy
 
 from repro.core.errors import require
-from repro.core.rollout import DecisionBatch, Policy, Rollout
-from repro.envs.bus.engine import OBS_DIM, drive
+from repro.core.rollout import DecisionBatch, Rollout
+from repro.envs.bus.engine import OBS_DIM, BusEnv, drive
 from repro.envs.bus.params import BusConfig
 
 
@@ -150,24 +150,9 @@ class ReferenceBatch:
             info={"arrivals": self.arrivals()})
 
 
-class ReferenceBusEnv:
-    """The SimPy reference as a :class:`repro.core.rollout.BatchEnv` (slow; for checking)."""
+class ReferenceBusEnv(BusEnv):
+    """The SimPy reference as a :class:`repro.core.rollout.BatchEnv` (slow; for checking): the
+    fast engine's environment with the SimPy batch in its place."""
 
     name = "bus-reference"
-    obs_dim = OBS_DIM
-
-    def __init__(self, cfg: BusConfig | None = None):
-        self.cfg = cfg or BusConfig()
-        self.n_actions = self.cfg.n_actions
-        self.n_agents = self.cfg.n_buses
-        self.gamma = self.cfg.gamma
-
-    def start(self, n_episodes: int) -> ReferenceBatch:
-        return ReferenceBatch(self.cfg, n_episodes)
-
-    def rollout(self, policy: Policy, n_episodes: int,
-                seed: int | np.random.SeedSequence = 0) -> Rollout:
-        """The environment is deterministic, so ``seed`` is unused (only the policy is random)."""
-        batch = self.start(n_episodes)
-        drive(batch, policy)
-        return batch.to_rollout()
+    batch_type = ReferenceBatch
