@@ -68,3 +68,24 @@ def test_linear_baseline_recovers_linear_features_and_mlp_fits():
     assert np.all(net.predict(obs, index) == 0.0)
     target = 1e4 + 3e3 * np.sin(obs[:, 0])  # bus-like scale
     assert net.fit(obs, index, target) < 0.05
+
+
+def test_inverse_cdf_sampling_by_hand():
+    from repro.learn.policy import _sample_rows
+
+    # probabilities 1/4, 1/4, 1/2: the CDF's steps are at u = 0.25 and 0.5
+    logits = np.log(np.array([[1.0, 1.0, 2.0]] * 5, np.float32))
+    u = np.array([0.0, 0.2499, 0.25, 0.4999, 0.9999999])
+    actions = np.empty(5, np.int64)
+    _sample_rows(logits, u, actions)
+    np.testing.assert_array_equal(actions, [0, 0, 1, 1, 2])
+
+
+def test_sampler_work_buffers_do_not_leak_between_calls():
+    torch.manual_seed(0)
+    sampler = Sampler(CategoricalPolicy(3, 4, (8,)), ObsNormalizer(3), np.random.default_rng(0))
+    rng = np.random.default_rng(1)
+    big, small = rng.normal(size=(300, 3)), rng.normal(size=(2, 3))
+    first = sampler.probabilities(small)
+    sampler.probabilities(big)
+    np.testing.assert_array_equal(sampler.probabilities(small), first)

@@ -118,8 +118,8 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, adv: 
     batch; ``adv`` should already be normalised. ``fvp_rows`` (indices into the batch) restricts the
     Fisher-vector products, and so the step size, to those rows (rllab's ``subsample_factor``); the
     gradient and the line search always use the whole batch."""
-    with torch.no_grad():
-        logp_old = policy(obs)
+    logp = policy(obs)
+    logp_old = logp.detach()
     logp_old_a = logp_old.gather(1, actions[:, None])[:, 0]
     entropy = float(-(logp_old.exp() * logp_old).sum(dim=1).mean())
 
@@ -127,7 +127,7 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, adv: 
         return (torch.exp(logp.gather(1, actions[:, None])[:, 0] - logp_old_a) * adv).mean()
 
     params = list(policy.parameters())
-    surr = surrogate(policy(obs))
+    surr = surrogate(logp)
     grad = torch.cat([g.reshape(-1) for g in torch.autograd.grad(surr, params)])
     surr0 = float(surr.detach())
     fvp = fisher_vector_product(policy, obs if fvp_rows is None else obs[fvp_rows], cg_damping)
