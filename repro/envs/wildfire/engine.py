@@ -77,6 +77,9 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # fires
         ("alive", i1, k), ("health", f8, k), ("t_update", f8, k), ("party", i8, k),
         ("fwait", i8, k),
+        # scratch of an observation: the observing UAV's distance to every fire, computed once
+        # per observation rather than once per observed rank
+        ("fire_dist", f8, k),
         # event heap: time, priority, sequence number, kind, who (narrow types: a smaller record
         # stays in cache longer); its size; the next sequence
         ("ht", f8, HEAP_CAPACITY), ("hp", i1, HEAP_CAPACITY), ("hs", i8, HEAP_CAPACITY),
@@ -177,11 +180,14 @@ def _observe(s, lg, p, e, i):
     x, y = s.pos[i, 0], s.pos[i, 1]
     o = lg.obs[row]
     o[0], o[1] = x, y
+    dist = s.fire_dist
+    for j in range(p.n_fires):
+        dist[j] = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
     prev_d, prev_j = -1.0, -1
     for r in range(p.n_obs):  # next in (distance, index) order: the lower index wins ties
         best, best_d = -1, np.inf
         for j in range(p.n_fires):
-            d = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
+            d = dist[j]
             after = d > prev_d or (d == prev_d and j > prev_j)
             if after and d < best_d:
                 best, best_d = j, d
