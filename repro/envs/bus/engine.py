@@ -2,10 +2,12 @@
 
 It is an exact transcription of the SimPy reference (``reference.py``), event by event. SimPy keeps
 a heap keyed by (time, priority, insertion id) and processes the smallest key first; this engine
-keeps the same keys in a small array per episode (at most 2 N events are ever scheduled, so a
-linear scan for the minimum beats a heap) and schedules exactly the events SimPy schedules, in the
-same order. The priority need not be stored: the only URGENT events are the buses' initialisations,
-which are also inserted first, so ordering by (time, insertion id) is the same order.
+schedules exactly the events SimPy schedules, in the same order, and keeps them in a small array per
+episode sorted by that key, the next event last (at most 2 N events are ever scheduled, so shifting
+a few entries on insertion beats a heap). Neither the priority nor the id need be stored: the only
+URGENT events are the buses' initialisations, which are also inserted first, so ordering by (time,
+insertion id) is the same order; and a new event has the largest id so far, so it goes just before
+(in processing order: just after) every event of time <= its own.
 
 ====================  ==========================================================================
 event                 SimPy counterpart, and what processing it does
@@ -43,11 +45,11 @@ actions in row order and gathers the next pending decisions into preallocated bu
 an episode's whole state is one numpy record (a row of a structured array, ``episode_dtype``), and
 so are the parameters (``params_record``): numba hands a record to a function as a bare pointer,
 whereas every array of a tuple costs a reference-count update per call, which doubled the cost of an
-event. A round visits each episode's record once; the records of closed macro-actions and of
-arrivals (``dec``, ``arr``) are written once per row (a decision's row when its macro-action closes,
-an arrival's when the bus boards) and never read back, so the state a round touches stays small. A
-stop's FIFO queue is the waiting buses ordered by request ticket, a scan over N buses instead of a
-ring buffer per stop.
+event. A round visits each episode's record once, so the records are kept small: the rows of closed
+macro-actions and of arrivals live in a separate record per episode (``log_dtype``, 40 times the
+size), written once per row (a decision's row when its macro-action closes, an arrival's when the
+bus boards) and never read back by the kernel. A stop's FIFO queue is the waiting buses ordered by
+request ticket, a scan over N buses instead of a ring buffer per stop.
 """
 
 from __future__ import annotations
@@ -91,16 +93,17 @@ def params_record(cfg: BusConfig) -> np.ndarray:
 
 
 def episode_dtype(cfg: BusConfig) -> np.dtype:
-    """One episode's state: scalars, the event slots, (N,) bus fields, (K,) stop fields, records."""
-    n, k, m, f8, i8 = cfg.n_buses, cfg.n_stops, cfg.max_arrivals_per_bus, np.float64, np.int64
+    """One episode's hot state: scalars, the event list, (N,) bus fields, (K,) stop fields."""
+    n, k, f8, i8 = cfg.n_buses, cfg.n_stops, np.float64, np.int64
     cap = 2 * n  # scheduled at once: one event of each bus, plus the RELEASE of the stop it left
     return np.dtype([
-        # the episode: time, undiscounted return, insertion ids and queue tickets handed out,
-        # arrivals so far, and the buses waiting for a decision, in arrival order
-        ("now", f8), ("ret", f8), ("done", np.bool_), ("next_id", i8), ("next_ticket", i8),
-        ("n_arr", i8), ("n_pending", i8), ("pending", i8, n),
-        # event slots: time (inf marks a free slot), insertion id, kind, bus or stop
-        ("ev_time", f8, cap), ("ev_id", i8, cap), ("ev_kind", i8, cap), ("ev_arg", i8, cap),
+        # the episode: time, undiscounted return, queue tickets handed out, arrivals so far, and
+        # the buses waiting for a decision, in arrival order
+        ("now", f8), ("ret", f8), ("done", np.bool_), ("next_ticket", i8), ("n_arr", i8),
+        ("n_pending", i8), ("pending", i8, n),
+        # the event list: n_ev events in slots 0..n_ev-1, last to be processed first; time, kind,
+        # bus or stop
+        ("n_ev", i8), ("ev_time", f8, cap), ("ev_kind", i8, cap), ("ev_arg", i8, cap),
         # buses: discount anchor T, reward buffer, the running macro-action's observation and
         # action, stop, load, decisions so far, index of the latest arrival, request ticket while
         # queued (else -1)
@@ -109,36 +112,33 @@ def episode_dtype(cfg: BusConfig) -> np.dtype:
         ("ticket", i8, n),
         # stops: last departure time, 1 while a bus holds the stop
         ("departed", f8, k), ("busy", np.int8, k),
-        # records, one float row per item (the integers in them are small, hence exact): each
-        # closed macro-action's observation, D_ACTION, D_REWARD, D_DURATION; each arrival's TIME
-        # (s), HEADWAY h (min), A_BUS, A_STOP, A_LOAD (at arrival), A_ALIGHT U and A_BOARD B
-        ("dec", f8, (n, m, OBS_DIM + 3)), ("arr", f8, (n * m, 7)),
     ], align=True)
+
+
+def log_dtype(cfg: BusConfig) -> np.dtype:
+    """One episode's records, one float row per item (the integers in them are small, hence
+    exact): each closed macro-action's observation, D_ACTION, D_REWARD, D_DURATION; each arrival's
+    TIME (s), HEADWAY h (min), A_BUS, A_STOP, A_LOAD (at arrival), A_ALIGHT U and A_BOARD B."""
+    n, m = cfg.n_buses, cfg.max_arrivals_per_bus
+    return np.dtype([("dec", np.float64, (n, m, OBS_DIM + 3)), ("arr", np.float64, (n * m, 7))],
+                    align=True)
 
 
 @jit
 def _schedule(s, t, kind, arg):
-    """Schedule an event in a free slot, with the next insertion id."""
-    for slot in range(s.ev_time.shape[0]):
-        if s.ev_time[slot] == np.inf:
-            s.ev_time[slot] = t
-            s.ev_id[slot] = s.next_id
-            s.ev_kind[slot] = kind
-            s.ev_arg[slot] = arg
-            s.next_id += 1
-            return
-    raise RuntimeError("bus engine: more than 2 N events scheduled at once")
-
-
-@jit
-def _next_event(s):
-    """Slot of the smallest (time, id) key; its time is inf when nothing is scheduled."""
-    best = 0
-    for slot in range(1, s.ev_time.shape[0]):
-        if s.ev_time[slot] < s.ev_time[best] or (
-                s.ev_time[slot] == s.ev_time[best] and s.ev_id[slot] < s.ev_id[best]):
-            best = slot
-    return best
+    """Insert an event behind every event of time <= t (it has the largest insertion id)."""
+    i = s.n_ev
+    if i == s.ev_time.shape[0]:
+        raise RuntimeError("bus engine: more than 2 N events scheduled at once")
+    while i > 0 and s.ev_time[i - 1] <= t:
+        s.ev_time[i] = s.ev_time[i - 1]
+        s.ev_kind[i] = s.ev_kind[i - 1]
+        s.ev_arg[i] = s.ev_arg[i - 1]
+        i -= 1
+    s.ev_time[i] = t
+    s.ev_kind[i] = kind
+    s.ev_arg[i] = arg
+    s.n_ev += 1
 
 
 @jit
@@ -157,8 +157,8 @@ def _grant_stop(s, k, t):
 
 
 @jit
-def _arrive(p, s, b, t):
-    """Bus b gets its stop: reward every agent, record the arrival, observe, await a decision."""
+def _arrive(p, s, log, b, t):
+    """Bus b gets its stop: reward every agent, observe, await a decision."""
     k = s.stop[b]
     h = (t - s.departed[k]) / 60.0
     d = h - p.headway
@@ -170,7 +170,7 @@ def _arrive(p, s, b, t):
     s.n_arr += 1
     n = s.n_dec[b]
     if n > 0:  # the observation closes the previous macro-action
-        _close(s, b, t)
+        _close(s, log, b, t)
     s.obs[b, 0] = k
     s.obs[b, 1] = h
     s.obs[b, 2] = s.load[b]
@@ -182,9 +182,9 @@ def _arrive(p, s, b, t):
 
 
 @jit
-def _close(s, b, t):
+def _close(s, log, b, t):
     """Record bus b's running macro-action, ending at t, and empty its reward buffer."""
-    row = s.dec[b, s.n_dec[b] - 1]
+    row = log.dec[b, s.n_dec[b] - 1]
     for i in range(OBS_DIM):
         row[i] = s.obs[b, i]
     row[D_ACTION] = s.action[b]
@@ -194,7 +194,7 @@ def _close(s, b, t):
 
 
 @jit
-def _board(p, s, b, t):
+def _board(p, s, log, b, t):
     """The decision is in: alight, board, record the arrival, and dwell plus hold (a DWELL event)."""
     k = s.stop[b]
     h = s.obs[b, 1]
@@ -202,7 +202,7 @@ def _board(p, s, b, t):
     u = np.int64(np.floor(p.alight[k] * load + 0.5))
     bd = min(np.int64(np.floor(p.rate[k] * h + 0.5)), p.l_max - load + u)
     s.load[b] = load - u + bd
-    row = s.arr[s.arrival[b]]
+    row = log.arr[s.arrival[b]]
     row[TIME] = s.anchor[b]  # the arrival's time
     row[HEADWAY] = h
     row[A_BUS] = b
@@ -214,29 +214,28 @@ def _board(p, s, b, t):
 
 
 @jit
-def _end_episode(p, s):
+def _end_episode(p, s, log):
     """Cut every running macro-action at the horizon."""
     s.done = True
     for b in range(s.n_dec.shape[0]):
         if s.n_dec[b] > 0:
-            _close(s, b, p.horizon)
+            _close(s, log, b, p.horizon)
 
 
 @jit
-def _run_episode(p, s):
+def _run_episode(p, s, log):
     """Process the episode's events until it is blocked on decisions or reaches the horizon."""
     n_stop = s.busy.shape[0]
     while True:
-        slot = _next_event(s)
-        t = s.ev_time[slot]
+        t = s.ev_time[s.n_ev - 1] if s.n_ev > 0 else np.inf
         if s.n_pending > 0 and t > s.now:
             return  # blocked on decisions
         if t >= p.horizon:  # includes inf: nothing scheduled
-            _end_episode(p, s)
+            _end_episode(p, s, log)
             return
-        kind = s.ev_kind[slot]
-        arg = s.ev_arg[slot]
-        s.ev_time[slot] = np.inf
+        s.n_ev -= 1
+        kind = s.ev_kind[s.n_ev]
+        arg = s.ev_arg[s.n_ev]
         s.now = t
         if kind == INIT or kind == TRAVEL:  # request a stop (the next one after a trip)
             if kind == TRAVEL:
@@ -247,9 +246,9 @@ def _run_episode(p, s):
         elif kind == RELEASE:
             _grant_stop(s, arg, t)
         elif kind == GRANT:
-            _arrive(p, s, arg, t)
+            _arrive(p, s, log, arg, t)
         elif kind == DECISION:
-            _board(p, s, arg, t)
+            _board(p, s, log, arg, t)
         else:  # DWELL: depart, free the stop, travel on
             k = s.stop[arg]
             s.departed[k] = t
@@ -259,7 +258,7 @@ def _run_episode(p, s):
 
 
 @jit
-def _advance(actions, params, states, obs, ids):
+def _advance(actions, params, states, logs, obs, ids):
     """Deliver the actions of the pending decisions, run every episode until it is blocked, and
     gather the new pending decisions into the first rows of ``obs`` and ``ids``.
 
@@ -282,7 +281,7 @@ def _advance(actions, params, states, obs, ids):
             row += 1
             _schedule(s, s.now, DECISION, b)
         s.n_pending = 0
-        _run_episode(p, s)
+        _run_episode(p, s, logs[e])
         for q in range(s.n_pending):
             b = s.pending[q]
             for i in range(OBS_DIM):
@@ -304,13 +303,11 @@ class BusBatch:
         self._params = params_record(cfg)
         st = self._states = np.zeros(e, episode_dtype(cfg))
         st["ticket"] = -1
-        st["ev_time"] = np.inf
         # SimPy starts one process per bus with an URGENT initialisation event, in bus order.
-        st["ev_time"][:, :n] = 0.0
-        st["ev_id"][:, :n] = np.arange(n)
+        st["n_ev"] = n
         st["ev_kind"][:, :n] = INIT
-        st["ev_arg"][:, :n] = np.arange(n)
-        st["next_id"] = n
+        st["ev_arg"][:, :n] = np.arange(n)[::-1]
+        self._logs = np.empty(e, log_dtype(cfg))  # every row read back is written first
         self._obs = np.zeros((e * n, OBS_DIM))
         self._ids = np.zeros((3, e * n), np.int64)
         self._decisions = self._gathered(0)
@@ -334,7 +331,7 @@ class BusBatch:
         require(len(actions) == 0 or np.issubdtype(actions.dtype, np.integer), "actions",
                 "integers", actions.dtype)
         rows = _advance(np.ascontiguousarray(actions, np.int64), self._params, self._states,
-                        self._obs, self._ids)
+                        self._logs, self._obs, self._ids)
         if rows < 0:
             raise UsageError("action", f"an integer in 0..{self.cfg.n_actions - 1} "
                              "(a hold of a * T_hold)", actions.tolist())
@@ -355,7 +352,7 @@ class BusBatch:
         """Every arrival of every episode, in processing order: episode, time (s), bus, stop
         (0-based), h (min), load at arrival, alighting U and boarding B."""
         counts = self._states["n_arr"]
-        arr = _compacted(self._states["arr"][:, None], counts[:, None])
+        arr = _compacted(self._logs["arr"][:, None], counts[:, None])
         ints = arr.astype(np.int64)  # only the integer columns are read from it
         return dict(episode=np.repeat(np.arange(len(counts)), counts), time=arr[:, TIME],
                     bus=ints[:, A_BUS],
@@ -367,7 +364,7 @@ class BusBatch:
         n_dec = self._states["n_dec"]
         e, n = n_dec.shape
         lengths = n_dec.reshape(-1)
-        dec = _compacted(self._states["dec"], n_dec)
+        dec = _compacted(self._logs["dec"], n_dec)
         return Rollout(
             obs=np.ascontiguousarray(dec[:, :OBS_DIM]), actions=dec[:, D_ACTION].astype(np.int64),
             rewards=dec[:, D_REWARD].copy(), durations=dec[:, D_DURATION].copy(),
