@@ -42,14 +42,17 @@ is accrued before the arriving bus observes. At the horizon each running macro-a
 Speed. A rollout of the training batch (540 episodes) takes a few hundred rounds, so both the
 per-round and the per-event costs matter. Per round, Python does O(1) work: the kernel reads the
 actions in row order and gathers the next pending decisions into preallocated buffers. Per event,
-an episode's whole state is one numpy record (a row of a structured array, ``episode_dtype``), and
-so are the parameters (``params_record``): numba hands a record to a function as a bare pointer,
-whereas every array of a tuple costs a reference-count update per call, which doubled the cost of an
-event. A round visits each episode's record once, so the records are kept small: the rows of closed
-macro-actions and of arrivals live in a separate record per episode (``log_dtype``, 40 times the
-size), written once per row (a decision's row when its macro-action closes, an arrival's when the
-bus boards) and never read back by the kernel. A stop's FIFO queue is the waiting buses ordered by
-request ticket, a scan over N buses instead of a ring buffer per stop.
+an episode's state is one numpy record (a row of a structured array, ``episode_dtype``), and so are
+the parameters (``params_record``): numba hands a record to a function as a bare pointer, whereas
+every array of a tuple costs a reference-count update per call, which doubled the cost of an event.
+A round visits each episode's record once, so the records are kept small: what is written for the
+rollout lives in a separate record per episode (``log_dtype``, 25 times the size) and is never read
+back by the kernel. Those writes miss the cache, so they are as few as can be: one 64-byte row per
+macro-action, written when it closes (its observation, action, reward, duration and start time),
+and the bus of each arrival; every arrival starts a macro-action, whose row holds the rest of the
+arrival's record (``arrivals`` recomputes U and B with the function that boarded them). A stop's
+FIFO queue is the waiting buses ordered by request ticket, a scan over N buses instead of a ring
+buffer per stop.
 """
 
 from __future__ import annotations
@@ -69,10 +72,8 @@ OBS_DIM = 4
 INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL = range(6)
 """Event kinds (see the table above)."""
 
-D_ACTION, D_REWARD, D_DURATION = range(OBS_DIM, OBS_DIM + 3)
-"""Fields of a ``dec`` row after the observation."""
-TIME, HEADWAY, A_BUS, A_STOP, A_LOAD, A_ALIGHT, A_BOARD = range(7)
-"""Fields of an ``arr`` row."""
+D_ACTION, D_REWARD, D_DURATION, D_TIME = range(OBS_DIM, OBS_DIM + 4)
+"""Fields of a ``dec`` row after the observation [stop, h, load, sojourn]; D_TIME is its start."""
 EPISODE, AGENT, INDEX = range(3)
 """Rows of the pending decisions' ``ids`` buffer."""
 
@@ -105,22 +106,21 @@ def episode_dtype(cfg: BusConfig) -> np.dtype:
         # bus or stop
         ("n_ev", i8), ("ev_time", f8, cap), ("ev_kind", i8, cap), ("ev_arg", i8, cap),
         # buses: discount anchor T, reward buffer, the running macro-action's observation and
-        # action, stop, load, decisions so far, index of the latest arrival, request ticket while
-        # queued (else -1)
+        # action, stop, load, decisions so far, request ticket while queued (else -1)
         ("anchor", f8, n), ("buffer", f8, n), ("obs", f8, (n, OBS_DIM)), ("action", i8, n),
-        ("stop", i8, n), ("load", i8, n), ("n_dec", i8, n), ("arrival", i8, n),
-        ("ticket", i8, n),
+        ("stop", i8, n), ("load", i8, n), ("n_dec", i8, n), ("ticket", i8, n),
         # stops: last departure time, 1 while a bus holds the stop
         ("departed", f8, k), ("busy", np.int8, k),
     ], align=True)
 
 
 def log_dtype(cfg: BusConfig) -> np.dtype:
-    """One episode's records, one float row per item (the integers in them are small, hence
-    exact): each closed macro-action's observation, D_ACTION, D_REWARD, D_DURATION; each arrival's
-    TIME (s), HEADWAY h (min), A_BUS, A_STOP, A_LOAD (at arrival), A_ALIGHT U and A_BOARD B."""
+    """One episode's records: each bus's closed macro-actions, one 64-byte float row each (the
+    integers in it are small, hence exact): observation, D_ACTION, D_REWARD, D_DURATION and D_TIME,
+    the time of the arrival that started it; and the bus of each arrival, in processing order.
+    Every arrival starts a macro-action, so this is the whole arrival record (see ``arrivals``)."""
     n, m = cfg.n_buses, cfg.max_arrivals_per_bus
-    return np.dtype([("dec", np.float64, (n, m, OBS_DIM + 3)), ("arr", np.float64, (n * m, 7))],
+    return np.dtype([("dec", np.float64, (n, m, OBS_DIM + 4)), ("order", np.int32, n * m)],
                     align=True)
 
 
@@ -158,7 +158,7 @@ def _grant_stop(s, k, t):
 
 @jit
 def _arrive(p, s, log, b, t):
-    """Bus b gets its stop: reward every agent, observe, await a decision."""
+    """Bus b gets its stop: reward every agent, record the arrival, observe, await a decision."""
     k = s.stop[b]
     h = (t - s.departed[k]) / 60.0
     d = h - p.headway
@@ -166,7 +166,7 @@ def _arrive(p, s, log, b, t):
     s.ret += r
     for j in range(s.buffer.shape[0]):
         s.buffer[j] += np.exp(-p.gamma * (t - s.anchor[j])) * r
-    s.arrival[b] = s.n_arr  # its row is written when the bus boards
+    log.order[s.n_arr] = b
     s.n_arr += 1
     n = s.n_dec[b]
     if n > 0:  # the observation closes the previous macro-action
@@ -190,26 +190,23 @@ def _close(s, log, b, t):
     row[D_ACTION] = s.action[b]
     row[D_REWARD] = s.buffer[b]
     row[D_DURATION] = t - s.anchor[b]
+    row[D_TIME] = s.anchor[b]
     s.buffer[b] = 0.0
 
 
 @jit
-def _board(p, s, log, b, t):
-    """The decision is in: alight, board, record the arrival, and dwell plus hold (a DWELL event)."""
-    k = s.stop[b]
-    h = s.obs[b, 1]
-    load = s.load[b]
+def _alight_board(p, k, load, h):
+    """Passengers alighting U and boarding B at stop k, given the load and headway h at arrival."""
     u = np.int64(np.floor(p.alight[k] * load + 0.5))
-    bd = min(np.int64(np.floor(p.rate[k] * h + 0.5)), p.l_max - load + u)
+    return u, min(np.int64(np.floor(p.rate[k] * h + 0.5)), p.l_max - load + u)
+
+
+@jit
+def _board(p, s, b, t):
+    """The decision is in: alight, board, and dwell plus hold (a DWELL event)."""
+    load = s.load[b]
+    u, bd = _alight_board(p, s.stop[b], load, s.obs[b, 1])
     s.load[b] = load - u + bd
-    row = log.arr[s.arrival[b]]
-    row[TIME] = s.anchor[b]  # the arrival's time
-    row[HEADWAY] = h
-    row[A_BUS] = b
-    row[A_STOP] = k
-    row[A_LOAD] = load
-    row[A_ALIGHT] = u
-    row[A_BOARD] = bd
     _schedule(s, t + (max(p.t_a * u, p.t_b * bd) + s.action[b] * p.t_hold), DWELL, b)
 
 
@@ -248,7 +245,7 @@ def _run_episode(p, s, log):
         elif kind == GRANT:
             _arrive(p, s, log, arg, t)
         elif kind == DECISION:
-            _board(p, s, log, arg, t)
+            _board(p, s, arg, t)
         else:  # DWELL: depart, free the stop, travel on
             k = s.stop[arg]
             s.departed[k] = t
@@ -351,45 +348,71 @@ class BusBatch:
     def arrivals(self) -> dict[str, np.ndarray]:
         """Every arrival of every episode, in processing order: episode, time (s), bus, stop
         (0-based), h (min), load at arrival, alighting U and boarding B."""
+        require(bool(self.done.all()), "arrivals", "taken after every episode has ended")
         counts = self._states["n_arr"]
-        arr = _compacted(self._logs["arr"][:, None], counts[:, None])
-        ints = arr.astype(np.int64)  # only the integer columns are read from it
-        return dict(episode=np.repeat(np.arange(len(counts)), counts), time=arr[:, TIME],
-                    bus=ints[:, A_BUS],
-                    stop=ints[:, A_STOP], h=arr[:, HEADWAY], load=ints[:, A_LOAD],
-                    alight=ints[:, A_ALIGHT], board=ints[:, A_BOARD])
+        d = int(counts.sum())
+        time, h = np.empty(d), np.empty(d)
+        ints = np.empty((6, d), np.int64)
+        _arrivals(self._params, self._logs, counts, time, h, ints)
+        return dict(episode=ints[0], time=time, bus=ints[1], stop=ints[2], h=h, load=ints[3],
+                    alight=ints[4], board=ints[5])
 
     def to_rollout(self) -> Rollout:
         require(bool(self.done.all()), "rollout", "taken after every episode has ended")
         n_dec = self._states["n_dec"]
         e, n = n_dec.shape
         lengths = n_dec.reshape(-1)
-        dec = _compacted(self._logs["dec"], n_dec)
+        d = int(lengths.sum())
+        obs, rewards, durations = np.empty((d, OBS_DIM)), np.empty(d), np.empty(d)
+        actions = np.empty(d, np.int64)
+        _decisions(self._logs, n_dec, obs, actions, rewards, durations)
         return Rollout(
-            obs=np.ascontiguousarray(dec[:, :OBS_DIM]), actions=dec[:, D_ACTION].astype(np.int64),
-            rewards=dec[:, D_REWARD].copy(), durations=dec[:, D_DURATION].copy(),
+            obs=obs, actions=actions, rewards=rewards, durations=durations,
             path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
             path_episode=np.repeat(np.arange(e), n), path_agent=np.tile(np.arange(n), e),
             episode_return=self.ep_return, info={"arrivals": self.arrivals()})
 
 
 @jit
-def _compact(rows, counts, out):
+def _decisions(logs, n_dec, obs, actions, rewards, durations):
+    """Every closed macro-action's row into the rollout's columns, path by path (a compiled loop:
+    numpy's boolean-mask indexing took a quarter of a rollout)."""
     o = 0
-    for e in range(rows.shape[0]):
-        for g in range(rows.shape[1]):
-            for i in range(counts[e, g]):
-                for w in range(rows.shape[3]):
-                    out[o, w] = rows[e, g, i, w]
+    for e in range(logs.shape[0]):
+        dec = logs[e].dec
+        for b in range(n_dec.shape[1]):
+            for i in range(n_dec[e, b]):
+                row = dec[b, i]
+                for w in range(OBS_DIM):
+                    obs[o, w] = row[w]
+                actions[o] = np.int64(row[D_ACTION])
+                rewards[o] = row[D_REWARD]
+                durations[o] = row[D_DURATION]
                 o += 1
 
 
-def _compacted(rows: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """The first ``counts[e, g]`` rows of each group ``rows[e, g]`` (E, G, rows, width), in order
-    (a compiled loop: numpy's boolean-mask indexing took a quarter of a rollout)."""
-    out = np.empty((int(counts.sum()), rows.shape[3]))
-    _compact(rows, counts, out)
-    return out
+@jit
+def _arrivals(params, logs, n_arr, time, h, ints):
+    """Every arrival's fields, from the macro-action it started (the bus's next one, in order):
+    ``ints`` rows episode, bus, stop, load, U and B (the latter two as ``_board`` computed them)."""
+    p = params[0]
+    o = 0
+    for e in range(logs.shape[0]):
+        log = logs[e]
+        seen = np.zeros(log.dec.shape[0], np.int64)
+        for i in range(n_arr[e]):
+            b = log.order[i]
+            row = log.dec[b, seen[b]]
+            seen[b] += 1
+            k, load = np.int64(row[0]), np.int64(row[2])
+            time[o] = row[D_TIME]
+            h[o] = row[1]
+            ints[0, o] = e
+            ints[1, o] = b
+            ints[2, o] = k
+            ints[3, o] = load
+            ints[4, o], ints[5, o] = _alight_board(p, k, load, row[1])
+            o += 1
 
 
 def drive(batch: Any, policy: Policy) -> None:
