@@ -41,7 +41,8 @@ is accrued before the arriving bus observes. At the horizon each running macro-a
 
 Speed. A rollout of the training batch (540 episodes) takes a few hundred rounds, so both the
 per-round and the per-event costs matter. Per round, Python does O(1) work: the kernel reads the
-actions in row order and gathers the next pending decisions into preallocated buffers. Per event,
+actions in row order and gathers the next pending decisions into fresh buffers, which the policy
+gets as they are (no copies). Per event,
 an episode's state is one numpy record (a row of a structured array, ``episode_dtype``), and so are
 the parameters (``params_record``): numba hands a record to a function as a bare pointer, whereas
 every array of a tuple costs a reference-count update per call, which doubled the cost of an event.
@@ -57,6 +58,7 @@ buffer per stop.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -305,9 +307,7 @@ class BusBatch:
         st["ev_kind"][:, :n] = INIT
         st["ev_arg"][:, :n] = np.arange(n)[::-1]
         self._logs = np.empty(e, log_dtype(cfg))  # every row read back is written first
-        self._obs = np.zeros((e * n, OBS_DIM))
-        self._ids = np.zeros((3, e * n), np.int64)
-        self._decisions = self._gathered(0)
+        self._decisions = _gathered(np.empty((0, OBS_DIM)), np.empty((3, 0), np.int64), 0)
 
     @property
     def done(self) -> np.ndarray:
@@ -325,21 +325,19 @@ class BusBatch:
         actions = np.asarray(actions)
         require(len(actions) == len(self._decisions), "actions", "one action per pending decision",
                 len(actions))
-        require(len(actions) == 0 or np.issubdtype(actions.dtype, np.integer), "actions",
-                "integers", actions.dtype)
+        require(len(actions) == 0 or actions.dtype.kind in "iu", "actions", "integers",
+                actions.dtype)
+        # fresh buffers every round, handed to the policy as they are (it may keep them): one
+        # row per bus of the batch at most
+        size = self._states.shape[0] * self.cfg.n_buses
+        obs, ids = np.empty((size, OBS_DIM)), np.empty((3, size), np.int64)
         rows = _advance(np.ascontiguousarray(actions, np.int64), self._params, self._states,
-                        self._logs, self._obs, self._ids)
+                        self._logs, obs, ids)
         if rows < 0:
             raise UsageError("action", f"an integer in 0..{self.cfg.n_actions - 1} "
                              "(a hold of a * T_hold)", actions.tolist())
-        self._decisions = self._gathered(rows)
+        self._decisions = _gathered(obs, ids, rows)
         return self._decisions
-
-    def _gathered(self, rows: int) -> DecisionBatch:
-        """The first ``rows`` rows of the decision buffers, copied (the policy may keep them)."""
-        ids = self._ids
-        return DecisionBatch(obs=self._obs[:rows].copy(), episode=ids[EPISODE, :rows].copy(),
-                             agent=ids[AGENT, :rows].copy(), index=ids[INDEX, :rows].copy())
 
     def decisions(self) -> DecisionBatch:
         """The pending decisions (those the last :meth:`advance` returned)."""
@@ -370,7 +368,36 @@ class BusBatch:
             obs=obs, actions=actions, rewards=rewards, durations=durations,
             path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
             path_episode=np.repeat(np.arange(e), n), path_agent=np.tile(np.arange(n), e),
-            episode_return=self.ep_return, info={"arrivals": self.arrivals()})
+            episode_return=self.ep_return, info={"arrivals": _OnFirstUse(self.arrivals)})
+
+
+class _OnFirstUse(Mapping[str, np.ndarray]):
+    """A table made on first use: only evaluation and the figures read a rollout's arrival table,
+    and making it would add about 5% to every training rollout."""
+
+    def __init__(self, make: Callable[[], dict[str, np.ndarray]]):
+        self._make: Callable[[], dict[str, np.ndarray]] | None = make
+        self._table: dict[str, np.ndarray] = {}
+
+    def _made(self) -> dict[str, np.ndarray]:
+        if self._make is not None:
+            self._table, self._make = self._make(), None
+        return self._table
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._made()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._made())
+
+    def __len__(self) -> int:
+        return len(self._made())
+
+
+def _gathered(obs: np.ndarray, ids: np.ndarray, rows: int) -> DecisionBatch:
+    """The first ``rows`` rows of the decision buffers, as views."""
+    return DecisionBatch(obs=obs[:rows], episode=ids[EPISODE, :rows], agent=ids[AGENT, :rows],
+                         index=ids[INDEX, :rows])
 
 
 @jit
