@@ -97,20 +97,20 @@ def params_record(cfg: BusConfig) -> np.ndarray:
 
 def episode_dtype(cfg: BusConfig) -> np.dtype:
     """One episode's hot state: scalars, the event list, (N,) bus fields, (K,) stop fields."""
-    n, k, f8, i8 = cfg.n_buses, cfg.n_stops, np.float64, np.int64
+    n, k, f8, i4 = cfg.n_buses, cfg.n_stops, np.float64, np.int32  # int32: small records
     cap = 2 * n  # scheduled at once: one event of each bus, plus the RELEASE of the stop it left
     return np.dtype([
         # the episode: time, undiscounted return, queue tickets handed out, arrivals so far, and
         # the buses waiting for a decision, in arrival order
-        ("now", f8), ("ret", f8), ("done", np.bool_), ("next_ticket", i8), ("n_arr", i8),
-        ("n_pending", i8), ("pending", i8, n),
+        ("now", f8), ("ret", f8), ("done", np.bool_), ("next_ticket", i4), ("n_arr", i4),
+        ("n_pending", i4), ("pending", i4, n),
         # the event list: n_ev events in slots 0..n_ev-1, last to be processed first; time, kind,
         # bus or stop
-        ("n_ev", i8), ("ev_time", f8, cap), ("ev_kind", i8, cap), ("ev_arg", i8, cap),
+        ("n_ev", i4), ("ev_time", f8, cap), ("ev_kind", i4, cap), ("ev_arg", i4, cap),
         # buses: discount anchor T, reward buffer, the running macro-action's observation and
         # action, stop, load, decisions so far, request ticket while queued (else -1)
-        ("anchor", f8, n), ("buffer", f8, n), ("obs", f8, (n, OBS_DIM)), ("action", i8, n),
-        ("stop", i8, n), ("load", i8, n), ("n_dec", i8, n), ("ticket", i8, n),
+        ("anchor", f8, n), ("buffer", f8, n), ("obs", f8, (n, OBS_DIM)), ("action", i4, n),
+        ("stop", i4, n), ("load", i4, n), ("n_dec", i4, n), ("ticket", i4, n),
         # stops: last departure time, 1 while a bus holds the stop
         ("departed", f8, k), ("busy", np.int8, k),
     ], align=True)
