@@ -42,18 +42,17 @@ is accrued before the arriving bus observes. At the horizon each running macro-a
 Speed. A rollout of the training batch (540 episodes) takes a few hundred rounds, so both the
 per-round and the per-event costs matter. Per round, Python does O(1) work: the kernel reads the
 actions in row order and gathers the next pending decisions into fresh buffers, which the policy
-gets as they are (no copies). Per event,
-an episode's state is one numpy record (a row of a structured array, ``episode_dtype``), and so are
-the parameters (``params_record``): numba hands a record to a function as a bare pointer, whereas
-every array of a tuple costs a reference-count update per call, which doubled the cost of an event.
-A round visits each episode's record once, so the records are kept small: what is written for the
-rollout lives in a separate record per episode (``log_dtype``, 25 times the size) and is never read
-back by the kernel. Those writes miss the cache, so they are as few as can be: one 64-byte row per
-macro-action, written when it closes (its observation, action, reward, duration and start time),
-and the bus of each arrival; every arrival starts a macro-action, whose row holds the rest of the
-arrival's record (``arrivals`` recomputes U and B with the function that boarded them). A stop's
-FIFO queue is the waiting buses ordered by request ticket, a scan over N buses instead of a ring
-buffer per stop.
+gets as they are (no copies). Per event, an episode's state is one numpy record (a row of a
+structured array, ``episode_dtype``), and so are the parameters (``params_record``): numba hands a
+record to a function as a bare pointer, whereas every array of a tuple costs a reference-count
+update per call, which doubled the cost of an event. A round visits each episode's record once, so
+the records are kept small (int32 fields): what is written for the rollout lives in a separate
+record per episode (``log_dtype``, 25 times the size) and is never read back by the kernel. Those
+writes miss the cache, so they are as few as can be: one 64-byte row per macro-action, written when
+it closes (its observation, action, reward, duration and start time), and the bus of each arrival;
+every arrival starts a macro-action, whose row holds the rest of the arrival's record
+(``arrivals`` recomputes U and B with the function that boarded them). A stop's FIFO queue is the
+waiting buses ordered by request ticket, a scan over N buses instead of a ring buffer per stop.
 """
 
 from __future__ import annotations
@@ -305,7 +304,7 @@ class BusBatch:
         # SimPy starts one process per bus with an URGENT initialisation event, in bus order.
         st["n_ev"] = n
         st["ev_kind"][:, :n] = INIT
-        st["ev_arg"][:, :n] = np.arange(n)[::-1]
+        st["ev_arg"][:, :n] = np.arange(n)[::-1]  # bus 0's last: the list is processed from its end
         self._logs = np.empty(e, log_dtype(cfg))  # every row read back is written first
         self._decisions = _gathered(np.empty((0, OBS_DIM)), np.empty((3, 0), np.int64), 0)
 
