@@ -2,10 +2,12 @@
 
 It is an exact transcription of the SimPy reference (``reference.py``), event by event. SimPy keeps
 a heap keyed by (time, priority, insertion id) and processes the smallest key first; this engine
-keeps the same keys in a small array per episode (at most 2 N events are ever scheduled, so a
-linear scan for the minimum beats a heap) and schedules exactly the events SimPy schedules, in the
-same order. The priority need not be stored: the only URGENT events are the buses' initialisations,
-which are also inserted first, so ordering by (time, insertion id) is the same order.
+schedules exactly the events SimPy schedules, in the same order, and keeps them in a small array per
+episode sorted by that key, the next event last (at most 2 N events are ever scheduled, so shifting
+a few entries on insertion beats a heap). Neither the priority nor the id need be stored: the only
+URGENT events are the buses' initialisations, which are also inserted first, so ordering by (time,
+insertion id) is the same order; and a new event has the largest id so far, so it goes just before
+(in processing order: just after) every event of time <= its own.
 
 ====================  ==========================================================================
 event                 SimPy counterpart, and what processing it does
@@ -39,19 +41,23 @@ is accrued before the arriving bus observes. At the horizon each running macro-a
 
 Speed. A rollout of the training batch (540 episodes) takes a few hundred rounds, so both the
 per-round and the per-event costs matter. Per round, Python does O(1) work: the kernel reads the
-actions in row order and gathers the next pending decisions into preallocated buffers. Per event,
-an episode's whole state is one numpy record (a row of a structured array, ``episode_dtype``), and
-so are the parameters (``params_record``): numba hands a record to a function as a bare pointer,
-whereas every array of a tuple costs a reference-count update per call, which doubled the cost of an
-event. A round visits each episode's record once; the records of closed macro-actions and of
-arrivals (``dec``, ``arr``) are written once per row (a decision's row when its macro-action closes,
-an arrival's when the bus boards) and never read back, so the state a round touches stays small. A
-stop's FIFO queue is the waiting buses ordered by request ticket, a scan over N buses instead of a
-ring buffer per stop.
+actions in row order and gathers the next pending decisions into fresh buffers, which the policy
+gets as they are (no copies). Per event, an episode's state is one numpy record (a row of a
+structured array, ``episode_dtype``), and so are the parameters (``params_record``): numba hands a
+record to a function as a bare pointer, whereas every array of a tuple costs a reference-count
+update per call, which doubled the cost of an event. A round visits each episode's record once, so
+the records are kept small (int32 fields): what is written for the rollout lives in a separate
+record per episode (``log_dtype``, 25 times the size) and is never read back by the kernel. Those
+writes miss the cache, so they are as few as can be: one 64-byte row per macro-action, written when
+it closes (its observation, action, reward, duration and start time), and the bus of each arrival;
+every arrival starts a macro-action, whose row holds the rest of the arrival's record
+(``arrivals`` recomputes U and B with the function that boarded them). A stop's FIFO queue is the
+waiting buses ordered by request ticket, a scan over N buses instead of a ring buffer per stop.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -67,10 +73,8 @@ OBS_DIM = 4
 INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL = range(6)
 """Event kinds (see the table above)."""
 
-D_ACTION, D_REWARD, D_DURATION = range(OBS_DIM, OBS_DIM + 3)
-"""Fields of a ``dec`` row after the observation."""
-TIME, HEADWAY, A_BUS, A_STOP, A_LOAD, A_ALIGHT, A_BOARD = range(7)
-"""Fields of an ``arr`` row."""
+D_ACTION, D_REWARD, D_DURATION, D_TIME = range(OBS_DIM, OBS_DIM + 4)
+"""Fields of a ``dec`` row after the observation [stop, h, load, sojourn]; D_TIME is its start."""
 EPISODE, AGENT, INDEX = range(3)
 """Rows of the pending decisions' ``ids`` buffer."""
 
@@ -91,54 +95,51 @@ def params_record(cfg: BusConfig) -> np.ndarray:
 
 
 def episode_dtype(cfg: BusConfig) -> np.dtype:
-    """One episode's state: scalars, the event slots, (N,) bus fields, (K,) stop fields, records."""
-    n, k, m, f8, i8 = cfg.n_buses, cfg.n_stops, cfg.max_arrivals_per_bus, np.float64, np.int64
+    """One episode's hot state: scalars, the event list, (N,) bus fields, (K,) stop fields."""
+    n, k, f8, i4 = cfg.n_buses, cfg.n_stops, np.float64, np.int32  # int32: small records
     cap = 2 * n  # scheduled at once: one event of each bus, plus the RELEASE of the stop it left
     return np.dtype([
-        # the episode: time, undiscounted return, insertion ids and queue tickets handed out,
-        # arrivals so far, and the buses waiting for a decision, in arrival order
-        ("now", f8), ("ret", f8), ("done", np.bool_), ("next_id", i8), ("next_ticket", i8),
-        ("n_arr", i8), ("n_pending", i8), ("pending", i8, n),
-        # event slots: time (inf marks a free slot), insertion id, kind, bus or stop
-        ("ev_time", f8, cap), ("ev_id", i8, cap), ("ev_kind", i8, cap), ("ev_arg", i8, cap),
+        # the episode: time, undiscounted return, queue tickets handed out, arrivals so far, and
+        # the buses waiting for a decision, in arrival order
+        ("now", f8), ("ret", f8), ("done", np.bool_), ("next_ticket", i4), ("n_arr", i4),
+        ("n_pending", i4), ("pending", i4, n),
+        # the event list: n_ev events in slots 0..n_ev-1, last to be processed first; time, kind,
+        # bus or stop
+        ("n_ev", i4), ("ev_time", f8, cap), ("ev_kind", i4, cap), ("ev_arg", i4, cap),
         # buses: discount anchor T, reward buffer, the running macro-action's observation and
-        # action, stop, load, decisions so far, index of the latest arrival, request ticket while
-        # queued (else -1)
-        ("anchor", f8, n), ("buffer", f8, n), ("obs", f8, (n, OBS_DIM)), ("action", i8, n),
-        ("stop", i8, n), ("load", i8, n), ("n_dec", i8, n), ("arrival", i8, n),
-        ("ticket", i8, n),
+        # action, stop, load, decisions so far, request ticket while queued (else -1)
+        ("anchor", f8, n), ("buffer", f8, n), ("obs", f8, (n, OBS_DIM)), ("action", i4, n),
+        ("stop", i4, n), ("load", i4, n), ("n_dec", i4, n), ("ticket", i4, n),
         # stops: last departure time, 1 while a bus holds the stop
         ("departed", f8, k), ("busy", np.int8, k),
-        # records, one float row per item (the integers in them are small, hence exact): each
-        # closed macro-action's observation, D_ACTION, D_REWARD, D_DURATION; each arrival's TIME
-        # (s), HEADWAY h (min), A_BUS, A_STOP, A_LOAD (at arrival), A_ALIGHT U and A_BOARD B
-        ("dec", f8, (n, m, OBS_DIM + 3)), ("arr", f8, (n * m, 7)),
     ], align=True)
+
+
+def log_dtype(cfg: BusConfig) -> np.dtype:
+    """One episode's records: each bus's closed macro-actions, one 64-byte float row each (the
+    integers in it are small, hence exact): observation, D_ACTION, D_REWARD, D_DURATION and D_TIME,
+    the time of the arrival that started it; and the bus of each arrival, in processing order.
+    Every arrival starts a macro-action, so this is the whole arrival record (see ``arrivals``)."""
+    n, m = cfg.n_buses, cfg.max_arrivals_per_bus
+    return np.dtype([("dec", np.float64, (n, m, OBS_DIM + 4)), ("order", np.int32, n * m)],
+                    align=True)
 
 
 @jit
 def _schedule(s, t, kind, arg):
-    """Schedule an event in a free slot, with the next insertion id."""
-    for slot in range(s.ev_time.shape[0]):
-        if s.ev_time[slot] == np.inf:
-            s.ev_time[slot] = t
-            s.ev_id[slot] = s.next_id
-            s.ev_kind[slot] = kind
-            s.ev_arg[slot] = arg
-            s.next_id += 1
-            return
-    raise RuntimeError("bus engine: more than 2 N events scheduled at once")
-
-
-@jit
-def _next_event(s):
-    """Slot of the smallest (time, id) key; its time is inf when nothing is scheduled."""
-    best = 0
-    for slot in range(1, s.ev_time.shape[0]):
-        if s.ev_time[slot] < s.ev_time[best] or (
-                s.ev_time[slot] == s.ev_time[best] and s.ev_id[slot] < s.ev_id[best]):
-            best = slot
-    return best
+    """Insert an event behind every event of time <= t (it has the largest insertion id)."""
+    i = s.n_ev
+    if i == s.ev_time.shape[0]:
+        raise RuntimeError("bus engine: more than 2 N events scheduled at once")
+    while i > 0 and s.ev_time[i - 1] <= t:
+        s.ev_time[i] = s.ev_time[i - 1]
+        s.ev_kind[i] = s.ev_kind[i - 1]
+        s.ev_arg[i] = s.ev_arg[i - 1]
+        i -= 1
+    s.ev_time[i] = t
+    s.ev_kind[i] = kind
+    s.ev_arg[i] = arg
+    s.n_ev += 1
 
 
 @jit
@@ -157,7 +158,7 @@ def _grant_stop(s, k, t):
 
 
 @jit
-def _arrive(p, s, b, t):
+def _arrive(p, s, log, b, t):
     """Bus b gets its stop: reward every agent, record the arrival, observe, await a decision."""
     k = s.stop[b]
     h = (t - s.departed[k]) / 60.0
@@ -166,11 +167,11 @@ def _arrive(p, s, b, t):
     s.ret += r
     for j in range(s.buffer.shape[0]):
         s.buffer[j] += np.exp(-p.gamma * (t - s.anchor[j])) * r
-    s.arrival[b] = s.n_arr  # its row is written when the bus boards
+    log.order[s.n_arr] = b
     s.n_arr += 1
     n = s.n_dec[b]
     if n > 0:  # the observation closes the previous macro-action
-        _close(s, b, t)
+        _close(s, log, b, t)
     s.obs[b, 0] = k
     s.obs[b, 1] = h
     s.obs[b, 2] = s.load[b]
@@ -182,61 +183,57 @@ def _arrive(p, s, b, t):
 
 
 @jit
-def _close(s, b, t):
+def _close(s, log, b, t):
     """Record bus b's running macro-action, ending at t, and empty its reward buffer."""
-    row = s.dec[b, s.n_dec[b] - 1]
+    row = log.dec[b, s.n_dec[b] - 1]
     for i in range(OBS_DIM):
         row[i] = s.obs[b, i]
     row[D_ACTION] = s.action[b]
     row[D_REWARD] = s.buffer[b]
     row[D_DURATION] = t - s.anchor[b]
+    row[D_TIME] = s.anchor[b]
     s.buffer[b] = 0.0
 
 
 @jit
-def _board(p, s, b, t):
-    """The decision is in: alight, board, record the arrival, and dwell plus hold (a DWELL event)."""
-    k = s.stop[b]
-    h = s.obs[b, 1]
-    load = s.load[b]
+def _alight_board(p, k, load, h):
+    """Passengers alighting U and boarding B at stop k, given the load and headway h at arrival."""
     u = np.int64(np.floor(p.alight[k] * load + 0.5))
-    bd = min(np.int64(np.floor(p.rate[k] * h + 0.5)), p.l_max - load + u)
+    return u, min(np.int64(np.floor(p.rate[k] * h + 0.5)), p.l_max - load + u)
+
+
+@jit
+def _board(p, s, b, t):
+    """The decision is in: alight, board, and dwell plus hold (a DWELL event)."""
+    load = s.load[b]
+    u, bd = _alight_board(p, s.stop[b], load, s.obs[b, 1])
     s.load[b] = load - u + bd
-    row = s.arr[s.arrival[b]]
-    row[TIME] = s.anchor[b]  # the arrival's time
-    row[HEADWAY] = h
-    row[A_BUS] = b
-    row[A_STOP] = k
-    row[A_LOAD] = load
-    row[A_ALIGHT] = u
-    row[A_BOARD] = bd
     _schedule(s, t + (max(p.t_a * u, p.t_b * bd) + s.action[b] * p.t_hold), DWELL, b)
 
 
 @jit
-def _end_episode(p, s):
+def _end_episode(p, s, log):
     """Cut every running macro-action at the horizon."""
     s.done = True
     for b in range(s.n_dec.shape[0]):
         if s.n_dec[b] > 0:
-            _close(s, b, p.horizon)
+            _close(s, log, b, p.horizon)
 
 
 @jit
-def _run_episode(p, s):
+def _run_episode(p, s, log):
     """Process the episode's events until it is blocked on decisions or reaches the horizon."""
     n_stop = s.busy.shape[0]
     while True:
-        slot = _next_event(s)
-        t = s.ev_time[slot]
+        t = s.ev_time[s.n_ev - 1] if s.n_ev > 0 else np.inf
         if s.n_pending > 0 and t > s.now:
             return  # blocked on decisions
         if t >= p.horizon:  # includes inf: nothing scheduled
-            _end_episode(p, s)
+            _end_episode(p, s, log)
             return
-        kind = s.ev_kind[slot]
-        arg = s.ev_arg[slot]
-        s.ev_time[slot] = np.inf
+        s.n_ev -= 1
+        kind = s.ev_kind[s.n_ev]
+        arg = s.ev_arg[s.n_ev]
         s.now = t
         if kind == INIT or kind == TRAVEL:  # request a stop (the next one after a trip)
             if kind == TRAVEL:
@@ -247,7 +244,7 @@ def _run_episode(p, s):
         elif kind == RELEASE:
             _grant_stop(s, arg, t)
         elif kind == GRANT:
-            _arrive(p, s, arg, t)
+            _arrive(p, s, log, arg, t)
         elif kind == DECISION:
             _board(p, s, arg, t)
         else:  # DWELL: depart, free the stop, travel on
@@ -259,7 +256,7 @@ def _run_episode(p, s):
 
 
 @jit
-def _advance(actions, params, states, obs, ids):
+def _advance(actions, params, states, logs, obs, ids):
     """Deliver the actions of the pending decisions, run every episode until it is blocked, and
     gather the new pending decisions into the first rows of ``obs`` and ``ids``.
 
@@ -282,7 +279,7 @@ def _advance(actions, params, states, obs, ids):
             row += 1
             _schedule(s, s.now, DECISION, b)
         s.n_pending = 0
-        _run_episode(p, s)
+        _run_episode(p, s, logs[e])
         for q in range(s.n_pending):
             b = s.pending[q]
             for i in range(OBS_DIM):
@@ -304,16 +301,12 @@ class BusBatch:
         self._params = params_record(cfg)
         st = self._states = np.zeros(e, episode_dtype(cfg))
         st["ticket"] = -1
-        st["ev_time"] = np.inf
         # SimPy starts one process per bus with an URGENT initialisation event, in bus order.
-        st["ev_time"][:, :n] = 0.0
-        st["ev_id"][:, :n] = np.arange(n)
+        st["n_ev"] = n
         st["ev_kind"][:, :n] = INIT
-        st["ev_arg"][:, :n] = np.arange(n)
-        st["next_id"] = n
-        self._obs = np.zeros((e * n, OBS_DIM))
-        self._ids = np.zeros((3, e * n), np.int64)
-        self._decisions = self._gathered(0)
+        st["ev_arg"][:, :n] = np.arange(n)[::-1]  # bus 0's last: the list is processed from its end
+        self._logs = np.empty(e, log_dtype(cfg))  # every row read back is written first
+        self._decisions = _gathered(np.empty((0, OBS_DIM)), np.empty((3, 0), np.int64), 0)
 
     @property
     def done(self) -> np.ndarray:
@@ -331,21 +324,19 @@ class BusBatch:
         actions = np.asarray(actions)
         require(len(actions) == len(self._decisions), "actions", "one action per pending decision",
                 len(actions))
-        require(len(actions) == 0 or np.issubdtype(actions.dtype, np.integer), "actions",
-                "integers", actions.dtype)
+        require(len(actions) == 0 or actions.dtype.kind in "iu", "actions", "integers",
+                actions.dtype)
+        # fresh buffers every round, handed to the policy as they are (it may keep them): one
+        # row per bus of the batch at most
+        size = self._states.shape[0] * self.cfg.n_buses
+        obs, ids = np.empty((size, OBS_DIM)), np.empty((3, size), np.int64)
         rows = _advance(np.ascontiguousarray(actions, np.int64), self._params, self._states,
-                        self._obs, self._ids)
+                        self._logs, obs, ids)
         if rows < 0:
             raise UsageError("action", f"an integer in 0..{self.cfg.n_actions - 1} "
                              "(a hold of a * T_hold)", actions.tolist())
-        self._decisions = self._gathered(rows)
+        self._decisions = _gathered(obs, ids, rows)
         return self._decisions
-
-    def _gathered(self, rows: int) -> DecisionBatch:
-        """The first ``rows`` rows of the decision buffers, copied (the policy may keep them)."""
-        ids = self._ids
-        return DecisionBatch(obs=self._obs[:rows].copy(), episode=ids[EPISODE, :rows].copy(),
-                             agent=ids[AGENT, :rows].copy(), index=ids[INDEX, :rows].copy())
 
     def decisions(self) -> DecisionBatch:
         """The pending decisions (those the last :meth:`advance` returned)."""
@@ -354,45 +345,100 @@ class BusBatch:
     def arrivals(self) -> dict[str, np.ndarray]:
         """Every arrival of every episode, in processing order: episode, time (s), bus, stop
         (0-based), h (min), load at arrival, alighting U and boarding B."""
+        require(bool(self.done.all()), "arrivals", "taken after every episode has ended")
         counts = self._states["n_arr"]
-        arr = _compacted(self._states["arr"][:, None], counts[:, None])
-        ints = arr.astype(np.int64)  # only the integer columns are read from it
-        return dict(episode=np.repeat(np.arange(len(counts)), counts), time=arr[:, TIME],
-                    bus=ints[:, A_BUS],
-                    stop=ints[:, A_STOP], h=arr[:, HEADWAY], load=ints[:, A_LOAD],
-                    alight=ints[:, A_ALIGHT], board=ints[:, A_BOARD])
+        d = int(counts.sum())
+        time, h = np.empty(d), np.empty(d)
+        ints = np.empty((6, d), np.int64)
+        _arrivals(self._params, self._logs, counts, time, h, ints)
+        return dict(episode=ints[0], time=time, bus=ints[1], stop=ints[2], h=h, load=ints[3],
+                    alight=ints[4], board=ints[5])
 
     def to_rollout(self) -> Rollout:
         require(bool(self.done.all()), "rollout", "taken after every episode has ended")
         n_dec = self._states["n_dec"]
         e, n = n_dec.shape
         lengths = n_dec.reshape(-1)
-        dec = _compacted(self._states["dec"], n_dec)
+        d = int(lengths.sum())
+        obs, rewards, durations = np.empty((d, OBS_DIM)), np.empty(d), np.empty(d)
+        actions = np.empty(d, np.int64)
+        _decisions(self._logs, n_dec, obs, actions, rewards, durations)
         return Rollout(
-            obs=np.ascontiguousarray(dec[:, :OBS_DIM]), actions=dec[:, D_ACTION].astype(np.int64),
-            rewards=dec[:, D_REWARD].copy(), durations=dec[:, D_DURATION].copy(),
+            obs=obs, actions=actions, rewards=rewards, durations=durations,
             path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
             path_episode=np.repeat(np.arange(e), n), path_agent=np.tile(np.arange(n), e),
-            episode_return=self.ep_return, info={"arrivals": self.arrivals()})
+            episode_return=self.ep_return, info={"arrivals": _OnFirstUse(self.arrivals)})
+
+
+class _OnFirstUse(Mapping[str, np.ndarray]):
+    """A table made on first use: only evaluation and the figures read a rollout's arrival table,
+    and making it would add about 5% to every training rollout."""
+
+    def __init__(self, make: Callable[[], dict[str, np.ndarray]]):
+        self._make: Callable[[], dict[str, np.ndarray]] | None = make
+        self._table: dict[str, np.ndarray] = {}
+
+    def _made(self) -> dict[str, np.ndarray]:
+        if self._make is not None:
+            self._table, self._make = self._make(), None
+        return self._table
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._made()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._made())
+
+    def __len__(self) -> int:
+        return len(self._made())
+
+
+def _gathered(obs: np.ndarray, ids: np.ndarray, rows: int) -> DecisionBatch:
+    """The first ``rows`` rows of the decision buffers, as views."""
+    return DecisionBatch(obs=obs[:rows], episode=ids[EPISODE, :rows], agent=ids[AGENT, :rows],
+                         index=ids[INDEX, :rows])
 
 
 @jit
-def _compact(rows, counts, out):
+def _decisions(logs, n_dec, obs, actions, rewards, durations):
+    """Every closed macro-action's row into the rollout's columns, path by path (a compiled loop:
+    numpy's boolean-mask indexing took a quarter of a rollout)."""
     o = 0
-    for e in range(rows.shape[0]):
-        for g in range(rows.shape[1]):
-            for i in range(counts[e, g]):
-                for w in range(rows.shape[3]):
-                    out[o, w] = rows[e, g, i, w]
+    for e in range(logs.shape[0]):
+        dec = logs[e].dec
+        for b in range(n_dec.shape[1]):
+            for i in range(n_dec[e, b]):
+                row = dec[b, i]
+                for w in range(OBS_DIM):
+                    obs[o, w] = row[w]
+                actions[o] = np.int64(row[D_ACTION])
+                rewards[o] = row[D_REWARD]
+                durations[o] = row[D_DURATION]
                 o += 1
 
 
-def _compacted(rows: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """The first ``counts[e, g]`` rows of each group ``rows[e, g]`` (E, G, rows, width), in order
-    (a compiled loop: numpy's boolean-mask indexing took a quarter of a rollout)."""
-    out = np.empty((int(counts.sum()), rows.shape[3]))
-    _compact(rows, counts, out)
-    return out
+@jit
+def _arrivals(params, logs, n_arr, time, h, ints):
+    """Every arrival's fields, from the macro-action it started (the bus's next one, in order):
+    ``ints`` rows episode, bus, stop, load, U and B (the latter two as ``_board`` computed them)."""
+    p = params[0]
+    o = 0
+    for e in range(logs.shape[0]):
+        log = logs[e]
+        seen = np.zeros(log.dec.shape[0], np.int64)
+        for i in range(n_arr[e]):
+            b = log.order[i]
+            row = log.dec[b, seen[b]]
+            seen[b] += 1
+            k, load = np.int64(row[0]), np.int64(row[2])
+            time[o] = row[D_TIME]
+            h[o] = row[1]
+            ints[0, o] = e
+            ints[1, o] = b
+            ints[2, o] = k
+            ints[3, o] = load
+            ints[4, o], ints[5, o] = _alight_board(p, k, load, row[1])
+            o += 1
 
 
 def drive(batch: Any, policy: Policy) -> None:
