@@ -83,16 +83,20 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
     n, k, f8, i8, i4, i1 = (cfg.n_agents, len(fire_positions(cfg)), np.float64, np.int64,
                             np.int32, np.int8)
     return np.dtype([
-        ("now", f8), ("t_end", f8), ("events", i8), ("done", np.bool_), ("n_alive", i4),
-        # the event heap: time and packed key (see WHO_BITS); its size; the next sequence
-        ("hn", i4), ("seq", i8), ("ht", f8, HEAP_CAPACITY), ("hkey", i8, HEAP_CAPACITY),
+        # what a round reads of every episode first, to tell whether it is blocked, is adjacent:
+        # each episode's first visit of a round misses the cache
+        ("done", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8), ("events", i8),
+        ("uwait", i8, n), ("act", i8, n),
+        # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence
+        ("hkey", i8, HEAP_CAPACITY), ("ht", f8, HEAP_CAPACITY), ("hn", i4), ("seq", i8),
         # UAV motion
         ("pos", f8, (n, 2)), ("origin", f8, (n, 2)), ("goal", f8, (n, 2)), ("t_dep", f8, n),
         ("length", f8, n), ("flying", i1, n),
-        # UAV bookkeeping; the running decision: its log row, time and discounted reward so far
+        # UAV bookkeeping; the running decision (its action is ``act``, -1 until the policy gave
+        # it): its log row, time and discounted reward so far
         ("interest", i4, n), ("attacking", i4, n), ("in_party", i1, n), ("n_holds", i4, n),
-        ("rank", i4, (n, cfg.n_observed)), ("n_dec", i4, n), ("uwait", i8, n),
-        ("returns", f8, n), ("cur", i8, n), ("t_obs", f8, n), ("rew", f8, n),
+        ("rank", i4, (n, cfg.n_observed)), ("n_dec", i4, n), ("returns", f8, n),
+        ("cur", i8, n), ("t_obs", f8, n), ("rew", f8, n),
         # fires
         ("alive", i1, k), ("health", f8, k), ("t_update", f8, k), ("party", i4, k),
         ("fwait", i8, k),
@@ -222,12 +226,12 @@ def _observe(s, p, r, row, e, i):
         o[base + 4] = _health_now(s, best)
     o[2 + OBS_PER_FIRE * p.n_obs] = sojourn
     r.time = now
-    r.act = -1
     r.ep = e
     r.agent = i
     r.idx = s.n_dec[i]
     s.n_dec[i] += 1
     s.cur[i] = row
+    s.act[i] = -1
     s.t_obs[i] = now
     s.rew[i] = 0.0
     s.uwait[i] = _push(s, p.latency, NORMAL, LATENCY, i)
@@ -383,10 +387,17 @@ def _setup(states, log, used, params, starts):
 
 
 @jit
-def _advance(states, log, used, params, holds):
-    """Run every live episode until it is blocked (its next event is the end of a decision latency
-    whose action is still -1) or over, or until the log or a heap is full (the status says)."""
+def _advance(states, log, used, params, holds, actions, first):
+    """Record the actions of log rows first, first + 1, ...; then run every live episode until it is
+    blocked (its next event is the end of a decision latency whose action is still -1) or over, or
+    until the log or a heap is full (the status says)."""
     p = params[0]
+    for k in range(len(actions)):
+        r = log[first + k]
+        r.act = actions[k]
+        s = states[r.ep]
+        if s.cur[r.agent] == first + k:  # else superseded: its latency's end is stale
+            s.act[r.agent] = actions[k]
     row = used[0]
     size = holds.shape[2]
     status = OK
@@ -394,7 +405,7 @@ def _advance(states, log, used, params, holds):
         s = states[e]
         while not s.done:
             sq, kind, who = _unpack(s.hkey[0])
-            if kind == LATENCY and sq == s.uwait[who] and log[s.cur[who]].act < 0:
+            if kind == LATENCY and sq == s.uwait[who] and s.act[who] < 0:
                 break  # the policy has not decided yet
             if row >= len(log):
                 status = GROW_LOG
@@ -408,8 +419,9 @@ def _advance(states, log, used, params, holds):
             s.events += 1
             if kind == LATENCY:
                 if sq == s.uwait[who]:
-                    _start_action(s, p, who, log[s.cur[who]].act,
-                                  holds[e, who, s.n_holds[who] % size])
+                    a = s.act[who]
+                    hold = holds[e, who, s.n_holds[who] % size] if a == p.n_obs else 0.0
+                    _start_action(s, p, who, a, hold)
             elif kind == ACTION or kind == INT_UAV:
                 if kind == INT_UAV or sq == s.uwait[who]:
                     _land(s, p, who, kind == INT_UAV)
@@ -433,13 +445,19 @@ def _advance(states, log, used, params, holds):
 
 
 @jit
-def _paths(log, n, path_start, n_agents, obs, actions, rewards, durations, times):
-    """Log rows 0..n-1 into path order: a row goes to its path's start plus its decision number
-    (rows of a path come in decision order, so this is the stable sort by path)."""
-    for r in range(n):
-        rec = log[r]
-        d = path_start[rec.ep * n_agents + rec.agent] + rec.idx
-        obs[d, :] = rec.obs
+def _paths(rows, path_start, n_agents, obs, actions, rewards, durations, times):
+    """The log's rows into path order. A row's place is its path's start plus its decision number
+    (rows of a path come in decision order, so this is the stable sort by path); the copy then
+    gathers the rows in that order (reading scattered rows beats writing scattered ones)."""
+    order = np.empty(len(rows), np.int64)
+    for r in range(len(rows)):
+        rec = rows[r]
+        order[path_start[rec.ep * n_agents + rec.agent] + rec.idx] = r
+    for d in range(len(rows)):
+        rec = rows[order[d]]
+        o = rec.obs
+        for w in range(obs.shape[1]):
+            obs[d, w] = o[w]
         actions[d] = rec.act
         rewards[d] = rec.rew
         durations[d] = rec.dur
@@ -485,9 +503,12 @@ class WildfireEnv:
         # A round's new rows are contiguous; all of them await an action, including decisions
         # superseded at once (interrupted within their latency), which the dynamics never needed
         # but the rollout records. So the policy reads views of the log: no gathering.
-        first = 0
+        first = 0  # the first row without an action
+        actions = np.empty(0, np.int64)
         while True:
-            status = _advance(states, log, used, self.params, holds)
+            status = _advance(states, log, used, self.params, holds, actions, first)
+            first += len(actions)
+            actions = actions[:0]
             if status == GROW_LOG:
                 log = _grow(log)
                 continue
@@ -499,14 +520,13 @@ class WildfireEnv:
             rows = log[first:end]
             batch = DecisionBatch(obs=rows["obs"], episode=rows["ep"], agent=rows["agent"],
                                   index=rows["idx"])
-            rows["act"] = check_actions(policy(batch), end - first, self.n_actions)
-            first = end
+            actions = check_actions(policy(batch), end - first, self.n_actions)
         # every UAV observes at time 0, so every (episode, agent) path has a decision
         path_start = np.zeros(e * n + 1, np.int64)
         np.cumsum(states["n_dec"].reshape(-1), out=path_start[1:])
         obs, time = np.empty((first, self.obs_dim)), np.empty(first)
         actions, rewards, durations = np.empty(first, np.int64), np.empty(first), np.empty(first)
-        _paths(log, first, path_start, n, obs, actions, rewards, durations, time)
+        _paths(log[:first], path_start, n, obs, actions, rewards, durations, time)
         return Rollout(
             obs=obs, actions=actions, rewards=rewards, durations=durations, path_start=path_start,
             path_episode=np.repeat(np.arange(e, dtype=np.int64), n),
