@@ -37,14 +37,14 @@ from numba import njit
 from repro.core.rollout import DecisionBatch, Policy, Rollout
 from repro.envs.wildfire.params import (OBS_PER_FIRE, EpisodeDraws, WildfireConfig, draw_episodes,
                                         fire_positions, fs_delay)
-from repro.envs.wildfire.reference import check_actions
+from repro.envs.wildfire.reference import actions_error
 
 URGENT, NORMAL = 0, 1
 """SimPy's priorities: an interrupt at time t comes before any timeout at t."""
 LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK = range(6)
 """Event kinds: decision latency over, macro-action over, fire out, UAV interrupted (its fire
 went out), fire interrupted (its party changed), T_max reached."""
-OK, GROW_LOG, HEAP_FULL = range(3)
+OK, GROW_LOG, HEAP_FULL, BAD_ACTION = range(4)
 """Status codes of ``_advance``."""
 HEAP_CAPACITY = 128
 """Pending events per episode: live waits (N UAVs, 9 fires, the clock) plus stale ones."""
@@ -390,8 +390,12 @@ def _setup(states, log, used, params, starts):
 def _advance(states, log, used, params, holds, actions, first):
     """Record the actions of log rows first, first + 1, ...; then run every live episode until it is
     blocked (its next event is the end of a decision latency whose action is still -1) or over, or
-    until the log or a heap is full (the status says)."""
+    until the log or a heap is full (the status says). BAD_ACTION, and nothing changed, if an action
+    is out of range (checked here: numpy's checks cost more than a small round's simulation)."""
     p = params[0]
+    for k in range(len(actions)):
+        if actions[k] < 0 or actions[k] > p.n_obs:  # the actions are 0..n_obs
+            return BAD_ACTION
     for k in range(len(actions)):
         r = log[first + k]
         r.act = actions[k]
@@ -504,9 +508,11 @@ class WildfireEnv:
         # superseded at once (interrupted within their latency), which the dynamics never needed
         # but the rollout records. So the policy reads views of the log: no gathering.
         first = 0  # the first row without an action
-        actions = np.empty(0, np.int64)
+        answer = actions = np.empty(0, np.int64)
         while True:
             status = _advance(states, log, used, self.params, holds, actions, first)
+            if status == BAD_ACTION:
+                raise actions_error(answer, len(answer), self.n_actions)
             first += len(actions)
             actions = actions[:0]
             if status == GROW_LOG:
@@ -520,7 +526,10 @@ class WildfireEnv:
             rows = log[first:end]
             batch = DecisionBatch(obs=rows["obs"], episode=rows["ep"], agent=rows["agent"],
                                   index=rows["idx"])
-            actions = check_actions(policy(batch), end - first, self.n_actions)
+            answer = np.asarray(policy(batch))
+            if answer.shape != (end - first,) or answer.dtype.kind not in "iu":
+                raise actions_error(answer, end - first, self.n_actions)
+            actions = np.ascontiguousarray(answer, np.int64)  # the range: in _advance
         # every UAV observes at time 0, so every (episode, agent) path has a decision
         path_start = np.zeros(e * n + 1, np.int64)
         np.cumsum(states["n_dec"].reshape(-1), out=path_start[1:])
