@@ -100,9 +100,9 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # fires
         ("alive", i1, k), ("health", f8, k), ("t_update", f8, k), ("party", i4, k),
         ("fwait", i8, k),
-        # scratch of an observation: the observing UAV's distance to every fire, computed once
-        # per observation rather than once per observed rank
-        ("fire_dist", f8, k),
+        # scratch of an observation: the observing UAV's distance to every fire, the fires in
+        # (distance, index) order, the size of every fire's interest party
+        ("fire_dist", f8, k), ("fire_order", i4, k), ("fire_party", i4, k),
     ], align=True)
 
 
@@ -201,27 +201,26 @@ def _observe(s, p, r, row, e, i):
     x, y = s.pos[i, 0], s.pos[i, 1]
     o = r.obs
     o[0], o[1] = x, y
-    dist = s.fire_dist
-    for j in range(p.n_fires):
-        dist[j] = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
-    prev_d, prev_j = -1.0, -1
-    for k in range(p.n_obs):  # next in (distance, index) order: the lower index wins ties
-        best, best_d = -1, np.inf
-        for j in range(p.n_fires):
-            d = dist[j]
-            after = d > prev_d or (d == prev_d and j > prev_j)
-            if after and d < best_d:
-                best, best_d = j, d
-        prev_d, prev_j = best_d, best
+    dist, order, party = s.fire_dist, s.fire_order, s.fire_party
+    for j in range(p.n_fires):  # insertion sort by (distance, index): the lower index wins ties
+        d = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
+        dist[j] = d
+        at = j
+        while at > 0 and dist[order[at - 1]] > d:
+            order[at] = order[at - 1]
+            at -= 1
+        order[at] = j
+        party[j] = 0
+    for a in range(p.n_agents):
+        if s.interest[a] >= 0:
+            party[s.interest[a]] += 1
+    for k in range(p.n_obs):
+        best = order[k]
         s.rank[i, k] = best
-        interested = 0
-        for a in range(p.n_agents):
-            if s.interest[a] == best:
-                interested += 1
         base = 2 + OBS_PER_FIRE * k
-        o[base] = best_d
+        o[base] = dist[best]
         o[base + 1] = 1.0
-        o[base + 2] = interested
+        o[base + 2] = party[best]
         o[base + 3] = 1.0 if s.alive[best] else 0.0
         o[base + 4] = _health_now(s, best)
     o[2 + OBS_PER_FIRE * p.n_obs] = sojourn
@@ -387,11 +386,13 @@ def _setup(states, log, used, params, starts):
 
 
 @jit
-def _advance(states, log, used, params, holds, actions, first):
+def _advance(states, live, log, used, params, holds, actions, first):
     """Record the actions of log rows first, first + 1, ...; then run every live episode until it is
     blocked (its next event is the end of a decision latency whose action is still -1) or over, or
     until the log or a heap is full (the status says). BAD_ACTION, and nothing changed, if an action
-    is out of range (checked here: numpy's checks cost more than a small round's simulation)."""
+    is out of range (checked here: numpy's checks cost more than a small round's simulation).
+    ``live[0]`` episodes are live, ``live[1:]`` (in order); those that end leave the list, so later
+    rounds do not visit them."""
     p = params[0]
     for k in range(len(actions)):
         if actions[k] < 0 or actions[k] > p.n_obs:  # the actions are 0..n_obs
@@ -405,7 +406,9 @@ def _advance(states, log, used, params, holds, actions, first):
     row = used[0]
     size = holds.shape[2]
     status = OK
-    for e in range(len(states)):
+    n_live = 0
+    for q in range(live[0]):
+        e = live[1 + q]
         s = states[e]
         while not s.done:
             sq, kind, who = _unpack(s.hkey[0])
@@ -442,8 +445,15 @@ def _advance(states, log, used, params, holds, actions, first):
                     _replan(s, p, who)
             else:
                 _end(s, log, p)
-        if status != OK:
+        if not s.done:
+            live[1 + n_live] = e
+            n_live += 1
+        if status != OK:  # keep the episodes not visited
+            for r in range(q + 1, live[0]):
+                live[1 + n_live] = live[1 + r]
+                n_live += 1
             break
+    live[0] = n_live
     used[0] = row
     return status
 
@@ -503,6 +513,8 @@ class WildfireEnv:
         states = np.empty(e, self.state_dtype)
         log = np.empty(max(1024, 64 * e * n), self.log_dtype)
         used = np.zeros(1, np.int64)
+        live = np.arange(-1, e, dtype=np.int64)
+        live[0] = e
         _setup(states, log, used, self.params, np.ascontiguousarray(draws.starts, np.float64))
         # A round's new rows are contiguous; all of them await an action, including decisions
         # superseded at once (interrupted within their latency), which the dynamics never needed
@@ -510,7 +522,7 @@ class WildfireEnv:
         first = 0  # the first row without an action
         answer = actions = np.empty(0, np.int64)
         while True:
-            status = _advance(states, log, used, self.params, holds, actions, first)
+            status = _advance(states, live, log, used, self.params, holds, actions, first)
             if status == BAD_ACTION:
                 raise actions_error(answer, len(answer), self.n_actions)
             first += len(actions)
