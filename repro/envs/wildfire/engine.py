@@ -7,24 +7,30 @@ same-instant events, which FS simulation makes common, are processed in the refe
 An event that a process no longer waits for (its wait was interrupted, or its fire re-planned) is
 stale and skipped, as SimPy skips a triggered event without callbacks.
 
-``_advance`` runs every live episode until it is blocked (its next event is the end of a decision
-latency whose action the policy has not given yet) or over. Python then hands all pending
-observations of the batch to the policy in ONE call, writes the actions back, and repeats.
-Decisions are appended to a flat log and placed into contiguous paths at the end.
+``_advance`` records the policy's last actions, then runs every live episode until it is blocked
+(its next event is the end of a decision latency whose action the policy has not given yet) or
+over. Python then hands all pending observations of the batch to the policy in ONE call and
+repeats. Decisions are appended to a flat log and placed into contiguous paths at the end.
 
 Speed. A rollout of the training batch (600 episodes, about 14,000 decisions and 32,000 events)
 takes about 50 rounds, so the per-event cost dominates. An episode's state is one numpy record (a
 row of a structured array, ``state_dtype``), and so are the parameters (``params_record``) and each
 decision's log row (``log_dtype``): numba hands a record to a function as a bare pointer, whereas
-an array, or every array of a tuple, costs a reference-count update per call. The per-episode
-record is kept small, as a round visits each once: the hold durations stay in the draws' array,
-a heap entry is 16 bytes (its time and one integer packing priority, sequence number, kind and
-subject, whose order is the order of (priority, sequence)), and the reward of a UAV's running
-decision accrues in the record. A log row is written when its decision is observed (observation,
-time, ids) and when it closes (reward, duration), never read by the kernel but for the action.
-The policy reads views of the log's new rows, and a compiled loop places the rows into paths at
-the end (a row's place is its path's start plus its decision number: no sort). The state and the
-log are allocated uninitialised: the kernels write every field before reading it.
+an array, or every array of a tuple, costs a reference-count update per call. A round visits only
+the live episodes (a list it compacts), each once, and its first read of an episode misses the
+cache, so what tells whether the episode is blocked comes first in the record, and the record is
+small: the hold durations stay in the draws' array, a heap entry is 16 bytes (its time and one
+integer packing priority, sequence number, kind and subject, whose order is the order of
+(priority, sequence)), and the reward of a UAV's running decision accrues in the record. A log
+row is written when its decision is observed (observation, time, ids), gets its action at the
+next round, and is closed (reward, duration) by the UAV's next observation or the episode's end;
+the kernel never reads it back. An observation sorts the fires by distance once and counts the
+interest parties once. The policy reads views of the log's new rows; its answers are
+range-checked in the kernel (numpy's checks cost more than a small round's simulation). At the
+end a compiled loop places the rows into paths: a row's place is its path's start plus its
+decision number (no sort). The state and the log are allocated uninitialised: the kernels write
+every field before reading it. The hold durations are drawn for the whole batch up front (the
+committed random streams), which costs about a third of a rollout without the policy.
 """
 
 from __future__ import annotations
@@ -513,20 +519,19 @@ class WildfireEnv:
         states = np.empty(e, self.state_dtype)
         log = np.empty(max(1024, 64 * e * n), self.log_dtype)
         used = np.zeros(1, np.int64)
-        live = np.arange(-1, e, dtype=np.int64)
-        live[0] = e
+        live = np.concatenate([[e], np.arange(e)]).astype(np.int64)  # how many, then which
         _setup(states, log, used, self.params, np.ascontiguousarray(draws.starts, np.float64))
         # A round's new rows are contiguous; all of them await an action, including decisions
         # superseded at once (interrupted within their latency), which the dynamics never needed
         # but the rollout records. So the policy reads views of the log: no gathering.
         first = 0  # the first row without an action
-        answer = actions = np.empty(0, np.int64)
+        answer = given = np.empty(0, np.int64)  # the policy's answer for rows first, ...
         while True:
-            status = _advance(states, live, log, used, self.params, holds, actions, first)
+            status = _advance(states, live, log, used, self.params, holds, given, first)
             if status == BAD_ACTION:
                 raise actions_error(answer, len(answer), self.n_actions)
-            first += len(actions)
-            actions = actions[:0]
+            first += len(given)
+            given = given[:0]
             if status == GROW_LOG:
                 log = _grow(log)
                 continue
@@ -541,7 +546,7 @@ class WildfireEnv:
             answer = np.asarray(policy(batch))
             if answer.shape != (end - first,) or answer.dtype.kind not in "iu":
                 raise actions_error(answer, end - first, self.n_actions)
-            actions = np.ascontiguousarray(answer, np.int64)  # the range: in _advance
+            given = np.ascontiguousarray(answer, np.int64)  # the range: checked in _advance
         # every UAV observes at time 0, so every (episode, agent) path has a decision
         path_start = np.zeros(e * n + 1, np.int64)
         np.cumsum(states["n_dec"].reshape(-1), out=path_start[1:])
