@@ -92,6 +92,17 @@ def test_rollout_structure():
     assert np.all(r.info["end_time"] <= cfg.t_max + 1e-9)
 
 
+@pytest.mark.parametrize("answer", [
+    lambda n: np.full(n, 6), lambda n: np.full(n, -1), lambda n: np.zeros(n + 1, np.int64),
+    lambda n: np.zeros(n), lambda n: np.r_[np.zeros(n - 1, np.int64), 6]])
+def test_both_engines_reject_bad_actions(answer):
+    """Out of range (the fast engine checks the range in its kernel), wrong length, not integers."""
+    cfg = WildfireConfig()
+    for env in (make_env(cfg), make_reference_env(cfg)):
+        with pytest.raises(ValueError, match="integer actions in"):
+            env.rollout(lambda batch: answer(len(batch)), 4, 0)
+
+
 def test_draws_are_deterministic_per_seed():
     cfg = WildfireConfig()
     d = draw_episodes(cfg, 3, 5)

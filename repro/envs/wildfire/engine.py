@@ -7,16 +7,35 @@ same-instant events, which FS simulation makes common, are processed in the refe
 An event that a process no longer waits for (its wait was interrupted, or its fire re-planned) is
 stale and skipped, as SimPy skips a triggered event without callbacks.
 
-``_advance`` runs every live episode until it is blocked (its next event is the end of a decision
-latency whose action the policy has not given yet) or over. Python then hands all pending
-observations of the batch to the policy in ONE call, writes the actions back, and repeats.
-Decisions are appended to a flat log and sorted into contiguous paths at the end.
+``_advance`` records the policy's last actions, then runs every live episode until it is blocked
+(its next event is the end of a decision latency whose action the policy has not given yet) or
+over. Python then hands all pending observations of the batch to the policy in ONE call and
+repeats. Decisions are appended to a flat log and placed into contiguous paths at the end.
+
+Speed. A rollout of the training batch (600 episodes, about 14,000 decisions and 32,000 events)
+takes about 50 rounds, so the per-event cost dominates. An episode's state is one numpy record (a
+row of a structured array, ``state_dtype``), and so are the parameters (``params_record``) and each
+decision's log row (``log_dtype``): numba hands a record to a function as a bare pointer, whereas
+an array, or every array of a tuple, costs a reference-count update per call. A round visits only
+the live episodes (a list it compacts), each once, and its first read of an episode misses the
+cache, so what tells whether the episode is blocked comes first in the record, and the record is
+small: the hold durations stay in the draws' array, a heap entry is 16 bytes (its time and one
+integer packing priority, sequence number, kind and subject, whose order is the order of
+(priority, sequence)), and the reward of a UAV's running decision accrues in the record. A log
+row is written when its decision is observed (observation, time, ids), gets its action at the
+next round, and is closed (reward, duration) by the UAV's next observation or the episode's end;
+the kernel never reads it back. An observation sorts the fires by distance once and counts the
+interest parties once. The policy reads views of the log's new rows; its answers are
+range-checked in the kernel (numpy's checks cost more than a small round's simulation). At the
+end a compiled loop places the rows into paths: a row's place is its path's start plus its
+decision number (no sort). The state and the log are allocated uninitialised: the kernels write
+every field before reading it. The hold durations are drawn for the whole batch up front (the
+committed random streams), which costs about a third of a rollout without the policy.
 """
 
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -24,23 +43,26 @@ from numba import njit
 from repro.core.rollout import DecisionBatch, Policy, Rollout
 from repro.envs.wildfire.params import (OBS_PER_FIRE, EpisodeDraws, WildfireConfig, draw_episodes,
                                         fire_positions, fs_delay)
-from repro.envs.wildfire.records import rollout_from_records
-from repro.envs.wildfire.reference import check_actions
+from repro.envs.wildfire.reference import actions_error
 
 URGENT, NORMAL = 0, 1
 """SimPy's priorities: an interrupt at time t comes before any timeout at t."""
 LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK = range(6)
 """Event kinds: decision latency over, macro-action over, fire out, UAV interrupted (its fire
 went out), fire interrupted (its party changed), T_max reached."""
-OK, GROW_LOG, HEAP_FULL = range(3)
+OK, GROW_LOG, HEAP_FULL, BAD_ACTION = range(4)
 """Status codes of ``_advance``."""
 HEAP_CAPACITY = 128
 """Pending events per episode: live waits (N UAVs, 9 fires, the clock) plus stale ones."""
+WHO_BITS, KIND_BITS, PRIO_SHIFT = 20, 3, 62
+"""A heap entry's integer key: priority << 62 | sequence << 23 | kind << 20 | who. Sequence numbers
+are unique within an episode, so comparing keys compares (priority, sequence) as SimPy does; the
+39 bits of the sequence outlast any episode, and the heap's capacity bounds who (an agent or fire
+index) far below 2^20."""
+SEQ_SHIFT = WHO_BITS + KIND_BITS
 
-# An episode's whole state is one numpy record (a row of a structured array), and so are the
-# parameters: numba passes a record to a helper as a bare pointer, whereas a tuple of arrays costs a
-# reference count update per array and call. Flags inside records are int8 (numba does not support
-# nested boolean arrays).
+# Flags inside records are int8 (numba does not support nested boolean arrays); int32 counters and
+# indices keep the state record small.
 jit = njit(cache=True)
 
 fs_delay_nb = jit(fs_delay)
@@ -64,93 +86,96 @@ def params_record(cfg: WildfireConfig) -> np.ndarray:
 
 def state_dtype(cfg: WildfireConfig) -> np.dtype:
     """One episode's state: scalars, then (N, ...) UAV fields, (K,) fire fields, the event heap."""
-    n, k, f8, i8, i1 = cfg.n_agents, len(fire_positions(cfg)), np.float64, np.int64, np.int8
+    n, k, f8, i8, i4, i1 = (cfg.n_agents, len(fire_positions(cfg)), np.float64, np.int64,
+                            np.int32, np.int8)
     return np.dtype([
-        ("now", f8), ("done", np.bool_), ("t_end", f8), ("n_alive", i8), ("events", i8),
+        # what a round reads of every episode first, to tell whether it is blocked, is adjacent:
+        # each episode's first visit of a round misses the cache
+        ("done", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8), ("events", i8),
+        ("uwait", i8, n), ("act", i8, n),
+        # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence
+        ("hkey", i8, HEAP_CAPACITY), ("ht", f8, HEAP_CAPACITY), ("hn", i4), ("seq", i8),
         # UAV motion
         ("pos", f8, (n, 2)), ("origin", f8, (n, 2)), ("goal", f8, (n, 2)), ("t_dep", f8, n),
         ("length", f8, n), ("flying", i1, n),
-        # UAV bookkeeping
-        ("interest", i8, n), ("attacking", i8, n), ("in_party", i1, n), ("n_holds", i8, n),
-        ("holds", f8, (n, cfg.hold_table_size)), ("rank", i8, (n, cfg.n_observed)),
-        ("cur", i8, n), ("n_dec", i8, n), ("uwait", i8, n), ("returns", f8, n),
+        # UAV bookkeeping; the running decision (its action is ``act``, -1 until the policy gave
+        # it): its log row, time and discounted reward so far
+        ("interest", i4, n), ("attacking", i4, n), ("in_party", i1, n), ("n_holds", i4, n),
+        ("rank", i4, (n, cfg.n_observed)), ("n_dec", i4, n), ("returns", f8, n),
+        ("cur", i8, n), ("t_obs", f8, n), ("rew", f8, n),
         # fires
-        ("alive", i1, k), ("health", f8, k), ("t_update", f8, k), ("party", i8, k),
+        ("alive", i1, k), ("health", f8, k), ("t_update", f8, k), ("party", i4, k),
         ("fwait", i8, k),
-        # scratch of an observation: the observing UAV's distance to every fire, computed once
-        # per observation rather than once per observed rank
-        ("fire_dist", f8, k),
-        # event heap: time, priority, sequence number, kind, who (narrow types: a smaller record
-        # stays in cache longer); its size; the next sequence
-        ("ht", f8, HEAP_CAPACITY), ("hp", i1, HEAP_CAPACITY), ("hs", i8, HEAP_CAPACITY),
-        ("hk", i1, HEAP_CAPACITY), ("hw", np.int32, HEAP_CAPACITY), ("hn", i8), ("seq", i8),
+        # scratch of an observation: the observing UAV's distance to every fire, the fires in
+        # (distance, index) order, the size of every fire's interest party
+        ("fire_dist", f8, k), ("fire_order", i4, k), ("fire_party", i4, k),
     ], align=True)
 
 
-Log = namedtuple("Log", "obs act rew dur time ep agent idx used")
-"""One row per decision, in the order they were observed; ``used[0]`` rows are filled."""
+def log_dtype(obs_dim: int) -> np.dtype:
+    """One decision: its observation and action, reward and duration once it closed, its time,
+    episode, agent and decision number (int64: the policy gets these as they are)."""
+    f8, i8 = np.float64, np.int64
+    return np.dtype([("obs", f8, obs_dim), ("time", f8), ("rew", f8), ("dur", f8), ("act", i8),
+                     ("ep", i8), ("agent", i8), ("idx", i8)], align=True)
 
 
 # --- event heap ----------------------------------------------------------------------------------
 
 @jit
-def _before(s, a, b):
-    if s.ht[a] != s.ht[b]:
-        return s.ht[a] < s.ht[b]
-    if s.hp[a] != s.hp[b]:
-        return s.hp[a] < s.hp[b]
-    return s.hs[a] < s.hs[b]
-
-
-@jit
-def _swap(s, a, b):
-    s.ht[a], s.ht[b] = s.ht[b], s.ht[a]
-    s.hp[a], s.hp[b] = s.hp[b], s.hp[a]
-    s.hs[a], s.hs[b] = s.hs[b], s.hs[a]
-    s.hk[a], s.hk[b] = s.hk[b], s.hk[a]
-    s.hw[a], s.hw[b] = s.hw[b], s.hw[a]
-
-
-@jit
 def _push(s, delay, prio, kind, who):
     """Schedule an event ``delay`` after now (SimPy: time now + delay); return its sequence."""
+    seq = s.seq
+    s.seq = seq + 1
+    t = s.now + delay
+    key = (np.int64(prio) << PRIO_SHIFT) | (seq << SEQ_SHIFT) | (np.int64(kind) << WHO_BITS) | who
     n = s.hn
-    s.ht[n] = s.now + delay
-    s.hp[n] = prio
-    s.hs[n] = s.seq
-    s.hk[n] = kind
-    s.hw[n] = who
-    s.seq += 1
     s.hn = n + 1
-    while n > 0:
+    while n > 0:  # sift the new entry up, moving parents into the hole
         parent = (n - 1) // 2
-        if not _before(s, n, parent):
+        pt = s.ht[parent]
+        if pt < t or (pt == t and s.hkey[parent] < key):
             break
-        _swap(s, n, parent)
+        s.ht[n] = pt
+        s.hkey[n] = s.hkey[parent]
         n = parent
-    return s.seq - 1
+    s.ht[n] = t
+    s.hkey[n] = key
+    return seq
 
 
 @jit
 def _pop(s):
-    """Remove the first event and return (time, sequence, kind, who)."""
-    t, sq, kind, who = s.ht[0], s.hs[0], s.hk[0], s.hw[0]
+    """Remove the first event; return its time and key."""
+    t0, k0 = s.ht[0], s.hkey[0]
     n = s.hn - 1
     s.hn = n
-    if n > 0:
-        _swap(s, 0, n)
-        i = 0
-        while True:
-            left, best = 2 * i + 1, i
-            if left < n and _before(s, left, best):
-                best = left
-            if left + 1 < n and _before(s, left + 1, best):
-                best = left + 1
-            if best == i:
-                break
-            _swap(s, i, best)
-            i = best
-    return t, sq, kind, who
+    t, key = s.ht[n], s.hkey[n]  # the last entry sifts down from the root
+    i = 0
+    while True:
+        c = 2 * i + 1
+        if c >= n:
+            break
+        if c + 1 < n and (s.ht[c + 1] < s.ht[c] or
+                          (s.ht[c + 1] == s.ht[c] and s.hkey[c + 1] < s.hkey[c])):
+            c += 1
+        if t < s.ht[c] or (t == s.ht[c] and key < s.hkey[c]):
+            break
+        s.ht[i] = s.ht[c]
+        s.hkey[i] = s.hkey[c]
+        i = c
+    s.ht[i] = t
+    s.hkey[i] = key
+    return t0, k0
+
+
+@jit
+def _unpack(key):
+    """(sequence, kind, who) of a heap key."""
+    who = key & ((1 << WHO_BITS) - 1)
+    kind = (key >> WHO_BITS) & ((1 << KIND_BITS) - 1)
+    seq = (key >> SEQ_SHIFT) & ((np.int64(1) << (PRIO_SHIFT - SEQ_SHIFT)) - 1)
+    return seq, kind, who
 
 
 # --- model (mirrors reference.WildfireModel method by method) ------------------------------------
@@ -168,58 +193,58 @@ def _health_now(s, j):
 
 
 @jit
-def _observe(s, lg, p, e, i):
+def _close(s, r, i):
+    """UAV i's running decision (log row r) ends now."""
+    r.rew = s.rew[i]
+    r.dur = s.now - s.t_obs[i]
+
+
+@jit
+def _observe(s, p, r, row, e, i):
+    """UAV i observes into log row r (number ``row``) and waits the decision latency."""
     now = s.now
-    prev = s.cur[i]
-    sojourn = 0.0
-    if prev >= 0:
-        sojourn = now - lg.time[prev]
-        lg.dur[prev] = sojourn
-    row = lg.used[0]
-    lg.used[0] = row + 1
+    sojourn = now - s.t_obs[i] if s.n_dec[i] > 0 else 0.0
     x, y = s.pos[i, 0], s.pos[i, 1]
-    o = lg.obs[row]
+    o = r.obs
     o[0], o[1] = x, y
-    dist = s.fire_dist
-    for j in range(p.n_fires):
-        dist[j] = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
-    prev_d, prev_j = -1.0, -1
-    for r in range(p.n_obs):  # next in (distance, index) order: the lower index wins ties
-        best, best_d = -1, np.inf
-        for j in range(p.n_fires):
-            d = dist[j]
-            after = d > prev_d or (d == prev_d and j > prev_j)
-            if after and d < best_d:
-                best, best_d = j, d
-        prev_d, prev_j = best_d, best
-        s.rank[i, r] = best
-        interested = 0
-        for a in range(p.n_agents):
-            if s.interest[a] == best:
-                interested += 1
-        base = 2 + OBS_PER_FIRE * r
-        o[base] = best_d
+    dist, order, party = s.fire_dist, s.fire_order, s.fire_party
+    for j in range(p.n_fires):  # insertion sort by (distance, index): the lower index wins ties
+        d = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
+        dist[j] = d
+        at = j
+        while at > 0 and dist[order[at - 1]] > d:
+            order[at] = order[at - 1]
+            at -= 1
+        order[at] = j
+        party[j] = 0
+    for a in range(p.n_agents):
+        if s.interest[a] >= 0:
+            party[s.interest[a]] += 1
+    for k in range(p.n_obs):
+        best = order[k]
+        s.rank[i, k] = best
+        base = 2 + OBS_PER_FIRE * k
+        o[base] = dist[best]
         o[base + 1] = 1.0
-        o[base + 2] = interested
+        o[base + 2] = party[best]
         o[base + 3] = 1.0 if s.alive[best] else 0.0
         o[base + 4] = _health_now(s, best)
     o[2 + OBS_PER_FIRE * p.n_obs] = sojourn
-    lg.act[row] = -1
-    lg.rew[row] = 0.0
-    lg.dur[row] = np.nan
-    lg.time[row] = now
-    lg.ep[row] = e
-    lg.agent[row] = i
-    lg.idx[row] = s.n_dec[i]
+    r.time = now
+    r.ep = e
+    r.agent = i
+    r.idx = s.n_dec[i]
     s.n_dec[i] += 1
     s.cur[i] = row
+    s.act[i] = -1
+    s.t_obs[i] = now
+    s.rew[i] = 0.0
     s.uwait[i] = _push(s, p.latency, NORMAL, LATENCY, i)
 
 
 @jit
-def _accrue(s, lg, p, i, r):
-    row = s.cur[i]
-    lg.rew[row] += math.exp(-p.gamma * (s.now - lg.time[row])) * r
+def _accrue(s, p, i, r):
+    s.rew[i] += math.exp(-p.gamma * (s.now - s.t_obs[i])) * r
     s.returns[i] += r
 
 
@@ -235,19 +260,19 @@ def _party_change(s, p, j, delta):
 
 
 @jit
-def _penalise(s, lg, p, j):
+def _penalise(s, p, j):
     if s.party[j] < 2:
         return
     for i in range(p.n_agents):
         member = s.in_party[i] and s.attacking[i] == j
         if member or not p.q2:
-            _accrue(s, lg, p, i, p.r_pen)
+            _accrue(s, p, i, p.r_pen)
 
 
 @jit
-def _start_action(s, lg, p, i):
+def _start_action(s, p, i, a, hold):
+    """UAV i starts action a; ``hold`` is its next hold duration (used if a holds)."""
     now = s.now
-    a = lg.act[s.cur[i]]
     s.interest[i] = -1
     if a < p.n_obs:
         target = s.rank[i, a]
@@ -276,10 +301,8 @@ def _start_action(s, lg, p, i):
                     if s.alive[j]:
                         s.in_party[i] = True
                         _party_change(s, p, j, 1)
-                        _penalise(s, lg, p, j)
+                        _penalise(s, p, j)
                 break
-        size = s.holds.shape[1]
-        hold = s.holds[i, s.n_holds[i] % size]
         s.n_holds[i] += 1
         d = fs_delay_nb(now, hold, p.dt)
     s.uwait[i] = _push(s, d, NORMAL, ACTION, i)
@@ -309,93 +332,163 @@ def _replan(s, p, j):
 
 
 @jit
-def _end(s, lg, p):
-    s.done = True
-    s.t_end = s.now
-    for i in range(p.n_agents):
-        row = s.cur[i]
-        lg.dur[row] = s.t_end - lg.time[row]
-
-
-@jit
-def _extinguish(s, lg, p, j):
+def _extinguish(s, p, j):
     s.alive[j] = False
     s.n_alive -= 1
     for i in range(p.n_agents):
-        _accrue(s, lg, p, i, p.r_ext)
+        _accrue(s, p, i, p.r_ext)
     for i in range(p.n_agents):
         if s.interest[i] == j:
             _push(s, 0.0, URGENT, INT_UAV, i)
-    if s.n_alive == 0:
-        _end(s, lg, p)
+
+
+@jit
+def _end(s, log, p):
+    """The episode ends now: every UAV's running decision closes."""
+    s.done = True
+    s.t_end = s.now
+    for i in range(p.n_agents):
+        _close(s, log[s.cur[i]], i)
 
 
 # --- kernels -------------------------------------------------------------------------------------
 
 @jit
-def _setup(states, lg, params):
-    """Time 0: every UAV observes (in index order), then the T_max clock starts."""
+def _setup(states, log, used, params, starts):
+    """Every field of every (uninitialised) state, then time 0: every UAV observes (in index
+    order), and the T_max clock starts."""
     p = params[0]
+    row = used[0]
     for e in range(len(states)):
         s = states[e]
+        s.now = 0.0
+        s.t_end = np.nan
+        s.events = 0
+        s.done = False
+        s.n_alive = p.n_fires
+        s.hn = 0
+        s.seq = 0
         for i in range(p.n_agents):
-            _observe(s, lg, p, e, i)
+            s.pos[i, 0], s.pos[i, 1] = starts[e, i, 0], starts[e, i, 1]
+            s.flying[i] = False  # origin, goal, t_dep and length are set on take-off
+            s.interest[i] = -1
+            s.attacking[i] = -1
+            s.in_party[i] = False
+            s.n_holds[i] = 0
+            s.n_dec[i] = 0
+            s.uwait[i] = -1
+            s.returns[i] = 0.0  # rank, cur, t_obs and rew are set by the first observation
+        for j in range(p.n_fires):
+            s.alive[j] = True
+            s.health[j] = p.t_health
+            s.t_update[j] = 0.0
+            s.party[j] = 0
+            s.fwait[j] = -1
+        for i in range(p.n_agents):
+            _observe(s, p, log[row], row, e, i)
+            row += 1
         _push(s, p.t_max, NORMAL, CLOCK, 0)
+    used[0] = row
 
 
 @jit
-def _advance(states, lg, params):
-    """Run every live episode until it is blocked (its next event is the end of a decision latency
-    whose action is still -1) or over, or until the log or a heap is full (the status says)."""
+def _advance(states, live, log, used, params, holds, actions, first):
+    """Record the actions of log rows first, first + 1, ...; then run every live episode until it is
+    blocked (its next event is the end of a decision latency whose action is still -1) or over, or
+    until the log or a heap is full (the status says). BAD_ACTION, and nothing changed, if an action
+    is out of range (checked here: numpy's checks cost more than a small round's simulation).
+    ``live[0]`` episodes are live, ``live[1:]`` (in order); those that end leave the list, so later
+    rounds do not visit them."""
     p = params[0]
-    for e in range(len(states)):
+    for k in range(len(actions)):
+        if actions[k] < 0 or actions[k] > p.n_obs:  # the actions are 0..n_obs
+            return BAD_ACTION
+    for k in range(len(actions)):
+        r = log[first + k]
+        r.act = actions[k]
+        s = states[r.ep]
+        if s.cur[r.agent] == first + k:  # else superseded: its latency's end is stale
+            s.act[r.agent] = actions[k]
+    row = used[0]
+    size = holds.shape[2]
+    status = OK
+    n_live = 0
+    for q in range(live[0]):
+        e = live[1 + q]
         s = states[e]
         while not s.done:
-            kind, who, sq = s.hk[0], s.hw[0], s.hs[0]
-            if kind == LATENCY and sq == s.uwait[who] and lg.act[s.cur[who]] < 0:
+            sq, kind, who = _unpack(s.hkey[0])
+            if kind == LATENCY and sq == s.uwait[who] and s.act[who] < 0:
                 break  # the policy has not decided yet
-            if lg.used[0] >= len(lg.act):
-                return GROW_LOG
-            if s.hn + p.n_agents + 2 > len(s.ht):
-                return HEAP_FULL
-            t, sq, kind, who = _pop(s)
+            if row >= len(log):
+                status = GROW_LOG
+                break
+            if s.hn + p.n_agents + 2 > HEAP_CAPACITY:
+                status = HEAP_FULL
+                break
+            t, key = _pop(s)
+            sq, kind, who = _unpack(key)
             s.now = t
             s.events += 1
             if kind == LATENCY:
                 if sq == s.uwait[who]:
-                    _start_action(s, lg, p, who)
-            elif kind == ACTION:
-                if sq == s.uwait[who]:
-                    _land(s, p, who, False)
-                    _observe(s, lg, p, e, who)
-            elif kind == INT_UAV:
-                _land(s, p, who, True)
-                _observe(s, lg, p, e, who)
+                    a = s.act[who]
+                    hold = holds[e, who, s.n_holds[who] % size] if a == p.n_obs else 0.0
+                    _start_action(s, p, who, a, hold)
+            elif kind == ACTION or kind == INT_UAV:
+                if kind == INT_UAV or sq == s.uwait[who]:
+                    _land(s, p, who, kind == INT_UAV)
+                    _close(s, log[s.cur[who]], who)
+                    _observe(s, p, log[row], row, e, who)
+                    row += 1
             elif kind == EXTINGUISH:
                 if sq == s.fwait[who]:
-                    _extinguish(s, lg, p, who)
+                    _extinguish(s, p, who)
+                    if s.n_alive == 0:
+                        _end(s, log, p)
             elif kind == INT_FIRE:
                 if s.alive[who]:
                     _replan(s, p, who)
             else:
-                _end(s, lg, p)
-    return OK
+                _end(s, log, p)
+        if not s.done:
+            live[1 + n_live] = e
+            n_live += 1
+        if status != OK:  # keep the episodes not visited
+            for r in range(q + 1, live[0]):
+                live[1 + n_live] = live[1 + r]
+                n_live += 1
+            break
+    live[0] = n_live
+    used[0] = row
+    return status
+
+
+@jit
+def _paths(rows, path_start, n_agents, obs, actions, rewards, durations, times):
+    """The log's rows into path order. A row's place is its path's start plus its decision number
+    (rows of a path come in decision order, so this is the stable sort by path); the copy then
+    gathers the rows in that order (reading scattered rows beats writing scattered ones)."""
+    order = np.empty(len(rows), np.int64)
+    for r in range(len(rows)):
+        rec = rows[r]
+        order[path_start[rec.ep * n_agents + rec.agent] + rec.idx] = r
+    for d in range(len(rows)):
+        rec = rows[order[d]]
+        o = rec.obs
+        for w in range(obs.shape[1]):
+            obs[d, w] = o[w]
+        actions[d] = rec.act
+        rewards[d] = rec.rew
+        durations[d] = rec.dur
+        times[d] = rec.time
 
 
 # --- Python side ---------------------------------------------------------------------------------
 
-def _new_log(capacity: int, obs_dim: int) -> Log:
-    """Uninitialised: ``_observe`` writes every field of a row."""
-    return Log(obs=np.empty((capacity, obs_dim)), act=np.empty(capacity, dtype=np.int64),
-               rew=np.empty(capacity), dur=np.empty(capacity), time=np.empty(capacity),
-               ep=np.empty(capacity, dtype=np.int64), agent=np.empty(capacity, dtype=np.int64),
-               idx=np.empty(capacity, dtype=np.int64), used=np.zeros(1, dtype=np.int64))
-
-
-def _grow(lg: Log) -> Log:
-    bigger = _new_log(2 * len(lg.act), lg.obs.shape[1])
-    for old, new in zip(lg, bigger):
-        new[:len(old)] = old
+def _grow(log: np.ndarray) -> np.ndarray:
+    bigger = np.empty(2 * len(log), log.dtype)
+    bigger[:len(log)] = log
     return bigger
 
 
@@ -413,6 +506,7 @@ class WildfireEnv:
         self.gamma = cfg.gamma
         self.params = params_record(cfg)
         self.state_dtype = state_dtype(cfg)
+        self.log_dtype = log_dtype(cfg.obs_dim)
 
     def rollout(self, policy: Policy, n_episodes: int,
                 seed: int | np.random.SeedSequence) -> Rollout:
@@ -420,44 +514,49 @@ class WildfireEnv:
 
     def simulate(self, policy: Policy, draws: EpisodeDraws) -> Rollout:
         """Run the episodes of ``draws`` (tests script start positions and hold durations)."""
-        states = self._initial_states(draws)
-        lg = _new_log(max(1024, 64 * draws.n_episodes * self.n_agents), self.obs_dim)
-        _setup(states, lg, self.params)
+        e, n = draws.n_episodes, self.n_agents
+        holds = np.ascontiguousarray(draws.holds, np.float64)
+        states = np.empty(e, self.state_dtype)
+        log = np.empty(max(1024, 64 * e * n), self.log_dtype)
+        used = np.zeros(1, np.int64)
+        live = np.concatenate([[e], np.arange(e)]).astype(np.int64)  # how many, then which
+        _setup(states, log, used, self.params, np.ascontiguousarray(draws.starts, np.float64))
         # A round's new rows are contiguous; all of them await an action, including decisions
         # superseded at once (interrupted within their latency), which the dynamics never needed
         # but the rollout records. So the policy reads views of the log: no gathering.
-        first = 0
+        first = 0  # the first row without an action
+        answer = given = np.empty(0, np.int64)  # the policy's answer for rows first, ...
         while True:
-            status = _advance(states, lg, self.params)
+            status = _advance(states, live, log, used, self.params, holds, given, first)
+            if status == BAD_ACTION:
+                raise actions_error(answer, len(answer), self.n_actions)
+            first += len(given)
+            given = given[:0]
             if status == GROW_LOG:
-                lg = _grow(lg)
+                log = _grow(log)
                 continue
             if status == HEAP_FULL:
                 raise RuntimeError(f"event heap of {HEAP_CAPACITY} entries is full")
-            end = int(lg.used[0])
+            end = int(used[0])
             if end == first:
                 break
-            rows = slice(first, end)
-            batch = DecisionBatch(obs=lg.obs[rows], episode=lg.ep[rows], agent=lg.agent[rows],
-                                  index=lg.idx[rows])
-            lg.act[rows] = check_actions(policy(batch), end - first, self.n_actions)
-            first = end
-        used = slice(0, first)
-        return rollout_from_records(
-            episode=lg.ep[used], agent=lg.agent[used], index=lg.idx[used], time=lg.time[used],
-            obs=lg.obs[used], actions=lg.act[used], rewards=lg.rew[used],
-            durations=lg.dur[used], agent_returns=states["returns"].copy(),
-            end_time=states["t_end"].copy(), events=states["events"].copy())
-
-    def _initial_states(self, draws: EpisodeDraws) -> np.ndarray:
-        cfg = self.cfg
-        states = np.zeros(draws.n_episodes, self.state_dtype)
-        states["t_end"] = np.nan
-        states["n_alive"] = self.params["n_fires"][0]
-        states["pos"] = draws.starts
-        states["holds"] = draws.holds
-        for field in ("interest", "attacking", "rank", "cur", "uwait", "fwait"):
-            states[field] = -1
-        states["alive"] = 1
-        states["health"] = cfg.t_health
-        return states
+            rows = log[first:end]
+            batch = DecisionBatch(obs=rows["obs"], episode=rows["ep"], agent=rows["agent"],
+                                  index=rows["idx"])
+            answer = np.asarray(policy(batch))
+            if answer.shape != (end - first,) or answer.dtype.kind not in "iu":
+                raise actions_error(answer, end - first, self.n_actions)
+            given = np.ascontiguousarray(answer, np.int64)  # the range: checked in _advance
+        # every UAV observes at time 0, so every (episode, agent) path has a decision
+        path_start = np.zeros(e * n + 1, np.int64)
+        np.cumsum(states["n_dec"].reshape(-1), out=path_start[1:])
+        obs, time = np.empty((first, self.obs_dim)), np.empty(first)
+        actions, rewards, durations = np.empty(first, np.int64), np.empty(first), np.empty(first)
+        _paths(log[:first], path_start, n, obs, actions, rewards, durations, time)
+        return Rollout(
+            obs=obs, actions=actions, rewards=rewards, durations=durations, path_start=path_start,
+            path_episode=np.repeat(np.arange(e, dtype=np.int64), n),
+            path_agent=np.tile(np.arange(n, dtype=np.int64), e),
+            episode_return=states["returns"].mean(axis=1),
+            info={"decision_time": time, "end_time": states["t_end"].copy(),
+                  "events": states["events"].copy()})

@@ -13,7 +13,7 @@ def rollout_from_records(*, episode: np.ndarray, agent: np.ndarray, index: np.nd
                          end_time: np.ndarray, events: np.ndarray) -> Rollout:
     """Sort the decisions by (episode, agent) and group them into paths.
 
-    Paths may interleave, but each path's decisions must come in index order (both engines append
+    Paths may interleave, but each path's decisions must come in index order (the reference appends
     decisions as they happen), so one stable sort on the path key orders them (ValueError if not).
     ``agent_returns`` is (E, N) undiscounted reward sums; an episode's return is their mean.
     ``info`` keeps every decision's observation time, each episode's end time and event count.

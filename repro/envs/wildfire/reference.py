@@ -287,6 +287,11 @@ def check_actions(actions: np.ndarray, n: int, n_actions: int) -> np.ndarray:
     a = np.asarray(actions)
     if a.shape != (n,) or not np.issubdtype(a.dtype, np.integer) or (a.size and (
             a.min() < 0 or a.max() >= n_actions)):
-        raise ValueError(f"policy must return {n} integer actions in [0, {n_actions}), got "
-                         f"shape {a.shape} dtype {a.dtype}")
+        raise actions_error(a, n, n_actions)
     return a.astype(np.int64)
+
+
+def actions_error(a: np.ndarray, n: int, n_actions: int) -> ValueError:
+    """The error for a policy answer ``a`` that is not (n,) integer actions in [0, n_actions)."""
+    return ValueError(f"policy must return {n} integer actions in [0, {n_actions}), got "
+                      f"shape {a.shape} dtype {a.dtype}")
