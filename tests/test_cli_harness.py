@@ -83,3 +83,25 @@ def test_claims_command_renders_the_table(cli, tmp_path):
     for cid in ("C1", "C10", "C11"):
         assert f"| {cid} |" in text
     assert NOT_RUN in text
+
+
+def test_git_commit_is_dirty_for_code_changes_not_for_outputs(tmp_path):
+    import subprocess
+
+    from repro.core.io import git_commit
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    git("init", "-q")
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "a.csv").write_text("x\n")
+    (tmp_path / "code.py").write_text("x = 1\n")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "init")
+    clean = git_commit(tmp_path)
+    assert len(clean) == 40
+    (tmp_path / "results" / "a.csv").write_text("y\n")
+    assert git_commit(tmp_path) == clean
+    (tmp_path / "code.py").write_text("x = 2\n")
+    assert git_commit(tmp_path) == clean + "+dirty"

@@ -90,13 +90,20 @@ def save_figure(fig: Any, stem: str | Path) -> list[Path]:
     return out
 
 
-def git_commit() -> str:
-    """The commit of the working tree, with ``+dirty`` if it has uncommitted changes."""
-    root = Path(__file__).resolve().parents[2]
+OUTPUTS = ("results", "figures", "paper_claims.md")
+"""What the drivers write: changes there do not make a working tree dirty."""
+
+
+def git_commit(root: Path | None = None) -> str:
+    """The commit of the working tree at ``root`` (default: this suite's), with ``+dirty`` if it has
+    uncommitted changes outside :data:`OUTPUTS` (otherwise the second driver run after a commit
+    would already be "dirty")."""
+    root = root or Path(__file__).resolve().parents[2]
     try:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
                              check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
+                                *(f":(exclude){p}" for p in OUTPUTS)], cwd=root,
                                capture_output=True, text=True, check=True).stdout.strip()
         return sha + ("+dirty" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
