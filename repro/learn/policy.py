@@ -106,9 +106,9 @@ class Sampler:
     overhead (tens of microseconds) would dominate. So the sampler evaluates a numpy snapshot of the
     network and normaliser, taken when it is created (the policy is fixed during a rollout): float32
     like the network, each layer one BLAS product and one vectorised tanh written into buffers that
-    are reused from call to call (fresh arrays of a few hundred kilobytes cost a page fault per 4 kB),
-    and the sampling step, a dozen small numpy operations along rows of six entries, one compiled
-    loop (:func:`_sample_rows`). A call costs about 15 us plus 0.1-0.2 us per row.
+    are reused from call to call, and the sampling step (a dozen small numpy operations along rows of
+    a few entries) one compiled loop, :func:`_sample_rows`. In the engine benchmarks it costs about
+    1 us per decision, calls included (``policy_cpu_seconds`` in results/bench_*.csv).
     """
 
     def __init__(self, policy: CategoricalPolicy, normalizer: ObsNormalizer,
