@@ -89,3 +89,13 @@ def test_sampler_work_buffers_do_not_leak_between_calls():
     first = sampler.probabilities(small)
     sampler.probabilities(big)
     np.testing.assert_array_equal(sampler.probabilities(small), first)
+
+
+def test_linear_baseline_features_are_rllabs():
+    from repro.learn.baseline import LinearFeatureBaseline
+
+    rng = np.random.default_rng(0)
+    obs, index = rng.normal(size=(200, 5)) * 20, rng.integers(0, 300, 200)  # some clipped
+    z, k = np.clip(obs, -10, 10), (index / 100.0)[:, None]
+    expected = np.concatenate([z, z**2, k, k**2, k**3, np.ones_like(k)], axis=1)
+    np.testing.assert_array_equal(LinearFeatureBaseline.features(obs, index), expected)
