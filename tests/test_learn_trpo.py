@@ -7,11 +7,12 @@ import pytest
 import torch
 from torch.nn.utils import parameters_to_vector, vector_to_parameters
 
+from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy
-
-DTYPE = torch.float64
 from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, line_search, mean_kl,
                               normalize, trpo_step)
+
+DTYPE = torch.float64
 
 TRPO_KW = dict(max_kl=0.01, cg_iters=10, cg_damping=1e-5, backtrack_ratio=0.8, max_backtracks=15)
 
@@ -28,6 +29,16 @@ def tiny_problem(seed: int, n: int = 64, obs_dim: int = 3, n_actions: int = 4, h
     actions = torch.randint(0, n_actions, (n,), generator=g)
     adv = torch.as_tensor(normalize(torch.randn(n, generator=g, dtype=DTYPE).numpy()))
     return policy, obs, actions, adv
+
+
+def logp_of(policy: CategoricalPolicy, obs: torch.Tensor) -> torch.Tensor:
+    """The module's log-probabilities, action-major like the step's."""
+    with torch.no_grad():
+        return policy(obs).T
+
+
+def step(policy, obs, actions, adv, **kw):
+    return trpo_step(TanhMLP(policy.net), obs, actions, adv, **{**TRPO_KW, **kw})
 
 
 def test_conjugate_gradient_solves_spd_system():
@@ -50,16 +61,19 @@ def test_fvp_matches_explicit_hessian_of_mean_kl(seed):
         logp_old = policy(obs)
 
     def kl_of(theta: torch.Tensor) -> torch.Tensor:
+        """The mean KL by autograd's own arithmetic, sample-major, independent of the step's."""
         params, i = {}, 0
         for name, p in policy.named_parameters():
             params[name] = theta[i:i + p.numel()].view_as(p)
             i += p.numel()
-        return mean_kl(logp_old, torch.func.functional_call(policy, params, (obs,)))
+        logp = torch.func.functional_call(policy, params, (obs,))
+        return (logp_old.exp() * (logp_old - logp)).sum(dim=1).mean()
 
     hessian = torch.autograd.functional.hessian(kl_of, theta0)
     assert torch.linalg.norm(hessian) > 1e-3  # the comparison is not trivially 0 == 0
     damping = 0.1
-    fvp = fisher_vector_product(policy, obs, damping)
+    net = TanhMLP(policy.net)
+    fvp = fisher_vector_product(net, net.forward(obs), damping)
     eye = torch.eye(len(theta0), dtype=DTYPE)
     fisher = torch.stack([fvp(e) for e in eye], dim=1)
     np.testing.assert_allclose(fisher.numpy(), (hessian + damping * eye).numpy(), atol=1e-10)
@@ -68,11 +82,9 @@ def test_fvp_matches_explicit_hessian_of_mean_kl(seed):
 @pytest.mark.parametrize("seed", range(5))
 def test_accepted_steps_respect_kl_bound(seed):
     policy, obs, actions, adv = tiny_problem(seed)
-    with torch.no_grad():
-        logp_old = policy(obs)
-    stats = trpo_step(policy, obs, actions, adv, **TRPO_KW)
-    with torch.no_grad():
-        kl = float(mean_kl(logp_old, policy(obs)))
+    logp_old = logp_of(policy, obs)
+    stats = step(policy, obs, actions, adv)
+    kl = mean_kl(logp_old, logp_of(policy, obs))
     assert kl == pytest.approx(stats.kl, abs=1e-12)
     if stats.accepted:
         assert 0 < kl <= TRPO_KW["max_kl"]
@@ -83,17 +95,16 @@ def test_accepted_steps_respect_kl_bound(seed):
 
 def test_line_search_rejects_kl_violation_and_restores_parameters():
     policy, obs, actions, adv = tiny_problem(3)
+    net = TanhMLP(policy.net)
     theta0 = parameters_to_vector(policy.parameters()).detach().clone()
-    with torch.no_grad():
-        logp_old = policy(obs)
+    logp_old = logp_of(policy, obs)
     grad_dir = torch.randn(len(theta0), generator=torch.Generator().manual_seed(1), dtype=DTYPE)
+    columns = torch.arange(len(actions))
 
     def evaluate():
-        with torch.no_grad():
-            logp = policy(obs)
-            surr = torch.exp(logp.gather(1, actions[:, None])[:, 0]
-                             - logp_old.gather(1, actions[:, None])[:, 0]) * adv
-            return float(surr.mean()), float(mean_kl(logp_old, logp))
+        logp = logp_of(policy, obs)
+        surr = torch.exp(logp[actions, columns] - logp_old[actions, columns]) * adv
+        return float(surr.mean()), mean_kl(logp_old, logp)
 
     surr0 = evaluate()[0]
     seen = []
@@ -104,13 +115,13 @@ def test_line_search_rejects_kl_violation_and_restores_parameters():
         return out
 
     # a huge step with too few backtracks to come back inside the trust region
-    accepted, backtracks, _, kl = line_search(policy, recording_evaluate, 1e3 * grad_dir,
+    accepted, backtracks, _, kl = line_search(net, recording_evaluate, 1e3 * grad_dir,
                                               surr0 - 1e9, 0.01, 0.8, 3)
     assert not accepted and backtracks == 3 and kl == 0.0
     assert min(seen) > 0.01  # every try violated the bound ...
     assert torch.equal(parameters_to_vector(policy.parameters()), theta0)  # ... and nothing moved
     # the same step, allowed to shrink far enough, is accepted inside the bound
-    accepted, backtracks, _, kl = line_search(policy, evaluate, 1e3 * grad_dir, surr0 - 1e9,
+    accepted, backtracks, _, kl = line_search(net, evaluate, 1e3 * grad_dir, surr0 - 1e9,
                                               0.01, 0.5, 60)
     assert accepted and backtracks > 3 and kl <= 0.01
     vector_to_parameters(theta0, policy.parameters())
@@ -119,7 +130,7 @@ def test_line_search_rejects_kl_violation_and_restores_parameters():
 def test_line_search_rejects_step_that_lowers_surrogate():
     policy, obs, actions, adv = tiny_problem(4)
     theta0 = parameters_to_vector(policy.parameters()).detach().clone()
-    accepted, _, _, _ = line_search(policy, lambda: (0.0, 0.0), torch.ones_like(theta0), 1.0,
+    accepted, _, _, _ = line_search(TanhMLP(policy.net), lambda: (0.0, 0.0), torch.ones_like(theta0), 1.0,
                                     0.01, 0.8, 5)
     assert not accepted
     assert torch.equal(parameters_to_vector(policy.parameters()), theta0)
@@ -127,7 +138,7 @@ def test_line_search_rejects_step_that_lowers_surrogate():
 
 def test_step_improves_surrogate_along_natural_gradient():
     policy, obs, actions, adv = tiny_problem(5, n=256)
-    stats = trpo_step(policy, obs, actions, adv, **TRPO_KW)
+    stats = step(policy, obs, actions, adv)
     assert stats.accepted and stats.surrogate_after > stats.surrogate_before
     # the quadratic model sizes the first try to the bound: the accepted KL is close to max_kl
     assert stats.kl > 0.2 * TRPO_KW["max_kl"]
@@ -140,11 +151,9 @@ def test_fvp_subsample_all_rows_is_the_full_step_and_a_subsample_keeps_the_kl_bo
     results = {}
     for name, rows in (("none", None), ("all", torch.arange(64)), ("half", torch.arange(0, 64, 2))):
         policy, obs, actions, adv = tiny_problem(3)
-        with torch.no_grad():
-            logp_old = policy(obs)
-        stats = trpo_step(policy, obs, actions, adv, fvp_rows=rows, **TRPO_KW)
-        with torch.no_grad():
-            assert float(mean_kl(logp_old, policy(obs))) <= TRPO_KW["max_kl"] + 1e-12
+        logp_old = logp_of(policy, obs)
+        stats = step(policy, obs, actions, adv, fvp_rows=rows)
+        assert mean_kl(logp_old, logp_of(policy, obs)) <= TRPO_KW["max_kl"] + 1e-12
         results[name] = (parameters_to_vector(policy.parameters()).detach(), stats.accepted)
     assert all(accepted for _, accepted in results.values())
     assert torch.equal(results["none"][0], results["all"][0])

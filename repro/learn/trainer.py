@@ -7,7 +7,7 @@ written checkpoint and ``progress.csv``; running the same command again resumes 
 and ends with exactly the parameters of an uninterrupted run.
 
 Threads: torch and numpy's BLAS run on one thread (:func:`~repro.learn.policy.blas_on_one_thread`
-says why).
+says why). Memory: malloc keeps freed blocks (:func:`~repro.core.memory.keep_freed_memory` says why).
 
 Determinism: torch is seeded from the run seed; the policy's sampling draws
 come from one numpy Generator owned by the trainer (its state is checkpointed); epoch e's environment
@@ -32,11 +32,13 @@ import torch
 
 from repro.core.config import SCALES, to_dict
 from repro.core.errors import UsageError, require
+from repro.core.memory import keep_freed_memory
 from repro.core.io import atomic_path, check_writable_dir, write_csv, write_json
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
 from repro.learn.baseline import BASELINES, make_baseline
 from repro.learn.m_gae import m_gae_paths
+from repro.learn.network import TanhMLP
 from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
                                 blas_on_one_thread)
 from repro.learn.trpo import normalize, trpo_step
@@ -165,6 +167,7 @@ class Trainer:
         self.out = None if out is None else Path(out)
         self.run_config = {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env.name}
         torch.set_num_threads(1)
+        keep_freed_memory()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
         self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden)
         self.baseline = make_baseline(cfg.baseline, env.obs_dim, cfg.baseline_hidden,
@@ -192,8 +195,8 @@ class Trainer:
             rng = np.random.default_rng(_stream(cfg.seed, _FVP_STREAM, self.epoch))
             n_rows = max(1, int(cfg.fvp_subsample * ro.n_decisions))
             fvp_rows = torch.as_tensor(np.sort(rng.choice(ro.n_decisions, n_rows, replace=False)))
-        stats = trpo_step(self.policy, torch.as_tensor(z, dtype=DTYPE), torch.as_tensor(ro.actions),
-                          torch.as_tensor(normalize(adv), dtype=DTYPE),
+        stats = trpo_step(TanhMLP(self.policy.net), torch.as_tensor(z, dtype=DTYPE),
+                          torch.as_tensor(ro.actions), torch.as_tensor(normalize(adv), dtype=DTYPE),
                           max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
                           backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks,
                           fvp_rows=fvp_rows)

@@ -9,6 +9,10 @@ the mean KL at theta_old (the Fisher matrix, applied as a product, never formed)
 sqrt(2 max_kl / s'Fs) s would meet the KL bound exactly under the quadratic model; a backtracking line
 search shrinks it until the true KL is within the bound AND the surrogate improved, and otherwise
 leaves the parameters where they were.
+
+The products with the network's Jacobian are written out (:mod:`repro.learn.network`), not taken by
+autograd. Batches: observations (N, obs_dim); log-probabilities action-major, (n_actions, N). The
+network computes in its own dtype (float32 in training); conjugate gradient runs in float64.
 """
 
 from __future__ import annotations
@@ -18,8 +22,8 @@ from typing import Callable
 
 import numpy as np
 import torch
-from torch import nn
-from torch.nn.utils import parameters_to_vector, vector_to_parameters
+
+from repro.learn.network import Forward, TanhMLP, log_softmax
 
 
 @dataclass(frozen=True)
@@ -62,75 +66,75 @@ def conjugate_gradient(matvec: Callable[[torch.Tensor], torch.Tensor], b: torch.
     return x
 
 
-def mean_kl(logp_old: torch.Tensor, logp_new: torch.Tensor) -> torch.Tensor:
-    """mean over rows of KL(old || new), both given as (N, n_actions) log-probabilities."""
-    return (logp_old.exp() * (logp_old - logp_new)).sum(dim=1).mean()
+def mean_kl(logp_old: torch.Tensor, logp_new: torch.Tensor) -> float:
+    """Mean over decisions of KL(old || new), both (n_actions, N) log-probabilities."""
+    return float((logp_old.exp() * (logp_old - logp_new)).sum(dim=0).mean(dtype=torch.float64))
 
 
-def fisher_vector_product(policy: nn.Module, obs: torch.Tensor,
+def surrogate_gradient(net: TanhMLP, fwd: Forward, probs: torch.Tensor, actions: torch.Tensor,
+                       adv: torch.Tensor) -> torch.Tensor:
+    """grad L at theta_old = mean_k A_k grad log pi(a_k|o_k). The derivative of log pi(a|o) with
+    respect to the logits is onehot(a) - pi(.|o), so this is one backward pass of those columns."""
+    n = len(actions)
+    g = probs * (-adv / n)
+    g[actions, torch.arange(n)] += adv / n
+    return net.vjp(fwd, g).double()
+
+
+def fisher_vector_product(net: TanhMLP, fwd: Forward,
                           damping: float) -> Callable[[torch.Tensor], torch.Tensor]:
-    """v -> (F + damping I) v, F the Hessian of the mean KL at the current parameters.
+    """v -> (F + damping I) v, F the Hessian of the mean KL at the parameters of ``fwd``.
 
-    For a categorical policy that Hessian is exactly J' diag(p) J / N, J the Jacobian of the
-    log-probabilities with respect to the parameters, so each product is J v (by differentiating
-    J' w in w), a weighting by p, and J' u: two backward passes, no forward pass and no second
-    derivative of the network beyond what J v needs.
+    For a categorical policy that Hessian is J' M J / N, J the Jacobian of the logits with respect
+    to the parameters and M = diag(p) - p p' the Hessian of the KL in the logits, per decision. So a
+    product is a forward-mode pass (J v), a weighting, and a backward pass (J' u), no second
+    derivatives of the network.
     """
-    params = [p for p in policy.parameters()]
-    logp = policy(obs)
-    probs = logp.detach().exp()
-    w = torch.zeros_like(logp, requires_grad=True)
-    jt_w = torch.autograd.grad(logp, params, w, create_graph=True)
-    n = len(obs)
+    probs = log_softmax(fwd.logits).exp()
+    n = probs.shape[1]
 
     def fvp(v: torch.Tensor) -> torch.Tensor:
-        pieces, i = [], 0
-        for p in params:
-            pieces.append(v[i:i + p.numel()].view_as(p))
-            i += p.numel()
-        jv = torch.autograd.grad(jt_w, w, pieces, retain_graph=True)[0]
-        jt_u = torch.autograd.grad(logp, params, probs * jv / n, retain_graph=True)
-        return torch.cat([g.reshape(-1) for g in jt_u]) + damping * v
+        jv = net.jvp(fwd, v)
+        u = probs * (jv - (probs * jv).sum(dim=0))
+        return net.vjp(fwd, u.div_(n)).double() + damping * v
 
     return fvp
 
 
-def line_search(policy: nn.Module, evaluate: Callable[[], tuple[float, float]],
+def line_search(net: TanhMLP, evaluate: Callable[[], tuple[float, float]],
                 full_step: torch.Tensor, surrogate_before: float, max_kl: float,
                 backtrack_ratio: float, max_backtracks: int) -> tuple[bool, int, float, float]:
     """Try theta_old + ratio^i full_step for i = 0, 1, ...; keep the first with KL <= max_kl and a
-    higher surrogate. ``evaluate()`` returns (surrogate, KL) at the policy's current parameters.
+    higher surrogate. ``evaluate()`` returns (surrogate, KL) at the network's current parameters.
     Returns (accepted, backtracks, surrogate, KL); on rejection the old parameters are restored."""
-    old = parameters_to_vector(policy.parameters()).detach().clone()
+    old = net.get_flat()
     for i in range(max_backtracks):
-        vector_to_parameters(old + backtrack_ratio**i * full_step, policy.parameters())
+        net.set_flat(old + backtrack_ratio**i * full_step)
         surr, kl = evaluate()
         if np.isfinite(surr) and np.isfinite(kl) and kl <= max_kl and surr > surrogate_before:
             return True, i, surr, kl
-    vector_to_parameters(old, policy.parameters())
+    net.set_flat(old)
     return False, max_backtracks, surrogate_before, 0.0
 
 
-def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, adv: torch.Tensor, *,
+def trpo_step(net: TanhMLP, obs: torch.Tensor, actions: torch.Tensor, adv: torch.Tensor, *,
               max_kl: float, cg_iters: int, cg_damping: float, backtrack_ratio: float,
               max_backtracks: int, fvp_rows: torch.Tensor | None = None) -> TRPOStats:
-    """One constrained update of ``policy`` (log-probabilities of normalised observations) on a
-    batch; ``adv`` should already be normalised. ``fvp_rows`` (indices into the batch) restricts the
-    Fisher-vector products, and so the step size, to those rows (rllab's ``subsample_factor``); the
-    gradient and the line search always use the whole batch."""
-    logp = policy(obs)
-    logp_old = logp.detach()
-    logp_old_a = logp_old.gather(1, actions[:, None])[:, 0]
-    entropy = float(-(logp_old.exp() * logp_old).sum(dim=1).mean())
+    """One constrained update of the logit network ``net`` on a batch: normalised observations
+    ``obs`` (N, obs_dim) in the network's dtype, ``actions`` (N,), ``adv`` (N,) already normalised.
+    ``fvp_rows`` (indices into the batch) restricts the Fisher-vector products, and so the step size,
+    to those decisions (rllab's ``subsample_factor``); the gradient and the line search always use
+    the whole batch."""
+    columns = torch.arange(len(actions))
+    fwd = net.forward(obs)
+    logp_old = log_softmax(fwd.logits)
+    probs = logp_old.exp()
+    logp_old_a = logp_old[actions, columns]
+    entropy = -float((probs * logp_old).sum(dim=0).mean(dtype=torch.float64))
+    surr0 = float(adv.mean(dtype=torch.float64))  # the surrogate at theta_old: every ratio is 1
 
-    def surrogate(logp: torch.Tensor) -> torch.Tensor:
-        return (torch.exp(logp.gather(1, actions[:, None])[:, 0] - logp_old_a) * adv).mean()
-
-    params = list(policy.parameters())
-    surr = surrogate(logp)
-    grad = torch.cat([g.reshape(-1) for g in torch.autograd.grad(surr, params)])
-    surr0 = float(surr.detach())
-    fvp = fisher_vector_product(policy, obs if fvp_rows is None else obs[fvp_rows], cg_damping)
+    grad = surrogate_gradient(net, fwd, probs, actions, adv)
+    fvp = fisher_vector_product(net, fwd if fvp_rows is None else fwd.rows(fvp_rows), cg_damping)
     direction = conjugate_gradient(fvp, grad, cg_iters)
     shs = float(direction @ fvp(direction))
     if not shs > 0.0:  # zero gradient (e.g. all advantages equal): nothing to do
@@ -138,10 +142,10 @@ def trpo_step(policy: nn.Module, obs: torch.Tensor, actions: torch.Tensor, adv: 
     full_step = np.sqrt(2.0 * max_kl / shs) * direction
 
     def evaluate() -> tuple[float, float]:
-        with torch.no_grad():
-            logp = policy(obs)
-            return float(surrogate(logp)), float(mean_kl(logp_old, logp))
+        logp = log_softmax(net.forward(obs).logits)
+        ratio = (logp[actions, columns] - logp_old_a).exp_()
+        return float((ratio * adv).mean(dtype=torch.float64)), mean_kl(logp_old, logp)
 
-    accepted, backtracks, surr1, kl = line_search(policy, evaluate, full_step, surr0, max_kl,
+    accepted, backtracks, surr1, kl = line_search(net, evaluate, full_step, surr0, max_kl,
                                                   backtrack_ratio, max_backtracks)
     return TRPOStats(kl, entropy, surr0, surr1, backtracks, accepted)
