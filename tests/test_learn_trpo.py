@@ -158,3 +158,20 @@ def test_fvp_subsample_all_rows_is_the_full_step_and_a_subsample_keeps_the_kl_bo
     assert all(accepted for _, accepted in results.values())
     assert torch.equal(results["none"][0], results["all"][0])
     assert not torch.allclose(results["none"][0], results["half"][0])
+
+
+def test_surrogate_gradient_is_autograds():
+    from repro.learn.network import log_softmax
+    from repro.learn.trpo import surrogate_gradient
+
+    policy, obs, actions, adv = tiny_problem(6)
+    logp = policy(obs)
+    taken = logp.gather(1, actions[:, None])[:, 0]
+    surrogate = (torch.exp(taken - taken.detach()) * adv).mean()
+    grads = torch.autograd.grad(surrogate, list(policy.parameters()))
+    expected = torch.cat([g.reshape(-1) for g in grads])
+    net = TanhMLP(policy.net)
+    fwd = net.forward(obs)
+    got = surrogate_gradient(net, fwd, log_softmax(fwd.logits).exp(), actions, adv)
+    assert torch.linalg.norm(expected) > 1e-3
+    torch.testing.assert_close(got, expected, rtol=1e-10, atol=1e-12)
