@@ -93,7 +93,8 @@ class TrainConfig:
     the Fisher-vector products are computed; 1 = all (exact). rllab's ``subsample_factor``; OpenAI
     Baselines' TRPO uses every 5th decision. The Fisher matrix of a few thousand decisions is as
     good as that of the whole batch, and the products are most of a TRPO step's cost: on 25,000
-    decisions (the paper's wildfire batch) 0.2 cut a step from 0.26 s to 0.07 s on a 2-core machine."""
+    decisions (the paper's wildfire batch) 0.2 cut a step from 0.26 s to 0.07 s on a 2-core machine,
+    with the autograd products that came before repro.learn.network."""
     normalize_obs: bool = True
     """Running mean/std observation normalisation (frozen within a batch)."""
     seed: int = 0
