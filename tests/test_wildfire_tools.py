@@ -148,3 +148,18 @@ def test_pettingzoo_rewards_match_the_reference():
     assert sum(durations) == pytest.approx(ref.durations.sum())
     order = np.argsort(ref.info["decision_time"], kind="stable")
     np.testing.assert_allclose(np.sort(np.array(obs)[:, 0]), np.sort(ref.obs[order, 0]))
+
+
+def test_evaluate_without_observations_keeps_everything_adr_needs(monkeypatch):
+    from repro.envs.wildfire import make_env
+    from repro.experiments import wildfire_eval
+
+    monkeypatch.setattr(wildfire_eval, "BATCH_EPISODES", 10)  # several batches to join
+    env = make_env(WildfireConfig())
+    runs = {keep: wildfire_eval.evaluate(env, RandomPolicy(np.random.default_rng(1)), 25, 7,
+                                         keep_obs=keep) for keep in (True, False)}
+    full, slim = runs[True], runs[False]
+    assert full.obs.shape[1] == 28 and slim.obs.shape == (full.n_decisions, 0)
+    np.testing.assert_array_equal(slim.rewards, full.rewards)
+    np.testing.assert_array_equal(slim.path_start, full.path_start)
+    assert adr(slim, env.gamma) == adr(full, env.gamma)

@@ -154,7 +154,8 @@ def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
     for i, ((label, job), folder) in enumerate(zip(labelled, folders)):
         stream = np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i))
         policy = policy_from_checkpoint(folder / CHECKPOINT, np.random.default_rng(stream))
-        mean, err = adr(evaluate(env, policy, cfg.test_episodes, env_seed), env.gamma)
+        mean, err = adr(evaluate(env, policy, cfg.test_episodes, env_seed, keep_obs=False),
+                        env.gamma)
         curve = pd.read_csv(folder / "progress.csv")
         last = curve.average_discounted_return.iloc[-max(1, len(curve) // 10):]
         rows.append(dict(simulator=label, dt=job.env_config.dt or 0.0,  # 0 stands for ED

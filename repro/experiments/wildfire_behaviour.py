@@ -136,7 +136,7 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
         return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_POLICY_STREAM, i)))
 
     flow_adr, flow_sem = adr(evaluate(env, FlowchartPolicy(rng(0), n_observed=env_cfg.n_observed),
-                                      cfg.test_episodes, env_seed), env.gamma)
+                                      cfg.test_episodes, env_seed, keep_obs=False), env.gamma)
     rows = []
     for i, (job, folder) in enumerate(zip(jobs, folders), start=1):
         rollout = evaluate(env, policy_from_checkpoint(folder / CHECKPOINT, rng(i)),
