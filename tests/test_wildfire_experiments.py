@@ -140,3 +140,22 @@ def test_fs1_trained_with_t_health_2_9999_transfers_worse_than_with_3(tmp_path):
     folders = run_sweep([job for _, job in labelled], tmp_path, n_jobs=1)
     adr = evaluate_policies(cfg, labelled, folders, 0).set_index("simulator").adr_ed
     assert adr["FS-1 (T_health=2.9999)"] < adr["FS-1"] - 0.3, adr.to_dict()
+
+
+def test_frequency_counts_of_separate_batches_add_up_to_the_whole(monkeypatch):
+    """The behaviour driver counts batch by batch (to drop observations); that must give exactly
+    the frequencies of the joined rollout."""
+    from repro.experiments import wildfire_eval
+    from repro.experiments.wildfire_behaviour import frequency_counts, shares
+
+    monkeypatch.setattr(wildfire_eval, "BATCH_EPISODES", 20)
+    cfg = WildfireConfig()
+    counts = []
+    whole = evaluate(make_env(cfg), FlowchartPolicy(np.random.default_rng(3)), 70, 11,
+                     on_batch=lambda batch: counts.append(frequency_counts(batch, cfg)))
+    assert len(counts) == 4
+    total = {key: sum(c[key] for c in counts) for key in counts[0]}
+    assert shares(total) == frequencies(whole, cfg)
+    assert list(shares(total)) == ["hold_shared", "hold_alone",
+                                   *(f"fly_rank_{k}" for k in range(1, 6)), "closest_cluster",
+                                   "n_shared", "n_alone", "n_fly", "n_decisions"]

@@ -87,9 +87,10 @@ class BehaviourConfig:
         require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
 
 
-def frequencies(rollout: Rollout, env: WildfireConfig) -> dict[str, float]:
-    """The C6 frequencies of the module docstring (NaN where a condition never occurs), with the
-    number of decisions behind each conditional."""
+def frequency_counts(rollout: Rollout, env: WildfireConfig) -> dict[str, int]:
+    """The counts behind the C6 frequencies: for each, the decisions where its event happened
+    (``<name>_events``) out of those where its condition held (``n_shared``, ``n_alone``,
+    ``n_fly``). Counts of separate batches add up."""
     obs, act, k = rollout.obs, rollout.actions, env.n_observed
     block = obs[:, 2:2 + OBS_PER_FIRE * k].reshape(len(obs), k, OBS_PER_FIRE)
     at_live = (block[:, 0, 0] < AT_FIRE_TOL) & (block[:, 0, 3] > 0.5)
@@ -101,16 +102,32 @@ def frequencies(rollout: Rollout, env: WildfireConfig) -> dict[str, float]:
     rows = np.arange(len(obs))
     target_cluster = order[rows, np.minimum(act, k - 1)] // FIRES_PER_CLUSTER
     nearest_cluster = order[:, 0] // FIRES_PER_CLUSTER
-
-    def share(event: np.ndarray, given: np.ndarray) -> float:
-        return float(event[given].mean()) if given.any() else float("nan")
-
-    out = dict(hold_shared=share(hold, at_live & shared), hold_alone=share(hold, at_live & ~shared))
-    out.update({f"fly_rank_{r + 1}": share(act == r, fly) for r in range(k)})
-    out["closest_cluster"] = share(target_cluster == nearest_cluster, fly)
+    out = dict(hold_shared_events=int((hold & at_live & shared).sum()),
+               hold_alone_events=int((hold & at_live & ~shared).sum()))
+    out.update({f"fly_rank_{r + 1}_events": int((act == r).sum()) for r in range(k)})
+    out["closest_cluster_events"] = int(((target_cluster == nearest_cluster) & fly).sum())
     out.update(n_shared=int((at_live & shared).sum()), n_alone=int((at_live & ~shared).sum()),
                n_fly=int(fly.sum()), n_decisions=len(act))
     return out
+
+
+def shares(counts: dict[str, int]) -> dict[str, float]:
+    """The C6 frequencies of the module docstring from :func:`frequency_counts` (NaN where a
+    condition never occurs), with the number of decisions behind each conditional."""
+    given = dict(hold_shared="n_shared", hold_alone="n_alone", closest_cluster="n_fly")
+    out = {}
+    for key in counts:
+        if key.endswith("_events"):
+            name = key[:-len("_events")]
+            n = counts[given.get(name, "n_fly")]
+            out[name] = counts[key] / n if n else float("nan")
+    out.update({k: v for k, v in counts.items() if k.startswith("n_")})
+    return out
+
+
+def frequencies(rollout: Rollout, env: WildfireConfig) -> dict[str, float]:
+    """The C6 frequencies of one rollout (see :func:`shares`)."""
+    return shares(frequency_counts(rollout, env))
 
 
 def make_jobs(cfg: BehaviourConfig, scale: str, seed: int) -> list[TrainJob]:
@@ -139,12 +156,15 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
                                       cfg.test_episodes, env_seed, keep_obs=False), env.gamma)
     rows = []
     for i, (job, folder) in enumerate(zip(jobs, folders), start=1):
+        counts: list[dict[str, int]] = []  # per test batch, so that observations need not be kept
         rollout = evaluate(env, policy_from_checkpoint(folder / CHECKPOINT, rng(i)),
-                           cfg.test_episodes, env_seed)
+                           cfg.test_episodes, env_seed, keep_obs=False,
+                           on_batch=lambda batch: counts.append(frequency_counts(batch, env_cfg)))
         learned_adr, learned_sem = adr(rollout, env.gamma)
+        total = {key: sum(c[key] for c in counts) for key in counts[0]}
         rows.append(dict(train_seed=job.train.seed, epochs=job.train.epochs,
                          batch_episodes=job.train.batch_episodes, test_episodes=cfg.test_episodes,
-                         **frequencies(rollout, env_cfg), adr_learned=learned_adr,
+                         **shares(total), adr_learned=learned_adr,
                          adr_learned_sem=learned_sem, adr_flowchart=flow_adr,
                          adr_flowchart_sem=flow_sem,
                          flowchart_worse=1.0 - flow_adr / learned_adr, run=job.name))

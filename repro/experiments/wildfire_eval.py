@@ -13,6 +13,7 @@ import argparse
 import json
 import time
 from dataclasses import replace
+from typing import Callable
 
 import numpy as np
 
@@ -33,18 +34,21 @@ def adr(rollout: Rollout, gamma: float) -> tuple[float, float]:
     return float(np.mean(r)), sem(r)
 
 
-def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = True) -> Rollout:
+def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = True,
+             on_batch: Callable[[Rollout], object] | None = None) -> Rollout:
     """Roll out ``n_episodes`` in batches seeded from children of ``seed``. ``keep_obs=False`` drops
     each batch's observations as soon as it is done (the result's ``obs`` has 0 columns): ADR does
     not need them, and a learned policy that keeps flying to the fire it is at can take tens of
     millions of decisions over 10,000 test episodes; with their observations, one paper-scale
-    transfer test filled the machine's 24 GB."""
+    transfer test filled the machine's 24 GB. ``on_batch`` sees each whole batch first."""
     n_batches = -(-n_episodes // BATCH_EPISODES)
     children = np.random.SeedSequence(seed).spawn(n_batches)
     sizes = [min(BATCH_EPISODES, n_episodes - c * BATCH_EPISODES) for c in range(n_batches)]
     batches = []
     for n, ss in zip(sizes, children):
         batch = env.rollout(policy, n, ss)
+        if on_batch is not None:
+            on_batch(batch)
         batches.append(batch if keep_obs else replace(batch, obs=batch.obs[:, :0], info={}))
     return concat(batches)
 
