@@ -37,8 +37,8 @@ def adr(rollout: Rollout, gamma: float) -> tuple[float, float]:
 def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = True,
              on_batch: Callable[[Rollout], object] | None = None) -> Rollout:
     """Roll out ``n_episodes`` in batches seeded from children of ``seed``. ``keep_obs=False`` drops
-    each batch's observations as soon as it is done (the result's ``obs`` has 0 columns): ADR does
-    not need them, and a learned policy that keeps flying to the fire it is at can take tens of
+    each batch's observations and engine log (``info``) as soon as it is done (the result's ``obs``
+    has 0 columns): ADR does not need them, and a learned policy that keeps flying to the fire it is at can take tens of
     millions of decisions over 10,000 test episodes; with their observations, one paper-scale
     transfer test filled the machine's 24 GB. ``on_batch`` sees each whole batch first."""
     n_batches = -(-n_episodes // BATCH_EPISODES)

@@ -32,8 +32,8 @@ import torch
 
 from repro.core.config import SCALES, to_dict
 from repro.core.errors import UsageError, require
-from repro.core.memory import keep_freed_memory
 from repro.core.io import atomic_path, check_writable_dir, write_csv, write_json
+from repro.core.memory import keep_freed_memory
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
 from repro.learn.baseline import BASELINES, make_baseline
