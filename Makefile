@@ -94,5 +94,6 @@ fig-transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARG
 wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the flowchart (C6, C7)
 	$(REPRO) wildfire-behaviour --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-clean: ## remove the virtual environment and caches (results and figures stay)
+clean: ## remove the virtual environment and caches, numba's compiled kernels too (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis
+	find repro tests -name __pycache__ -prune -exec rm -rf {} +

@@ -15,6 +15,7 @@ from threadpoolctl import threadpool_limits
 from numba import njit
 from torch import nn
 
+from repro.core.policy_kernel import MAX_ROWS, CompiledPolicy, act_row, sample_row
 from repro.core.rollout import DecisionBatch
 
 DTYPE = torch.float32
@@ -109,6 +110,10 @@ class Sampler:
     are reused from call to call, and the sampling step (a dozen small numpy operations along rows of
     a few entries) one compiled loop, :func:`_sample_rows`. In the engine benchmarks it costs about
     1 us per decision, calls included (``policy_cpu_seconds`` in results/bench_*.csv).
+
+    A round of at most :data:`~repro.core.policy_kernel.MAX_ROWS` rows skips those calls: it is
+    evaluated row by row in one compiled function, and an engine may do that itself without calling
+    back (:attr:`compiled`; see :mod:`repro.core.policy_kernel`).
     """
 
     def __init__(self, policy: CategoricalPolicy, normalizer: ObsNormalizer,
@@ -116,9 +121,11 @@ class Sampler:
         linears = [m for m in policy.net if isinstance(m, nn.Linear)]
         self.layers = [(m.weight.detach().numpy().T.copy(), m.bias.detach().numpy().copy())
                        for m in linears]
-        self.mean = normalizer.mean.copy()
-        self.scale = 1.0 / np.sqrt(normalizer.var + normalizer.eps)
-        self.rng = rng
+        self.compiled = CompiledPolicy(tuple(w for w, _ in self.layers),
+                                       tuple(b for _, b in self.layers), normalizer.mean.copy(),
+                                       1.0 / np.sqrt(normalizer.var + normalizer.eps), rng)
+        """The same policy for an engine's compiled loop (same arrays, same generator)."""
+        self.mean, self.scale, self.rng = self.compiled.mean, self.compiled.scale, rng
         self._buffers: list[np.ndarray] = []
 
     def _buffer(self, i: int, rows: int, cols: int, dtype: type) -> np.ndarray:
@@ -154,30 +161,24 @@ class Sampler:
         return e / e.sum(axis=1, keepdims=True)
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
-        logits = self.logits(batch.obs)
-        actions = np.empty(len(logits), np.int64)
-        _sample_rows(logits, self.rng.random(len(logits)), actions)
+        actions = np.empty(len(batch.obs), np.int64)
+        if len(actions) <= MAX_ROWS:
+            _act_rows(batch.obs, *self.compiled, actions)
+        else:
+            _sample_rows(self.logits(batch.obs), self.rng.random(len(actions)), actions)
         return actions
 
 
 @njit(cache=True)
 def _sample_rows(logits, u, actions):
-    """actions[r] ~ softmax(logits[r]) by inverse CDF with the uniform u[r], in float64: the number
-    of cumulative unnormalised probabilities <= u[r] times their total, capped at the last action
-    against rounding at the top."""
-    n = logits.shape[1]
-    cdf = np.empty(n)
+    """actions[r] ~ softmax(logits[r]) with the uniform u[r] (:func:`sample_row`)."""
+    cdf = np.empty(logits.shape[1])
     for r in range(logits.shape[0]):
-        top = logits[r, 0]
-        for j in range(1, n):
-            top = max(top, logits[r, j])
-        total = 0.0
-        for j in range(n):
-            total += np.exp(np.float64(logits[r, j]) - top)
-            cdf[j] = total
-        target = u[r] * total
-        a = 0
-        for j in range(n):
-            if cdf[j] <= target:
-                a += 1
-        actions[r] = min(a, n - 1)
+        actions[r] = sample_row(logits[r], u[r], cdf)
+
+
+@njit(cache=True)
+def _act_rows(obs, weights, biases, mean, scale, rng, actions):
+    """The actions of a small round, row by row (:func:`act_row`), one uniform per row in order."""
+    for r in range(obs.shape[0]):
+        actions[r] = act_row(obs[r], weights, biases, mean, scale, rng.random())
