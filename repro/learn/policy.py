@@ -162,10 +162,12 @@ class Sampler:
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
         actions = np.empty(len(batch.obs), np.int64)
+        u = self.rng.random(len(actions))
         if len(actions) <= MAX_ROWS:
-            _act_rows(batch.obs, *self.compiled, actions)
+            c = self.compiled
+            _act_rows(batch.obs, c.weights, c.biases, c.mean, c.scale, u, actions)
         else:
-            _sample_rows(self.logits(batch.obs), self.rng.random(len(actions)), actions)
+            _sample_rows(self.logits(batch.obs), u, actions)
         return actions
 
 
@@ -178,7 +180,7 @@ def _sample_rows(logits, u, actions):
 
 
 @njit(cache=True)
-def _act_rows(obs, weights, biases, mean, scale, rng, actions):
-    """The actions of a small round, row by row (:func:`act_row`), one uniform per row in order."""
+def _act_rows(obs, weights, biases, mean, scale, u, actions):
+    """The actions of a small round, row by row (:func:`act_row`) with the uniforms u."""
     for r in range(obs.shape[0]):
-        actions[r] = act_row(obs[r], weights, biases, mean, scale, rng.random())
+        actions[r] = act_row(obs[r], weights, biases, mean, scale, u[r])

@@ -13,7 +13,7 @@ over. Python then hands all pending observations of the batch to the policy in O
 repeats. Decisions are appended to a flat log and placed into contiguous paths at the end.
 A policy that offers a compiled form (:class:`repro.core.policy_kernel.CompiledPolicy`, as the
 learner's sampler does) is applied to rounds of a few decisions inside the kernel
-(``_advance_acting``), with the same actions as its call: learned policies make episodes of
+(``_act_and_advance``), with the same actions as its call: learned policies make episodes of
 hundreds of thousands of decisions, whose rounds near the end hold one row or a few, and one such
 600-episode rollout spent 95% of its time returning to Python.
 
@@ -471,21 +471,21 @@ def _advance(states, live, log, used, params, holds, actions, first):
 
 
 @jit
-def _advance_acting(states, live, log, used, params, holds, actions, first, weights, biases, mean,
-                    scale, rng):
-    """:func:`_advance`, then, while the next round has at most MAX_ROWS decisions, act on it here
-    as the policy's call would (the policy's last five arguments: a CompiledPolicy) and advance
-    again. Long episodes end in many rounds of a row or a few, each a return to Python otherwise.
-    Stops at a larger round, which is left to the policy's call, and at the end or a full log or
-    heap. The actions made here are in range: the network has one output per action."""
-    status, first = _advance(states, live, log, used, params, holds, actions, first)
+def _act_and_advance(states, live, log, used, params, holds, first, weights, biases, mean, scale,
+                     rng):
+    """Act on the pending round of at most MAX_ROWS decisions as the policy's call would (its
+    last five arguments: a CompiledPolicy) and :func:`_advance`; repeat while the next round is as
+    small. Long episodes end in many rounds of a row or a few, each a return to Python otherwise.
+    Returns as :func:`_advance` does. The actions made here are in range: the network has one
+    output per action."""
     own = np.empty(MAX_ROWS, np.int64)
-    while status == OK and 0 < used[0] - first <= MAX_ROWS:
+    while True:
         n = used[0] - first
         for k in range(n):
             own[k] = act_row(log[first + k].obs, weights, biases, mean, scale, rng.random())
         status, first = _advance(states, live, log, used, params, holds, own[:n], first)
-    return status, first
+        if status != OK or not 0 < used[0] - first <= MAX_ROWS:
+            return status, first
 
 
 @jit
@@ -553,16 +553,18 @@ class WildfireEnv:
             compiled = None  # the policy's call will meet the range check, and report it
         first = 0  # the first row without an action
         answer = given = np.empty(0, np.int64)  # the policy's answer for rows first, ...
+        act_here = False  # the kernel acts on the pending round (small; the policy compiled)
         while True:
-            if compiled is None:
-                status, first = _advance(states, live, log, used, self.params, holds, given, first)
+            if act_here:
+                status, first = _act_and_advance(states, live, log, used, self.params, holds,
+                                                 first, *compiled)
             else:
-                status, first = _advance_acting(states, live, log, used, self.params, holds, given,
-                                                first, *compiled)
+                status, first = _advance(states, live, log, used, self.params, holds, given, first)
             if status == BAD_ACTION:
                 raise actions_error(answer, len(answer), self.n_actions)
             given = given[:0]
-            if status == GROW_LOG:
+            act_here = False
+            if status == GROW_LOG:  # then the round may be a part of a large one: go on as one
                 log = _grow(log)
                 continue
             if status == HEAP_FULL:
@@ -570,6 +572,9 @@ class WildfireEnv:
             end = int(used[0])
             if end == first:
                 break
+            if compiled is not None and end - first <= MAX_ROWS:
+                act_here = True
+                continue
             rows = log[first:end]
             batch = DecisionBatch(obs=rows["obs"], episode=rows["ep"], agent=rows["agent"],
                                   index=rows["idx"])
