@@ -15,7 +15,7 @@ A policy that offers a compiled form (:class:`repro.core.policy_kernel.CompiledP
 learner's sampler does) is applied to rounds of a few decisions inside the kernel
 (``_act_and_advance``), with the same actions as its call: learned policies make episodes of
 hundreds of thousands of decisions, whose rounds near the end hold one row or a few, and one such
-600-episode rollout spent 95% of its time returning to Python.
+600-episode rollout, profiled, spent 95% of its time in the round trips to Python.
 
 Speed. A rollout of the training batch (600 episodes, about 14,000 decisions and 32,000 events)
 takes about 50 rounds, so the per-event cost dominates. An episode's state is one numpy record (a
