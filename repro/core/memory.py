@@ -14,7 +14,8 @@ long-trained wildfire policies (up to millions of decisions) are made of such bl
 epoch of 1.97 million decisions the TRPO step took 20.7 s with 2.0 million page faults, and 11.8 s
 with 0.34 million once malloc was told to map none (M_MMAP_MAX = 0), so that large blocks come
 from the heap and are reused too (two other training processes shared the machine meanwhile).
-Without mmap, malloc still falls back on it if the heap cannot grow.
+If the heap cannot grow, malloc still maps memory (glibc's sysmalloc ignores the mmap limits for
+that fallback).
 """
 
 from __future__ import annotations
