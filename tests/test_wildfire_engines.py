@@ -55,10 +55,11 @@ def assert_same(ref: Rollout, fast: Rollout) -> None:
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2 ** 32 - 1), dt=st.sampled_from(DTS),
        t_health=st.sampled_from((3.0, 2.9999)), q1=st.booleans(), q2=st.booleans(),
-       kind=st.sampled_from(("scripted", "random", "nearest", "flowchart")))
-def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, kind):
+       kind=st.sampled_from(("scripted", "random", "nearest", "flowchart")),
+       max_decisions=st.sampled_from((None, None, 1, 3, 12)))
+def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, kind, max_decisions):
     cfg = WildfireConfig(dt=dt, t_health=t_health, quirk_q1_stale_attack=q1,
-                         quirk_q2_penalty_party_only=q2)
+                         quirk_q2_penalty_party_only=q2, max_decisions=max_decisions)
     n = 2
     ref = make_reference_env(cfg).rollout(make_policy(kind, seed, cfg, n), n, seed)
     fast = make_env(cfg).rollout(make_policy(kind, seed, cfg, n), n, seed)
@@ -73,6 +74,42 @@ def test_engines_agree_on_a_larger_batch():
     fast = make_env(cfg).rollout(make_policy("flowchart", 7, cfg, n), n, 11)
     assert_same(ref, fast)
     assert ref.rewards.max() > 0
+
+
+class FlyToClosest:
+    """Always action 0: once at a fire, every flight is to that fire, takes no time, and the UAV
+    decides again after the latency (the regime long ED training drifts into)."""
+
+    def __call__(self, batch: DecisionBatch) -> np.ndarray:
+        return np.zeros(len(batch), np.int64)
+
+
+@pytest.mark.parametrize("dt", [None, 1.0])
+def test_decision_limit_ends_the_episode(dt):
+    """With max_decisions, an episode ends when a UAV's macro-action ends after its last allowed
+    decision; both engines agree; paths chain up to the end time as at T_max."""
+    cfg = WildfireConfig(dt=dt, max_decisions=200)
+    ref = make_reference_env(cfg).rollout(FlyToClosest(), 3, 5)
+    fast = make_env(cfg).rollout(FlyToClosest(), 3, 5)
+    assert_same(ref, fast)
+    lengths = np.diff(fast.path_start).reshape(3, cfg.n_agents)
+    assert np.all(lengths.max(axis=1) == 200)  # each episode ended by a UAV at its limit
+    if dt is None:  # zero-length flights last one latency (FS rounds them up to the grid)
+        assert np.sum(fast.durations < 2 * cfg.decision_latency) > 150
+    assert np.all(fast.info["end_time"] < cfg.t_max)
+    for p in range(fast.n_paths):
+        sl = slice(fast.path_start[p], fast.path_start[p + 1])
+        t = fast.info["decision_time"][sl]
+        np.testing.assert_allclose(t[-1] + fast.durations[sl][-1],
+                                   fast.info["end_time"][fast.path_episode[p]], atol=1e-9)
+
+
+def test_no_decision_limit_by_default():
+    """Without a limit the same episodes only end at T_max (about 26 million latencies)."""
+    cfg = WildfireConfig()
+    limited = make_env(WildfireConfig(max_decisions=100_000)).rollout(FlyToClosest(), 1, 5)
+    assert cfg.max_decisions is None
+    assert np.diff(limited.path_start).max() == 100_000
 
 
 def test_rollout_structure():

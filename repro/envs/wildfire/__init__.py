@@ -16,7 +16,7 @@ from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episo
 
 
 def add_env_arguments(parser: argparse.ArgumentParser) -> None:
-    """The simulator options: ED or FS-dT, T_health and the quirk switches."""
+    """The simulator options: ED or FS-dT, T_health, the quirk switches, the decision limit."""
     parser.add_argument("--sim", choices=("ed", "fs"), default="ed",
                         help="event-driven, or fixed-step (needs --dt)")
     parser.add_argument("--dt", type=float, help="FS time step dT in seconds (only with --sim fs)")
@@ -28,6 +28,9 @@ def add_env_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quirk-q2", action=argparse.BooleanOptionalAction,
                         default=WildfireConfig.quirk_q2_penalty_party_only,
                         help="Q2: the penalty goes to the extinguish party only")
+    parser.add_argument("--max-decisions", type=int,
+                        help="end an episode when a UAV's macro-action ends after this many of its "
+                             "decisions (not in the paper; default: no limit)")
 
 
 def config_from_args(args: argparse.Namespace) -> WildfireConfig:
@@ -37,7 +40,8 @@ def config_from_args(args: argparse.Namespace) -> WildfireConfig:
     else:
         require(args.dt is None, "--dt", "only used with --sim fs", args.dt)
     cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, quirk_q1_stale_attack=args.quirk_q1,
-                         quirk_q2_penalty_party_only=args.quirk_q2)
+                         quirk_q2_penalty_party_only=args.quirk_q2,
+                         max_decisions=args.max_decisions)
     cfg.validate()
     return cfg
 

@@ -81,12 +81,12 @@ def params_record(cfg: WildfireConfig) -> np.ndarray:
         ("n_agents", np.int64), ("n_fires", np.int64), ("n_obs", np.int64), ("v", np.float64),
         ("dt", np.float64), ("latency", np.float64), ("tol", np.float64), ("gamma", np.float64),
         ("r_ext", np.float64), ("r_pen", np.float64), ("t_health", np.float64),
-        ("t_max", np.float64), ("q1", np.bool_), ("q2", np.bool_),
+        ("t_max", np.float64), ("max_dec", np.int64), ("q1", np.bool_), ("q2", np.bool_),
         ("fires", np.float64, fires.shape)], align=True))
     rec[0] = (cfg.n_agents, len(fires), cfg.n_observed, cfg.v_uav, cfg.dt or 0.0,
               cfg.decision_latency, cfg.at_fire_tol, cfg.gamma, cfg.r_ext, cfg.r_pen,
-              cfg.t_health, cfg.t_max, cfg.quirk_q1_stale_attack, cfg.quirk_q2_penalty_party_only,
-              fires)
+              cfg.t_health, cfg.t_max, cfg.max_decisions or 0, cfg.quirk_q1_stale_attack,
+              cfg.quirk_q2_penalty_party_only, fires)
     return rec
 
 
@@ -445,8 +445,11 @@ def _advance(states, live, log, used, params, holds, actions, first):
                 if kind == INT_UAV or sq == s.uwait[who]:
                     _land(s, p, who, kind == INT_UAV)
                     _close(s, log[s.cur[who]], who)
-                    _observe(s, p, log[row], row, e, who)
-                    row += 1
+                    if s.n_dec[who] == p.max_dec:  # 0 (no limit) never: n_dec >= 1 here
+                        _end(s, log, p)
+                    else:
+                        _observe(s, p, log[row], row, e, who)
+                        row += 1
             elif kind == EXTINGUISH:
                 if sq == s.fwait[who]:
                     _extinguish(s, p, who)

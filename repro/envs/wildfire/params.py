@@ -53,6 +53,13 @@ class WildfireConfig:
     quirk_q2_penalty_party_only: bool = True
     """Q2: r_pen goes to the extinguish party's members only (released implementation); False gives
     it to every agent, as the paper says."""
+    max_decisions: int | None = None
+    """The episode also ends when a UAV's macro-action ends after its ``max_decisions``-th decision
+    (instead of that UAV deciding again), as at T_max: every running macro-action is cut. None: no
+    limit (SPEC). Not in the paper; rllab's ``max_path_length``, which the released sampler
+    (``ed_dec_rollout``) applies to the longest agent path. Only a policy that flies to the fire it
+    is at, over and over, comes near a limit of a thousand: each such flight takes no time, so the
+    UAV decides again after the latency, up to T_max / 1e-5 s = 26 million times an episode."""
     hold_table_size: int = 128
     """Hold durations pre-drawn per agent and episode (used in order, cyclically: far more holds
     than fit into T_max). Both engines index this table by the agent's hold count."""
@@ -70,6 +77,8 @@ class WildfireConfig:
                 self.decision_latency)
         require(1 <= self.n_observed <= 9, "n_observed", "between 1 and the number of fires",
                 self.n_observed)
+        require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
+                "an integer >= 1", self.max_decisions)
         require(self.hold_table_size >= 1, "hold_table_size", "an integer >= 1",
                 self.hold_table_size)
 

@@ -18,8 +18,9 @@ Choices the SPEC leaves open, made once here and mirrored by the fast engine:
 - Parties are sets of agent indices; interrupts and penalties go out in agent-index order. A fire
   that is out keeps its interest party (UAVs leave it with their next action), and joining or
   leaving its extinguish party does nothing (but Q1's memory of the attacked fire is still set).
-- The episode ends right after the event that puts out the last fire or reaches T_max; events
-  scheduled for the same instant are not processed.
+- The episode ends right after the event that puts out the last fire or reaches T_max, or (with
+  ``max_decisions``) ends a UAV's macro-action after its last allowed decision; events scheduled
+  for the same instant are not processed.
 """
 
 from __future__ import annotations
@@ -88,6 +89,9 @@ class WildfireModel:
 
     def _uav(self, i: int):
         while True:
+            if self._decisions(i) == self.cfg.max_decisions:
+                self._end()
+                return
             self._observe(i)
             try:
                 yield self.env.timeout(self.cfg.decision_latency)
@@ -219,6 +223,10 @@ class WildfireModel:
             self._end()
 
     # --- bookkeeping -----------------------------------------------------------------------------
+
+    def _decisions(self, i: int) -> int:
+        """How many decisions UAV i has made so far."""
+        return 0 if self.current[i] < 0 else self.rec[self.current[i]]["index"] + 1
 
     def _delay(self, d: float) -> float:
         return fs_delay(self.env.now, d, self.dt)
