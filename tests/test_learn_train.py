@@ -4,6 +4,7 @@ options, and the real entry points run."""
 from __future__ import annotations
 
 import argparse
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -142,6 +143,20 @@ def test_resume_with_other_settings_refused(tmp_path, capsys):
     assert main(["train", "--env", "toy", "--scale", "smoke", "--out", out]) == 0
     assert main(["train", "--env", "toy", "--scale", "smoke", "--lam", "0.5", "--out", out]) == 2
     assert "--out" in capsys.readouterr().err
+
+
+def test_resume_of_a_run_older_than_a_setting(tmp_path):
+    """A run folder written before a setting existed resumes when the setting is at its default,
+    and not otherwise."""
+    out = tmp_path / "run"
+    opts = ["train", "--env", "wildfire", "--scale", "smoke", "--out", str(out)]
+    assert main([*opts, "--epochs", "1"]) == 0
+    config = json.loads((out / "config.json").read_text())
+    del config["env"]["max_decisions"], config["train"]["fvp_subsample"]
+    (out / "config.json").write_text(json.dumps(config))
+    assert main([*opts, "--epochs", "2", "--max-decisions", "50"]) == 2
+    assert main([*opts, "--epochs", "2"]) == 0
+    assert len(pd.read_csv(out / "progress.csv")) == 2
 
 
 def test_bench_learn_smoke(tmp_path):

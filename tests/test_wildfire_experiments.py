@@ -156,6 +156,26 @@ def test_frequency_counts_of_separate_batches_add_up_to_the_whole(monkeypatch):
     assert len(counts) == 4
     total = {key: sum(c[key] for c in counts) for key in counts[0]}
     assert shares(total) == frequencies(whole, cfg)
-    assert list(shares(total)) == ["hold_shared", "hold_alone",
-                                   *(f"fly_rank_{k}" for k in range(1, 6)), "closest_cluster",
-                                   "n_shared", "n_alone", "n_fly", "n_decisions"]
+    names = ["hold_shared", "hold_alone", *(f"fly_rank_{k}" for k in range(1, 6)),
+             "closest_cluster"]
+    assert list(shares(total)) == [*names, *(n + "_ex_stay" for n in names), "stay_flight",
+                                   "n_shared", "n_alone", "n_fly", "n_shared_ex_stay",
+                                   "n_alone_ex_stay", "n_fly_ex_stay", "n_decisions"]
+
+
+def test_stay_flights_are_flights_to_the_fire_the_uav_is_at():
+    """A stay flight (almost always) lasts one latency in ED; the frequencies without them count
+    every other decision as before."""
+    from repro.experiments.wildfire_behaviour import frequency_counts
+
+    cfg = WildfireConfig()
+    ro = make_env(cfg).rollout(FlowchartPolicy(np.random.default_rng(5)), 40, 2)
+    c = frequency_counts(ro, cfg)
+    stay = (ro.actions == 0) & (ro.obs[:, 2] < 1e-3)  # only the closest fire can be that close
+    assert c["stay_flight_events"] == stay.sum() > 0
+    # a UAV cut off within AT_FIRE_TOL of a fire flies the rest of the way: at most 0.07 s
+    assert np.all(ro.durations[stay] <= cfg.decision_latency + 1e-3 / cfg.v_uav)
+    assert np.median(ro.durations[stay]) < 2 * cfg.decision_latency
+    assert c["n_fly"] - c["n_fly_ex_stay"] == c["stay_flight_events"]
+    assert c["fly_rank_1_events"] - c["fly_rank_1_events_ex_stay"] == c["stay_flight_events"]
+    assert c["hold_alone_events"] == c["hold_alone_events_ex_stay"]  # a hold is never a flight

@@ -47,11 +47,31 @@ def check_c6(results: Path) -> Verdict:
     verdict = "PASS" if all(ok) else "PARTIAL" if any(ok) else "FAIL"
     outside = [k for k, good in zip(C6_PAPER, ok) if not good]
     ours = ", ".join(f"{_pct(t[k].mean())}" for k in C6_PAPER)
+    limit = int(t.get("max_decisions", pd.Series([0])).iloc[0])
     detail = (f"{len(t)} policies x {t.epochs.iloc[0]} epochs x {t.batch_episodes.iloc[0]} "
-              f"episodes on ED, measured on {t.test_episodes.iloc[0]} ED episodes each; mean over "
-              f"policies [95% bootstrap CI]: " + "; ".join(parts)
-              + f". Outside tolerance: {outside or 'none'}")
+              f"episodes on ED{_limit(limit)}, measured on {t.test_episodes.iloc[0]} ED episodes "
+              f"each; mean over policies [95% bootstrap CI]: " + "; ".join(parts)
+              + f". Outside tolerance: {outside or 'none'}." + _without_stays(t, results))
     return Verdict(ours, verdict, detail, scale_of(path))
+
+
+def _limit(max_decisions: int) -> str:
+    return f" (at most {max_decisions} decisions per UAV and episode)" if max_decisions else ""
+
+
+def _without_stays(t: pd.DataFrame, results: Path) -> str:
+    """The frequencies without stay flights (flights to the fire the UAV is at), the learned
+    policies' beside the flowchart's (the paper's probabilities); empty for older results."""
+    flow_path = results / "wildfire_behaviour_flowchart.csv"
+    if "stay_flight" not in t or not flow_path.exists():
+        return ""
+    flow = pd.read_csv(flow_path).iloc[0]
+    pairs = "; ".join(f"{k} {_pct(t[k + '_ex_stay'].mean())} vs {_pct(flow[k + '_ex_stay'])}"
+                      for k in C6_PAPER)
+    return (f" Stay flights (to the fire the UAV is at; they take no time) are "
+            f"{_pct(t.stay_flight.mean())} of the learned policies' decisions and "
+            f"{_pct(flow.stay_flight)} of the flowchart's. Without them, learned vs flowchart (the "
+            f"paper's probabilities, same test episodes): {pairs}.")
 
 
 def check_c7(results: Path) -> Verdict:

@@ -17,6 +17,17 @@ j-th closest observed fire, d_j its distance, s_j its status, I_j its interest p
   fly action). The target is identified by ranking all nine fires by distance from the UAV's
   observed position, as the engine does; clusters are the blocks of three of ``fire_positions``.
 
+*Stay flights*: a fly action to a fire closer than AT_FIRE_TOL, that is, to the fire the UAV is at.
+It takes no time (in ED; a UAV cut off just short of the fire flies the rest, under 0.07 s), so
+the UAV decides again after the 1e-5 s latency. SPEC counts them
+among the fly actions, as above. Learned ED policies make many (about half of the decisions of
+the quick-scale policy, over 90% of a paper-scale run's at epoch 300), which swamps ``fly_rank_1``
+and ``hold_alone``. So every
+frequency is also given without them (suffix ``_ex_stay``), and ``stay_flight`` is their share
+of all decisions. The flowchart's own frequencies are measured the same way
+(``wildfire_behaviour_flowchart.csv``): its ``_ex_stay`` values are the paper's policy, as the
+flowchart encodes it, without stay flights.
+
 C7: the ``flowchart`` policy (``repro.envs.wildfire.policies.FlowchartPolicy``, the paper's
 probabilities) and each learned policy are tested on the same ED episodes;
 ``flowchart_worse`` = 1 - ADR(flowchart) / ADR(learned) (paper: 0.28).
@@ -72,11 +83,18 @@ class BehaviourConfig:
     """Training episodes per epoch (paper: 600 to 1,200)."""
     test_episodes: int = 1000
     """ED episodes on which frequencies and ADRs are measured."""
+    max_decisions: int | None = None
+    """Decision limit per UAV and episode in training and test (``WildfireConfig.max_decisions``);
+    None is SPEC's ED simulator. Paper scale sets 1,000: its policies drift into stay flights, and
+    a 600-episode epoch of them reached 15 million decisions and ran out of 24 GB of memory at
+    epoch 302. Without stay flights a UAV cannot come near the limit: its shortest moves, between
+    fires of a cluster, take 1.3 s, so it decides at most about 200 times in T_max."""
 
     SCALES: ClassVar[dict] = {
         "smoke": dict(seeds=1, epochs=2, batch_episodes=8, test_episodes=20),
         "quick": {},
-        "paper": dict(seeds=3, epochs=3000, batch_episodes=600, test_episodes=10000),
+        "paper": dict(seeds=3, epochs=3000, batch_episodes=600, test_episodes=10000,
+                      max_decisions=1000),
     }
 
     def validate(self) -> None:
@@ -85,42 +103,54 @@ class BehaviourConfig:
         require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
                 self.batch_episodes)
         require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
+        require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
+                "an integer >= 1", self.max_decisions)
+
+
+STAY = "_ex_stay"
+"""Suffix of the frequencies counted without stay flights (see the module docstring)."""
 
 
 def frequency_counts(rollout: Rollout, env: WildfireConfig) -> dict[str, int]:
     """The counts behind the C6 frequencies: for each, the decisions where its event happened
     (``<name>_events``) out of those where its condition held (``n_shared``, ``n_alone``,
-    ``n_fly``). Counts of separate batches add up."""
+    ``n_fly``); the same without stay flights (suffix ``_ex_stay``); and the stay flights
+    (``stay_flight_events`` of ``n_decisions``). Counts of separate batches add up."""
     obs, act, k = rollout.obs, rollout.actions, env.n_observed
     block = obs[:, 2:2 + OBS_PER_FIRE * k].reshape(len(obs), k, OBS_PER_FIRE)
+    rows = np.arange(len(obs))
     at_live = (block[:, 0, 0] < AT_FIRE_TOL) & (block[:, 0, 3] > 0.5)
     shared = block[:, 0, 2] - 1 >= 1
     hold = act == k
     fly = ~hold
+    stay = fly & (block[rows, np.minimum(act, k - 1), 0] < AT_FIRE_TOL)
     dist = np.linalg.norm(obs[:, None, :2] - fire_positions(env)[None], axis=2)
     order = np.argsort(dist, axis=1, kind="stable")
-    rows = np.arange(len(obs))
     target_cluster = order[rows, np.minimum(act, k - 1)] // FIRES_PER_CLUSTER
-    nearest_cluster = order[:, 0] // FIRES_PER_CLUSTER
-    out = dict(hold_shared_events=int((hold & at_live & shared).sum()),
-               hold_alone_events=int((hold & at_live & ~shared).sum()))
-    out.update({f"fly_rank_{r + 1}_events": int((act == r).sum()) for r in range(k)})
-    out["closest_cluster_events"] = int(((target_cluster == nearest_cluster) & fly).sum())
-    out.update(n_shared=int((at_live & shared).sum()), n_alone=int((at_live & ~shared).sum()),
-               n_fly=int(fly.sum()), n_decisions=len(act))
-    return out
+    closest = target_cluster == order[:, 0] // FIRES_PER_CLUSTER
+
+    def counts(keep: np.ndarray, suffix: str) -> dict[str, int]:
+        out = dict(hold_shared_events=hold & at_live & shared, hold_alone_events=hold & at_live & ~shared)
+        out.update({f"fly_rank_{r + 1}_events": act == r for r in range(k)})
+        out.update(closest_cluster_events=closest & fly, n_shared=at_live & shared,
+                   n_alone=at_live & ~shared, n_fly=fly)
+        return {name + suffix: int((mask & keep).sum()) for name, mask in out.items()}
+
+    everything = np.ones(len(act), bool)
+    return {**counts(everything, ""), **counts(~stay, STAY),
+            "stay_flight_events": int(stay.sum()), "n_decisions": len(act)}
 
 
 def shares(counts: dict[str, int]) -> dict[str, float]:
     """The C6 frequencies of the module docstring from :func:`frequency_counts` (NaN where a
     condition never occurs), with the number of decisions behind each conditional."""
-    given = dict(hold_shared="n_shared", hold_alone="n_alone", closest_cluster="n_fly")
+    given = dict(hold_shared="n_shared", hold_alone="n_alone", stay_flight="n_decisions")
     out = {}
     for key in counts:
-        if key.endswith("_events"):
-            name = key[:-len("_events")]
-            n = counts[given.get(name, "n_fly")]
-            out[name] = counts[key] / n if n else float("nan")
+        if key.endswith("_events") or key.endswith("_events" + STAY):
+            name, suffix = key.split("_events")
+            n = counts[given.get(name, "n_fly") + suffix]
+            out[name + suffix] = counts[key] / n if n else float("nan")
     out.update({k: v for k, v in counts.items() if k.startswith("n_")})
     return out
 
@@ -135,40 +165,46 @@ def make_jobs(cfg: BehaviourConfig, scale: str, seed: int) -> list[TrainJob]:
 
     return [TrainJob(f"ed-seed{s}", train_config(scale, "wildfire", seed=s, epochs=cfg.epochs,
                                                  batch_episodes=cfg.batch_episodes),
-                     WildfireConfig())
+                     WildfireConfig(max_decisions=cfg.max_decisions))
             for s in range(seed, seed + cfg.seeds)]
 
 
 def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
-            seed: int) -> pd.DataFrame:
+            seed: int) -> tuple[pd.DataFrame, pd.DataFrame]:
     """One row per trained policy: its C6 frequencies, its ADR and the flowchart's on the same
-    episodes."""
+    episodes; and one row of the flowchart's own frequencies on those episodes."""
     from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
 
-    env_cfg = WildfireConfig()
+    env_cfg = WildfireConfig(max_decisions=cfg.max_decisions)
     env = make_env(env_cfg)
     env_seed = int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])
 
     def rng(i: int) -> np.random.Generator:
         return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_POLICY_STREAM, i)))
 
-    flow_adr, flow_sem = adr(evaluate(env, FlowchartPolicy(rng(0), n_observed=env_cfg.n_observed),
-                                      cfg.test_episodes, env_seed, keep_obs=False), env.gamma)
+    def observe(policy) -> tuple[dict[str, float], float, float]:
+        """The policy's frequencies (counted per test batch, so that observations need not be
+        kept) and ADR with its standard error."""
+        counts: list[dict[str, int]] = []
+        rollout = evaluate(env, policy, cfg.test_episodes, env_seed, keep_obs=False,
+                           on_batch=lambda batch: counts.append(frequency_counts(batch, env_cfg)))
+        total = {key: sum(c[key] for c in counts) for key in counts[0]}
+        return shares(total), *adr(rollout, env.gamma)
+
+    flow_shares, flow_adr, flow_sem = observe(FlowchartPolicy(rng(0), n_observed=env_cfg.n_observed))
     rows = []
     for i, (job, folder) in enumerate(zip(jobs, folders), start=1):
-        counts: list[dict[str, int]] = []  # per test batch, so that observations need not be kept
-        rollout = evaluate(env, policy_from_checkpoint(folder / CHECKPOINT, rng(i)),
-                           cfg.test_episodes, env_seed, keep_obs=False,
-                           on_batch=lambda batch: counts.append(frequency_counts(batch, env_cfg)))
-        learned_adr, learned_sem = adr(rollout, env.gamma)
-        total = {key: sum(c[key] for c in counts) for key in counts[0]}
+        learned, learned_adr, learned_sem = observe(policy_from_checkpoint(folder / CHECKPOINT, rng(i)))
         rows.append(dict(train_seed=job.train.seed, epochs=job.train.epochs,
                          batch_episodes=job.train.batch_episodes, test_episodes=cfg.test_episodes,
-                         **shares(total), adr_learned=learned_adr,
+                         max_decisions=cfg.max_decisions or 0,
+                         **learned, adr_learned=learned_adr,
                          adr_learned_sem=learned_sem, adr_flowchart=flow_adr,
                          adr_flowchart_sem=flow_sem,
                          flowchart_worse=1.0 - flow_adr / learned_adr, run=job.name))
-    return pd.DataFrame(rows)
+    flowchart = pd.DataFrame([dict(test_episodes=cfg.test_episodes, **flow_shares,
+                                   adr_flowchart=flow_adr, adr_flowchart_sem=flow_sem)])
+    return pd.DataFrame(rows), flowchart
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -178,11 +214,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 3000)")
     p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
     p.add_argument("--test-episodes", type=int, help="ED episodes measured per policy")
+    p.add_argument("--max-decisions", type=int,
+                   help="decision limit per UAV and episode (paper scale: 1000; else none)")
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(BehaviourConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                    batch_episodes=args.batch_episodes, test_episodes=args.test_episodes)
+                    batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
+                    max_decisions=args.max_decisions)
     cfg.validate()
     check_sweep_arguments(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
@@ -191,10 +230,11 @@ def run(args: argparse.Namespace) -> int:
     jobs = make_jobs(cfg, args.scale, args.seed)
     t0 = time.perf_counter()
     folders = run_sweep(jobs, runs, n_jobs=args.n_jobs, scheduler=args.scheduler)
-    table = measure(cfg, jobs, folders, args.seed)
+    table, flowchart = measure(cfg, jobs, folders, args.seed)
     prov = provenance(dataclasses.asdict(cfg), command="wildfire-behaviour", scale=args.scale,
                       seed=args.seed, wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dir=str(runs), paper=PAPER))
     write_result(results / "wildfire_behaviour.csv", table, prov)
+    write_result(results / "wildfire_behaviour_flowchart.csv", flowchart, prov)
     print(table.drop(columns=["run"]).T.to_string())
     return 0

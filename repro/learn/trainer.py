@@ -167,6 +167,7 @@ class Trainer:
         self.cfg, self.env = cfg, env
         self.out = None if out is None else Path(out)
         self.run_config = {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env.name}
+        self.env_default = type(env_config)() if dataclasses.is_dataclass(env_config) else None
         torch.set_num_threads(1)
         keep_freed_memory()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
@@ -277,6 +278,11 @@ class Trainer:
         if config_path.exists():
             saved = json.loads(config_path.read_text())
             mine = json.loads(json.dumps(self.run_config, default=str))
+            # settings added to the code since the run started held their defaults then
+            for part, default in (("train", TrainConfig()), ("env", self.env_default)):
+                if default is not None and isinstance(saved.get(part), dict):
+                    saved[part] = {**json.loads(json.dumps(to_dict(default), default=str)),
+                                   **saved[part]}
             if _without_epochs(saved) != _without_epochs(mine):
                 raise UsageError("--out", "empty or holding a run with the same settings",
                                  str(self.out))
