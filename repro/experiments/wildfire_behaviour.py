@@ -19,12 +19,11 @@ j-th closest observed fire, d_j its distance, s_j its status, I_j its interest p
 
 *Stay flights*: a fly action to a fire closer than AT_FIRE_TOL, that is, to the fire the UAV is at.
 It takes no time (in ED; a UAV cut off just short of the fire flies the rest, under 0.07 s), so
-the UAV decides again after the 1e-5 s latency. SPEC counts them
-among the fly actions, as above. Learned ED policies make many (about half of the decisions of
-the quick-scale policy, over 90% of a paper-scale run's at epoch 300), which swamps ``fly_rank_1``
-and ``hold_alone``. So every
-frequency is also given without them (suffix ``_ex_stay``), and ``stay_flight`` is their share
-of all decisions. The flowchart's own frequencies are measured the same way
+the UAV decides again after the 1e-5 s latency. SPEC counts them among the fly actions, as above.
+Learned ED policies make many (about half of the decisions of the quick-scale policy, over 90% of a
+paper-scale run's at epoch 300), which swamps ``fly_rank_1`` and ``hold_alone``. So every
+frequency is also given without them (suffix ``_ex_stay``), and ``stay_flight`` is their share of
+all decisions. The flowchart's own frequencies are measured the same way
 (``wildfire_behaviour_flowchart.csv``): its ``_ex_stay`` values are the paper's policy, as the
 flowchart encodes it, without stay flights.
 
@@ -130,7 +129,8 @@ def frequency_counts(rollout: Rollout, env: WildfireConfig) -> dict[str, int]:
     closest = target_cluster == order[:, 0] // FIRES_PER_CLUSTER
 
     def counts(keep: np.ndarray, suffix: str) -> dict[str, int]:
-        out = dict(hold_shared_events=hold & at_live & shared, hold_alone_events=hold & at_live & ~shared)
+        out = dict(hold_shared_events=hold & at_live & shared,
+                   hold_alone_events=hold & at_live & ~shared)
         out.update({f"fly_rank_{r + 1}_events": act == r for r in range(k)})
         out.update(closest_cluster_events=closest & fly, n_shared=at_live & shared,
                    n_alone=at_live & ~shared, n_fly=fly)
@@ -191,10 +191,12 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
         total = {key: sum(c[key] for c in counts) for key in counts[0]}
         return shares(total), *adr(rollout, env.gamma)
 
-    flow_shares, flow_adr, flow_sem = observe(FlowchartPolicy(rng(0), n_observed=env_cfg.n_observed))
+    flowchart = FlowchartPolicy(rng(0), n_observed=env_cfg.n_observed)
+    flow_shares, flow_adr, flow_sem = observe(flowchart)
     rows = []
     for i, (job, folder) in enumerate(zip(jobs, folders), start=1):
-        learned, learned_adr, learned_sem = observe(policy_from_checkpoint(folder / CHECKPOINT, rng(i)))
+        policy = policy_from_checkpoint(folder / CHECKPOINT, rng(i))
+        learned, learned_adr, learned_sem = observe(policy)
         rows.append(dict(train_seed=job.train.seed, epochs=job.train.epochs,
                          batch_episodes=job.train.batch_episodes, test_episodes=cfg.test_episodes,
                          max_decisions=cfg.max_decisions or 0,
@@ -202,9 +204,9 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
                          adr_learned_sem=learned_sem, adr_flowchart=flow_adr,
                          adr_flowchart_sem=flow_sem,
                          flowchart_worse=1.0 - flow_adr / learned_adr, run=job.name))
-    flowchart = pd.DataFrame([dict(test_episodes=cfg.test_episodes, **flow_shares,
-                                   adr_flowchart=flow_adr, adr_flowchart_sem=flow_sem)])
-    return pd.DataFrame(rows), flowchart
+    flow_row = dict(test_episodes=cfg.test_episodes, **flow_shares, adr_flowchart=flow_adr,
+                    adr_flowchart_sem=flow_sem)
+    return pd.DataFrame(rows), pd.DataFrame([flow_row])
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
