@@ -104,12 +104,15 @@ def test_decision_limit_ends_the_episode(dt):
                                    fast.info["end_time"][fast.path_episode[p]], atol=1e-9)
 
 
-def test_no_decision_limit_by_default():
-    """Without a limit the same episodes only end at T_max (about 26 million latencies)."""
-    cfg = WildfireConfig()
-    limited = make_env(WildfireConfig(max_decisions=100_000)).rollout(FlyToClosest(), 1, 5)
-    assert cfg.max_decisions is None
+def test_stay_flight_loops_outlast_any_practical_limit():
+    """A UAV that flies to the fire it is at makes 100,000 decisions in about a second of
+    simulated time: without a limit (the default) only T_max ends its loop."""
+    cfg = WildfireConfig(max_decisions=100_000)
+    limited = make_env(cfg).rollout(FlyToClosest(), 1, 5)
+    assert WildfireConfig().max_decisions is None
     assert np.diff(limited.path_start).max() == 100_000
+    first_arrival = limited.info["decision_time"][1:][limited.durations[:-1] > 1e-3].max()
+    assert limited.info["end_time"][0] - first_arrival < 100_000 * 1.01 * cfg.decision_latency
 
 
 def test_rollout_structure():
