@@ -20,8 +20,8 @@ j-th closest observed fire, d_j its distance, s_j its status, I_j its interest p
 *Stay flights*: a fly action to a fire closer than AT_FIRE_TOL, that is, to the fire the UAV is at.
 It takes no time (in ED; a UAV cut off just short of the fire flies the rest, under 0.07 s), so
 the UAV decides again after the 1e-5 s latency. SPEC counts them among the fly actions, as above.
-Learned ED policies make many (about half of the decisions of the quick-scale policy, over 90% of a
-paper-scale run's at epoch 300), which swamps ``fly_rank_1`` and ``hold_alone``. So every
+Learned ED policies make many (about half of the decisions of the quick-scale policy, 92% of a
+paper-scale run's at epoch 316), which swamps ``fly_rank_1`` and ``hold_alone``. So every
 frequency is also given without them (suffix ``_ex_stay``), and ``stay_flight`` is their share of
 all decisions. The flowchart's own frequencies are measured the same way
 (``wildfire_behaviour_flowchart.csv``): its ``_ex_stay`` values are the paper's policy, as the
@@ -85,9 +85,9 @@ class BehaviourConfig:
     max_decisions: int | None = None
     """Decision limit per UAV and episode in training and test (``WildfireConfig.max_decisions``);
     None is SPEC's ED simulator. Paper scale sets 1,000: its policies drift into stay flights, and
-    a 600-episode epoch of them reached 15 million decisions and ran out of 24 GB of memory at
-    epoch 302. Without stay flights a UAV cannot come near the limit: its shortest moves, between
-    fires of a cluster, take 1.3 s, so it decides at most about 200 times in T_max."""
+    a 600-episode epoch of them needed more than 14.7 million decisions and ran out of 24 GB of
+    memory at epoch 302. Without stay flights a UAV cannot come near the limit: its shortest moves,
+    between fires of a cluster, take 1.3 s, so it decides at most about 200 times in T_max."""
 
     SCALES: ClassVar[dict] = {
         "smoke": dict(seeds=1, epochs=2, batch_episodes=8, test_episodes=20),
