@@ -111,6 +111,21 @@ def test_bad_input_writes_nothing(tmp_path, monkeypatch, capsys, command, argv):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_sweep_refuses_finished_runs_made_with_other_settings(tmp_path, capsys):
+    """A runs folder holding finished runs of other settings is an error (exit 2), not a cache:
+    nothing is trained, evaluated or written."""
+    runs, res = tmp_path / "runs", tmp_path / "res"
+    argv = ["wildfire-behaviour", "--scale", "smoke", "--test-episodes", "5", "--n-jobs", "1",
+            "--runs-dir", str(runs), "--results-dir", str(res), "--figures-dir", str(tmp_path)]
+    assert _main(argv) == 0
+    before = tree_snapshot(runs, res)
+    capsys.readouterr()
+    assert _main([*argv, "--max-decisions", "5"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--runs-dir" in err, err
+    assert tree_snapshot(runs, res) == before
+
+
 def _summary(means: dict[str, float], half_width: float, n: int = 5) -> pd.DataFrame:
     return pd.DataFrame([dict(simulator=k, mean=m, sem=half_width / 2, ci_low=m - half_width,
                               ci_high=m + half_width, n_policies=n) for k, m in means.items()]

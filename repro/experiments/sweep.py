@@ -3,7 +3,8 @@ the user names one (``--scheduler tcp://host:port``).
 
 A sweep is a list of :class:`TrainJob`; each job trains into its own folder under the sweep's root,
 named after the job. Runs are checkpointed every epoch by the trainer, so re-running a sweep skips
-finished runs and resumes interrupted ones exactly where they stopped. Each job carries its own seed
+finished runs and resumes interrupted ones exactly where they stopped. A folder holding a run made
+with other settings is refused before anything runs (use another ``--runs-dir``). Each job carries its own seed
 in its TrainConfig, so the results do not depend on the scheduler or on the order in which workers
 pick up jobs.
 """
@@ -38,7 +39,8 @@ def run_dir(root: Path, job: TrainJob) -> Path:
 
 
 def is_done(root: Path, job: TrainJob) -> bool:
-    """A run is done when its progress table holds every epoch the job asks for."""
+    """A run is done when its progress table holds every epoch the job asks for (its settings are
+    checked by :func:`run_sweep`)."""
     prog = run_dir(root, job) / "progress.csv"
     return prog.exists() and len(pd.read_csv(prog)) >= job.train.epochs
 
@@ -56,9 +58,18 @@ def run_job(job: TrainJob, root: Path) -> str:
 def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
               scheduler: str | None = None) -> list[Path]:
     """Run every job that is not done yet; returns every job's folder (in the order given)."""
+    from repro.learn.trainer import holds_same_run
+
     names = [j.name for j in jobs]
     if len(set(names)) != len(names):
         raise ValueError("job names must be unique within a sweep")
+    # checked before anything runs, so that a finished run of other settings is neither taken for
+    # this sweep's nor left half-overwritten by a sweep that stops at the first clash
+    clash = next((j for j in jobs if not holds_same_run(run_dir(root, j), j.train, j.env_config,
+                                                        j.train.env)), None)
+    if clash is not None:
+        raise UsageError("--runs-dir", "new or holding runs made with these settings",
+                         str(run_dir(root, clash)))
     pending = [j for j in jobs if not is_done(root, j)]
     if pending and scheduler:
         from dask.distributed import Client

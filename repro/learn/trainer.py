@@ -166,8 +166,8 @@ class Trainer:
         require(env.gamma > 0, "gamma", "> 0", env.gamma)
         self.cfg, self.env = cfg, env
         self.out = None if out is None else Path(out)
-        self.run_config = {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env.name}
-        self.env_default = type(env_config)() if dataclasses.is_dataclass(env_config) else None
+        self.env_config = env_config
+        self.run_config = run_config(cfg, env_config, env.name)
         torch.set_num_threads(1)
         keep_freed_memory()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
@@ -274,19 +274,9 @@ class Trainer:
         """Write config.json, or check it against the run already in ``out`` and load its
         checkpoint. Only ``epochs`` may differ (to extend or finish a run)."""
         assert self.out is not None
-        config_path = self.out / "config.json"
-        if config_path.exists():
-            saved = json.loads(config_path.read_text())
-            mine = json.loads(json.dumps(self.run_config, default=str))
-            # settings added to the code since the run started held their defaults then
-            for part, default in (("train", TrainConfig()), ("env", self.env_default)):
-                if default is not None and isinstance(saved.get(part), dict):
-                    saved[part] = {**json.loads(json.dumps(to_dict(default), default=str)),
-                                   **saved[part]}
-            if _without_epochs(saved) != _without_epochs(mine):
-                raise UsageError("--out", "empty or holding a run with the same settings",
-                                 str(self.out))
-        write_json(config_path, self.run_config)
+        if not holds_same_run(self.out, self.cfg, self.env_config, self.env.name):
+            raise UsageError("--out", "empty or holding a run with the same settings", str(self.out))
+        write_json(self.out / "config.json", self.run_config)
         if (self.out / CHECKPOINT).exists():
             self.load_state_dict(load_checkpoint(self.out / CHECKPOINT))
 
@@ -322,6 +312,32 @@ def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sample
 def config_dict(cfg: Any) -> Any:
     """A dataclass config as a dict (other configs unchanged), for config.json and sidecars."""
     return to_dict(cfg) if dataclasses.is_dataclass(cfg) else cfg
+
+
+def run_config(cfg: TrainConfig, env_config: Any, env_name: str) -> dict[str, Any]:
+    """What a run folder's config.json holds: the settings that determine the run."""
+    return {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env_name}
+
+
+def holds_same_run(out: Path, cfg: TrainConfig, env_config: Any, env_name: str) -> bool:
+    """Whether the run folder ``out`` is new (no config.json) or holds a run with these settings;
+    only ``epochs`` may differ, to extend or finish a run."""
+    path = Path(out) / "config.json"
+    if not path.exists():
+        return True
+    saved = json.loads(path.read_text())
+    # settings added to the code since the run started held their defaults then
+    defaults = {"train": TrainConfig(),
+                "env": type(env_config)() if dataclasses.is_dataclass(env_config) else None}
+    for part, default in defaults.items():
+        if default is not None and isinstance(saved.get(part), dict):
+            saved[part] = {**_as_json(to_dict(default)), **saved[part]}
+    mine = _as_json(run_config(cfg, env_config, env_name))
+    return _without_epochs(saved) == _without_epochs(mine)
+
+
+def _as_json(value: Any) -> Any:
+    return json.loads(json.dumps(value, default=str))
 
 
 def _without_epochs(run_config: dict) -> dict:
