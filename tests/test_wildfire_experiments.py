@@ -126,6 +126,22 @@ def test_sweep_refuses_finished_runs_made_with_other_settings(tmp_path, capsys):
     assert tree_snapshot(runs, res) == before
 
 
+def test_max_decisions_0_lifts_paper_scales_decision_limit():
+    import argparse
+
+    from repro.experiments import wildfire_behaviour
+
+    parser = argparse.ArgumentParser()
+    wildfire_behaviour.add_arguments(parser)
+
+    def limit(*argv: str) -> int | None:
+        return wildfire_behaviour.config_from_args(parser.parse_args(argv)).max_decisions
+
+    assert limit("--scale", "paper") == 1000 and limit("--scale", "quick") is None
+    assert limit("--scale", "paper", "--max-decisions", "0") is None
+    assert limit("--scale", "quick", "--max-decisions", "7") == 7
+
+
 def _summary(means: dict[str, float], half_width: float, n: int = 5) -> pd.DataFrame:
     return pd.DataFrame([dict(simulator=k, mean=m, sem=half_width / 2, ci_low=m - half_width,
                               ci_high=m + half_width, n_policies=n) for k, m in means.items()]

@@ -103,7 +103,7 @@ class BehaviourConfig:
                 self.batch_episodes)
         require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
         require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
-                "an integer >= 1", self.max_decisions)
+                "a positive integer (0: no limit)", self.max_decisions)
 
 
 STAY = "_ex_stay"
@@ -217,14 +217,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
     p.add_argument("--test-episodes", type=int, help="ED episodes measured per policy")
     p.add_argument("--max-decisions", type=int,
-                   help="decision limit per UAV and episode (paper scale: 1000; else none)")
+                   help="decision limit per UAV and episode; 0: none (default: 1000 at paper "
+                        "scale, else none)")
 
 
-def run(args: argparse.Namespace) -> int:
+def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
+    """The validated config of the command line at its scale (UsageError if bad)."""
     cfg = for_scale(BehaviourConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
                     max_decisions=args.max_decisions)
+    if cfg.max_decisions == 0:  # asked for no limit (paper scale's default has one)
+        cfg = dataclasses.replace(cfg, max_decisions=None)
     cfg.validate()
+    return cfg
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
     check_sweep_arguments(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
     runs = check_writable_dir(Path(args.runs_dir) / "wildfire-behaviour" / args.scale,

@@ -30,7 +30,7 @@ def add_env_arguments(parser: argparse.ArgumentParser) -> None:
                         help="Q2: the penalty goes to the extinguish party only")
     parser.add_argument("--max-decisions", type=int,
                         help="end an episode when a UAV's macro-action ends after this many of its "
-                             "decisions (not in the paper; default: no limit)")
+                             "decisions (not in the paper; default and 0: no limit)")
 
 
 def config_from_args(args: argparse.Namespace) -> WildfireConfig:
@@ -41,7 +41,7 @@ def config_from_args(args: argparse.Namespace) -> WildfireConfig:
         require(args.dt is None, "--dt", "only used with --sim fs", args.dt)
     cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, quirk_q1_stale_attack=args.quirk_q1,
                          quirk_q2_penalty_party_only=args.quirk_q2,
-                         max_decisions=args.max_decisions)
+                         max_decisions=args.max_decisions or None)  # 0: no limit
     cfg.validate()
     return cfg
 

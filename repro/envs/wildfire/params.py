@@ -78,7 +78,7 @@ class WildfireConfig:
         require(1 <= self.n_observed <= 9, "n_observed", "between 1 and the number of fires",
                 self.n_observed)
         require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
-                "an integer >= 1", self.max_decisions)
+                "a positive integer (0: no limit)", self.max_decisions)
         require(self.hold_table_size >= 1, "hold_table_size", "an integer >= 1",
                 self.hold_table_size)
 
