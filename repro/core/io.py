@@ -79,6 +79,16 @@ def write_csv(dest: str | Path, frame: pd.DataFrame) -> None:
         frame.to_csv(tmp, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
 
 
+def append_csv(dest: str | Path, frame: pd.DataFrame) -> None:
+    """Append ``frame``'s rows to the CSV ``dest`` (created with a header), formatted as
+    :func:`write_csv` formats them. Not atomic: a reader that must see whole rows only keeps the
+    rows it knows to be complete (a resumed training run keeps as many as its checkpoint's epochs)."""
+    dest = Path(dest)
+    new = not dest.exists()
+    with dest.open("a", newline="") as f:
+        frame.to_csv(f, header=new, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+
+
 def save_figure(fig: Any, stem: str | Path) -> list[Path]:
     """Write ``stem.png`` and ``stem.pdf`` atomically (PDF without a timestamp, so it is stable)."""
     out = []

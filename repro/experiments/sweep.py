@@ -17,8 +17,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
 from repro.core.errors import UsageError
 
 
@@ -39,10 +37,11 @@ def run_dir(root: Path, job: TrainJob) -> Path:
 
 
 def is_done(root: Path, job: TrainJob) -> bool:
-    """A run is done when its progress table holds every epoch the job asks for (its settings are
+    """A run is done when its checkpoint holds every epoch the job asks for (its settings are
     checked by :func:`run_sweep`)."""
-    prog = run_dir(root, job) / "progress.csv"
-    return prog.exists() and len(pd.read_csv(prog)) >= job.train.epochs
+    from repro.learn.trainer import epochs_done
+
+    return epochs_done(run_dir(root, job)) >= job.train.epochs
 
 
 def run_job(job: TrainJob, root: Path) -> str:

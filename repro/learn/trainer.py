@@ -2,9 +2,10 @@
 
 One epoch = sample ``batch_episodes`` whole episodes with the current shared policy, compute M-GAE
 advantages with the current baseline, take one TRPO step, update the observation normaliser, then fit
-the baseline to the batch's discounted returns (in the new normalisation, which it will be used with). After every epoch the run folder gets an atomically
-written checkpoint and ``progress.csv``; running the same command again resumes from the checkpoint
-and ends with exactly the parameters of an uninterrupted run.
+the baseline to the batch's discounted returns (in the new normalisation, which it will be used
+with). After every epoch a row is appended to the run folder's ``progress.csv`` and a checkpoint is
+written atomically; running the same command again resumes from the checkpoint and ends with
+exactly the parameters and progress table of an uninterrupted run.
 
 Threads: torch and numpy's BLAS run on one thread (:func:`~repro.learn.policy.blas_on_one_thread`
 says why). Memory: malloc keeps freed blocks (:func:`~repro.core.memory.keep_freed_memory` says why).
@@ -32,7 +33,8 @@ import torch
 
 from repro.core.config import SCALES, to_dict
 from repro.core.errors import UsageError, require
-from repro.core.io import atomic_path, check_writable_dir, write_csv, write_json
+from repro.core.io import (append_csv, atomic_path, check_writable_dir, write_csv,
+                           write_json, write_text)
 from repro.core.memory import keep_freed_memory
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
@@ -236,8 +238,11 @@ class Trainer:
                 row["seconds"] = time.perf_counter() - t0
                 self.rows.append(row)
                 if self.out is not None:
+                    # the row goes first, so progress.csv never holds fewer rows than the checkpoint
+                    # has epochs; appended, because rewriting the table every epoch grows with the
+                    # run (a third of a 3,000-epoch run's time)
+                    append_csv(self.out / PROGRESS, pd.DataFrame([row], columns=PROGRESS_COLUMNS))
                     self.save_checkpoint(self.out / CHECKPOINT)
-                    write_csv(self.out / "progress.csv", self.progress())
         return self.progress()
 
     def progress(self) -> pd.DataFrame:
@@ -253,7 +258,6 @@ class Trainer:
             "normalizer": self.normalizer.state_dict(),
             "sampler_rng": self.rng.bit_generator.state,
             "torch_rng": torch.get_rng_state(),
-            "rows": self.rows,
             "run_config": self.run_config,
         }
 
@@ -264,7 +268,6 @@ class Trainer:
         self.normalizer.load_state_dict(state["normalizer"])
         self.rng.bit_generator.state = state["sampler_rng"]
         torch.set_rng_state(state["torch_rng"])
-        self.rows = [dict(r) for r in state["rows"]]
 
     def save_checkpoint(self, path: Path) -> None:
         with atomic_path(path) as tmp:
@@ -278,10 +281,25 @@ class Trainer:
             raise UsageError("--out", "empty or holding a run with the same settings", str(self.out))
         write_json(self.out / "config.json", self.run_config)
         if (self.out / CHECKPOINT).exists():
-            self.load_state_dict(load_checkpoint(self.out / CHECKPOINT))
+            state = load_checkpoint(self.out / CHECKPOINT)
+            self.load_state_dict(state)
+            self.rows = _completed_rows(self.out / PROGRESS, self.epoch, state.get("rows"))
+
+
+def _completed_rows(path: Path, epochs: int, saved_rows: list | None) -> list[dict[str, Any]]:
+    """The progress rows of a resumed run's ``epochs`` checkpointed epochs; progress.csv is cut
+    back to them (a run stopped between appending a row and checkpointing leaves one more, perhaps
+    cut short). Checkpoints from before progress.csv was appended to carry the rows themselves."""
+    if saved_rows is not None:
+        write_csv(path, pd.DataFrame(saved_rows[:epochs], columns=PROGRESS_COLUMNS))
+    lines = path.read_text().splitlines(keepends=True)
+    if len(lines) != epochs + 1:
+        write_text(path, "".join(lines[:epochs + 1]))
+    return pd.read_csv(path).to_dict("records")
 
 
 CHECKPOINT = "checkpoint.pt"
+PROGRESS = "progress.csv"
 PROGRESS_COLUMNS = [
     "epoch", "average_return", "average_discounted_return", "kl", "entropy", "surrogate_before",
     "surrogate_after", "backtracks", "accepted", "explained_variance", "baseline_loss",
@@ -294,6 +312,12 @@ TIMING_COLUMNS = [c for c in PROGRESS_COLUMNS if c.startswith("seconds")]
 def load_checkpoint(path: str | Path) -> dict[str, Any]:
     # weights_only=False: the file holds numpy RNG state and plain rows, and is written by this code
     return torch.load(path, weights_only=False)
+
+
+def epochs_done(out: str | Path) -> int:
+    """Epochs of the run in folder ``out`` that its checkpoint holds (0 if it has none)."""
+    path = Path(out) / CHECKPOINT
+    return int(load_checkpoint(path)["epoch"]) if path.exists() else 0
 
 
 def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sampler:
