@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from repro.envs.wildfire import WildfireConfig
 from repro.experiments.bench_wildfire import WildfireBenchConfig, measure
 
 
@@ -44,3 +45,52 @@ def test_bad_sizes_are_one_line_exit_2_and_write_nothing(cli, tmp_path, args, pa
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and param in lines[0], out.stderr
     assert not res.exists()
+
+
+@pytest.fixture(scope="module")
+def trained_run(tmp_path_factory):
+    """A one-epoch wildfire run with a decision limit, and a bus run, as the train command makes
+    them."""
+    from repro.cli import main
+
+    root = tmp_path_factory.mktemp("runs")
+    assert main(["train", "--env", "wildfire", "--scale", "smoke", "--epochs", "1",
+                 "--max-decisions", "4", "--out", str(root / "wildfire")]) == 0
+    assert main(["train", "--env", "bus", "--scale", "smoke", "--epochs", "1",
+                 "--out", str(root / "bus")]) == 0
+    return root
+
+
+def test_checkpoint_times_the_trained_policy_on_its_runs_environment(trained_run):
+    cfg = WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1)
+    frame = measure(cfg, seed=4, checkpoint=str(trained_run / "wildfire" / "checkpoint.pt"))
+    assert sorted(zip(frame.engine, frame.policy)) == [
+        ("fast", "checkpoint"), ("fast", "random"),
+        ("reference", "checkpoint"), ("reference", "random")]
+    # the run's limit of 4 decisions per UAV holds in every episode of both engines
+    n_uavs = WildfireConfig().n_agents
+    assert (frame.decisions <= frame.episodes * n_uavs * 4).all()
+    unlimited = measure(cfg, seed=4)
+    assert (unlimited.decisions > unlimited.episodes * n_uavs * 4).all()
+
+
+@pytest.mark.parametrize("which", ["bus", "missing", "not-a-checkpoint"])
+def test_checkpoint_of_another_env_or_none_is_refused(cli, tmp_path, trained_run, which):
+    path = {"bus": trained_run / "bus" / "checkpoint.pt", "missing": tmp_path / "none.pt",
+            "not-a-checkpoint": trained_run / "wildfire" / "progress.csv"}[which]
+    res = tmp_path / "results"
+    out = cli("bench-wildfire", "--scale", "smoke", "--results-dir", str(res),
+              "--checkpoint", str(path))
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--checkpoint" in lines[0], out.stderr
+    assert not res.exists()
+
+
+def test_checkpoint_benchmark_writes_its_own_csv(cli, tmp_path, trained_run):
+    res = tmp_path / "results"
+    out = cli("bench-wildfire", "--scale", "smoke", "--results-dir", str(res),
+              "--checkpoint", str(trained_run / "wildfire" / "checkpoint.pt"))
+    assert out.returncode == 0, out.stderr
+    assert sorted(p.name for p in res.iterdir()) == ["bench_wildfire_checkpoint.csv",
+                                                     "bench_wildfire_checkpoint.provenance.json"]

@@ -12,7 +12,7 @@ from typing import ClassVar
 
 import pandas as pd
 
-from repro.envs.bus import make_env, make_reference_env
+from repro.envs.bus import BusConfig, make_env, make_reference_env
 from repro.envs.bus.policies import no_holding
 from repro.experiments import bench_common
 from repro.experiments.bench_common import BenchConfig, add_arguments
@@ -27,9 +27,11 @@ class BusBenchConfig(BenchConfig):
     SCALES: ClassVar[dict[str, dict[str, int]]] = bench_common.scales("bus")
 
 
-def measure(cfg: BusBenchConfig, seed: int) -> pd.DataFrame:
-    return bench_common.measure(make_env(), make_reference_env(), "nohold",
-                                lambda env, rng: no_holding, cfg, seed)
+def measure(cfg: BusBenchConfig, seed: int, checkpoint: str | None = None) -> pd.DataFrame:
+    env_cfg = BusConfig() if checkpoint is None else bench_common.trained_env_config(
+        bench_common.load_trained_run(checkpoint, "bus"), BusConfig)
+    return bench_common.measure(make_env(env_cfg), make_reference_env(env_cfg), "nohold",
+                                lambda env, rng: no_holding, cfg, seed, checkpoint)
 
 
 def run(args: argparse.Namespace) -> int:

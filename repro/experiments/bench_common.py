@@ -9,6 +9,12 @@ A benchmark runs an environment's fast engine and its SimPy reference under two 
   of the scale it sees in training;
 - a cheap policy of the environment, which shows what the engine costs nearly alone.
 
+With ``--checkpoint PATH`` (a training run's ``checkpoint.pt``) the trained policy, with its own
+normaliser, takes the fresh network's place (policy ``checkpoint``), and both engines run that
+run's environment settings; the CSV is then ``bench_<env>_checkpoint.csv``. Trained policies can
+make episodes far longer than a fresh one's (see the stay flights of the wildfire's C6 runs),
+which is a different regime for the engine.
+
 Each engine runs ``repeats`` batches per policy: the fast engine batches of ``fast_episodes`` (the
 environment's training batch), the reference smaller ones (its cost per episode does not depend on
 the batch). Batch r draws its episodes from child r of the seed, and each engine gets the same
@@ -31,7 +37,8 @@ import argparse
 import os
 import time
 from dataclasses import dataclass
-from typing import Callable, ClassVar
+from pathlib import Path
+from typing import Any, Callable, ClassVar, TypeVar
 
 import numpy as np
 import pandas as pd
@@ -39,11 +46,14 @@ import torch
 
 from repro.cli import add_common
 from repro.core.config import for_scale
-from repro.core.errors import require
+from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
-from repro.learn.trainer import ENV_DEFAULTS, TrainConfig
+from repro.learn.trainer import (ENV_DEFAULTS, TrainConfig, load_checkpoint,
+                                 policy_from_checkpoint)
+
+C = TypeVar("C")
 
 CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
 """Makes an environment's cheap policy from the benchmark's random source."""
@@ -117,20 +127,45 @@ def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int)
                 engine_decisions_per_cpu_second=np.median(d / (cpu - policy_cpu)))
 
 
+def load_trained_run(path: str | Path, env_name: str) -> dict[str, Any]:
+    """The checkpoint at ``path`` of a training run on ``env_name`` (UsageError otherwise)."""
+    allowed = f"the checkpoint.pt of a {env_name} training run"
+    require(Path(path).is_file(), "--checkpoint", allowed, str(path))
+    try:
+        state = load_checkpoint(path)
+    except Exception:  # not a torch file: reported as bad input, not as a crash
+        raise UsageError("--checkpoint", allowed, str(path)) from None
+    require(isinstance(state, dict) and state.get("run_config", {}).get("env_name") == env_name,
+            "--checkpoint", allowed, str(path))
+    return state
+
+
+def trained_env_config(state: dict[str, Any], config: type[C]) -> C:
+    """The environment settings of a checkpoint's run as ``config`` (settings newer than the run
+    keep their defaults, as when it resumes)."""
+    saved = state["run_config"]["env"] or {}
+    return config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
+
+
 def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,
-            cfg: BenchConfig, seed: int) -> pd.DataFrame:
+            cfg: BenchConfig, seed: int, checkpoint: str | Path | None = None) -> pd.DataFrame:
     """One row per engine and policy (see the module docstring)."""
-    warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
-    normalizer = ObsNormalizer(fast.obs_dim)
-    normalizer.update(warm_up.obs)
-    hidden = TrainConfig.hidden
-    torch.manual_seed(seed)
-    network = CategoricalPolicy(fast.obs_dim, fast.n_actions, hidden)
-    policies: dict[str, CheapPolicy] = {
-        "mlp-" + "x".join(map(str, hidden)) + "-tanh":
-            lambda env, rng: Sampler(network, normalizer, rng),
-        cheap_name: cheap,
-    }
+    if checkpoint is None:
+        warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
+        normalizer = ObsNormalizer(fast.obs_dim)
+        normalizer.update(warm_up.obs)
+        hidden = TrainConfig.hidden
+        torch.manual_seed(seed)
+        network = CategoricalPolicy(fast.obs_dim, fast.n_actions, hidden)
+        policies: dict[str, CheapPolicy] = {
+            "mlp-" + "x".join(map(str, hidden)) + "-tanh":
+                lambda env, rng: Sampler(network, normalizer, rng),
+            cheap_name: cheap,
+        }
+    else:
+        fast.rollout(cheap(fast, np.random.default_rng(seed)), 1, seed)  # compiles the engine
+        policies = {"checkpoint": lambda env, rng: policy_from_checkpoint(checkpoint, rng),
+                    cheap_name: cheap}
     rows = []
     with blas_on_one_thread():  # as in training
         for engine, env, episodes in (("fast", fast, cfg.fast_episodes),
@@ -153,22 +188,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fast-episodes", type=int, help="episodes per batch of the fast engine")
     p.add_argument("--reference-episodes", type=int, help="episodes per batch of the reference")
     p.add_argument("--repeats", type=int, help="batches each engine runs per policy")
+    p.add_argument("--checkpoint", help="time this training run's policy (its checkpoint.pt) "
+                                        "instead of a fresh network, on that run's environment")
 
 
 def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
-        measure_env: Callable[[BenchConfig, int], pd.DataFrame]) -> int:
-    """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``."""
+        measure_env: Callable[[BenchConfig, int, str | None], pd.DataFrame]) -> int:
+    """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``
+    (``<command>_checkpoint.csv`` with ``--checkpoint``)."""
     cfg = for_scale(config, args.scale, fast_episodes=args.fast_episodes,
                     reference_episodes=args.reference_episodes, repeats=args.repeats)
     cfg.validate()
+    if args.checkpoint is not None:
+        load_trained_run(args.checkpoint, command.removeprefix("bench-"))
     results = check_writable_dir(args.results_dir, "--results-dir")
     load_before = os.getloadavg()[0]
     t0 = time.perf_counter()
-    frame = measure_env(cfg, args.seed)
+    frame = measure_env(cfg, args.seed, args.checkpoint)
     prov = provenance(cfg, command=command, scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra={"note": "timings vary between runs and machines; one thread",
-                             "load_average_1min": [load_before, os.getloadavg()[0]]})
-    write_result(results / f"{command.replace('-', '_')}.csv", frame, prov)
+                             "load_average_1min": [load_before, os.getloadavg()[0]],
+                             "checkpoint": args.checkpoint})
+    stem = command.replace("-", "_") + ("" if args.checkpoint is None else "_checkpoint")
+    write_result(results / f"{stem}.csv", frame, prov)
     print(frame.to_string(index=False))
     return 0

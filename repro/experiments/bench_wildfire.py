@@ -2,7 +2,7 @@
 the loop.
 
 The cheap policy picks uniformly random actions (:class:`RandomPolicy`). The environment is the
-default configuration. See :mod:`repro.experiments.bench_common` for what is timed and how.
+default configuration, or that of the training run given by ``--checkpoint``. See :mod:`repro.experiments.bench_common` for what is timed and how.
 """
 
 from __future__ import annotations
@@ -28,11 +28,12 @@ class WildfireBenchConfig(BenchConfig):
     SCALES: ClassVar[dict[str, dict[str, int]]] = bench_common.scales("wildfire")
 
 
-def measure(cfg: WildfireBenchConfig, seed: int) -> pd.DataFrame:
-    env_cfg = WildfireConfig()
+def measure(cfg: WildfireBenchConfig, seed: int, checkpoint: str | None = None) -> pd.DataFrame:
+    env_cfg = WildfireConfig() if checkpoint is None else bench_common.trained_env_config(
+        bench_common.load_trained_run(checkpoint, "wildfire"), WildfireConfig)
     return bench_common.measure(
         make_env(env_cfg), make_reference_env(env_cfg), "random",
-        lambda env, rng: RandomPolicy(rng, n_observed=env_cfg.n_observed), cfg, seed)
+        lambda env, rng: RandomPolicy(rng, n_observed=env_cfg.n_observed), cfg, seed, checkpoint)
 
 
 def run(args: argparse.Namespace) -> int:
