@@ -2,7 +2,8 @@
 the loop.
 
 The cheap policy picks uniformly random actions (:class:`RandomPolicy`). The environment is the
-default configuration, or that of the training run given by ``--checkpoint``. See :mod:`repro.experiments.bench_common` for what is timed and how.
+default configuration, or that of the training run given by ``--checkpoint``. See
+:mod:`repro.experiments.bench_common` for what is timed and how.
 """
 
 from __future__ import annotations

@@ -4,9 +4,9 @@ the user names one (``--scheduler tcp://host:port``).
 A sweep is a list of :class:`TrainJob`; each job trains into its own folder under the sweep's root,
 named after the job. Runs are checkpointed every epoch by the trainer, so re-running a sweep skips
 finished runs and resumes interrupted ones exactly where they stopped. A folder holding a run made
-with other settings is refused before anything runs (use another ``--runs-dir``). Each job carries its own seed
-in its TrainConfig, so the results do not depend on the scheduler or on the order in which workers
-pick up jobs.
+with other settings is refused before anything runs (use another ``--runs-dir``). Each job carries
+its own seed in its TrainConfig, so the results do not depend on the scheduler or on the order in
+which workers pick up jobs.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from repro.core.errors import UsageError
+from repro.learn.trainer import Trainer, env_package, epochs_done, holds_same_run
 
 
 @dataclass(frozen=True)
@@ -39,16 +40,12 @@ def run_dir(root: Path, job: TrainJob) -> Path:
 def is_done(root: Path, job: TrainJob) -> bool:
     """A run is done when its checkpoint holds every epoch the job asks for (its settings are
     checked by :func:`run_sweep`)."""
-    from repro.learn.trainer import epochs_done
-
     return epochs_done(run_dir(root, job)) >= job.train.epochs
 
 
 def run_job(job: TrainJob, root: Path) -> str:
     """Train (or resume) one job; runs in a worker process."""
     os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
-    from repro.learn.trainer import Trainer, env_package
-
     env = env_package(job.train.env).make_env(job.env_config)
     Trainer(job.train, env, run_dir(root, job), env_config=job.env_config).train()
     return job.name
@@ -57,8 +54,6 @@ def run_job(job: TrainJob, root: Path) -> str:
 def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
               scheduler: str | None = None) -> list[Path]:
     """Run every job that is not done yet; returns every job's folder (in the order given)."""
-    from repro.learn.trainer import holds_same_run
-
     names = [j.name for j in jobs]
     if len(set(names)) != len(names):
         raise ValueError("job names must be unique within a sweep")
