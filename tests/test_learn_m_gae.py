@@ -109,3 +109,13 @@ def test_returns_match_rollout_discounted_path_returns():
     r, dt = rng.normal(size=9), rng.exponential(size=9)
     _, ret = m_gae_paths(r, dt, np.zeros(9), start, 0.3, 1.0)
     np.testing.assert_allclose(ret[[0, 4]], discounted_path_returns(r, dt, start, 0.3)[[0, 2]])
+
+
+def test_step_index_numbers_the_decisions_of_each_path_from_0():
+    from repro.core.rollout import Rollout
+
+    start = np.array([0, 3, 3, 4, 8])  # paths of 3, 0, 1 and 4 decisions
+    ro = Rollout(obs=np.zeros((8, 1)), actions=np.zeros(8, np.int64), rewards=np.zeros(8),
+                 durations=np.ones(8), path_start=start, path_episode=np.zeros(4, np.int64),
+                 path_agent=np.arange(4), episode_return=np.zeros(1))
+    assert ro.step_index().tolist() == [0, 1, 2, 0, 0, 1, 2, 3]

@@ -190,6 +190,12 @@ def test_bench_learn_smoke(tmp_path):
     assert list(table.columns[:4]) == ["env", "epoch", "batch_episodes", "decisions"]
     assert (table.seconds_sim > 0).all() and (table.seconds_update > 0).all()
     assert (tmp_path / "bench_learn.provenance.json").exists()
+    pieces = pd.read_csv(tmp_path / "bench_learn_pieces.csv")
+    assert pieces.part.tolist() == ["simulation"] + ["update"] * 6 + ["trpo"] * 5
+    assert (pieces.seconds > 0).all() and pieces.vs_simulation[0] == 1
+    assert np.allclose(pieces.seconds_per_epoch, pieces.calls * pieces.seconds)
+    assert pieces.calls[pieces.piece == "line-search trial"].item() >= 1
+    assert (tmp_path / "bench_learn_pieces.provenance.json").exists()
 
 
 @pytest.mark.slow

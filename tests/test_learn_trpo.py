@@ -10,7 +10,7 @@ from torch.nn.utils import parameters_to_vector, vector_to_parameters
 from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy
 from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, line_search, mean_kl,
-                              normalize, trpo_step)
+                              normalize, surrogate_and_kl, trpo_step)
 
 DTYPE = torch.float64
 
@@ -125,6 +125,23 @@ def test_line_search_rejects_kl_violation_and_restores_parameters():
                                               0.01, 0.5, 60)
     assert accepted and backtracks > 3 and kl <= 0.01
     vector_to_parameters(theta0, policy.parameters())
+
+
+def test_surrogate_and_kl_are_the_modules():
+    """What a line-search trial evaluates: the surrogate and mean KL of the network's current
+    parameters against the old log-probabilities, computed here through the torch module."""
+    policy, obs, actions, adv = tiny_problem(7)
+    net = TanhMLP(policy.net)
+    logp_old = logp_of(policy, obs)
+    surr, kl = surrogate_and_kl(net, obs, actions, adv, logp_old)
+    assert surr == pytest.approx(float(adv.mean()), abs=1e-12) and kl == pytest.approx(0, abs=1e-12)
+    net.set_flat(net.get_flat() + 0.01 * torch.randn(len(net.get_flat()), dtype=DTYPE))
+    logp = logp_of(policy, obs)
+    taken = logp[actions, torch.arange(len(actions))] - logp_old[actions, torch.arange(len(actions))]
+    surr, kl = surrogate_and_kl(net, obs, actions, adv, logp_old)
+    assert surr == pytest.approx(float((torch.exp(taken) * adv).mean()), rel=1e-12)
+    expected_kl = float((logp_old.exp() * (logp_old - logp)).sum(dim=0).mean())
+    assert kl == pytest.approx(expected_kl, rel=1e-9) and kl > 0
 
 
 def test_line_search_rejects_step_that_lowers_surrogate():

@@ -75,6 +75,10 @@ class Rollout:
         """(D,) the path of every decision."""
         return np.repeat(np.arange(self.n_paths), np.diff(self.path_start))
 
+    def step_index(self) -> np.ndarray:
+        """(D,) every decision's number k = 0, 1, ... along its own path."""
+        return np.arange(self.n_decisions) - np.repeat(self.path_start[:-1], np.diff(self.path_start))
+
     def discounted_path_returns(self, gamma: float) -> np.ndarray:
         """(P,) R = r_0 + e^{-gamma dt_0}(r_1 + e^{-gamma dt_1}(r_2 + ...)) for every path."""
         return discounted_path_returns(self.rewards, self.durations, self.path_start, gamma)

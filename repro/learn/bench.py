@@ -1,19 +1,35 @@
 """``bench-learn``: seconds per training epoch split into simulation and update (TRPO + baseline),
-at about 1,000 episodes per epoch, so that the update is checked not to be the bottleneck."""
+at about 1,000 episodes per epoch, so that the update is checked not to be the bottleneck.
+
+Two tables: ``bench_learn.csv``, the trainer's own timing of each epoch (wall seconds, as in a run's
+progress.csv), and ``bench_learn_pieces.csv``, what each piece of an epoch costs: after the timed
+epochs, one batch of the next epoch is sampled and every piece of the epoch is repeated on it
+(median thread CPU seconds over ``repeats`` calls), with the TRPO step also taken apart.
+"""
 
 from __future__ import annotations
 
 import argparse
+import copy
 import tempfile
 import time
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+import pandas as pd
+import torch
 
 from repro.cli import add_common
-from repro.core.config import for_scale
+from repro.core.config import for_scale, to_dict
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.learn import trainer
+from repro.learn.m_gae import m_gae_paths
+from repro.learn.network import TanhMLP, log_softmax
+from repro.learn.policy import DTYPE, Sampler, blas_on_one_thread
+from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, normalize,
+                              surrogate_and_kl, surrogate_gradient, trpo_step)
 
 
 @dataclass(frozen=True)
@@ -24,9 +40,11 @@ class BenchConfig:
     """Episodes per epoch."""
     epochs: int = 3
     """Epochs timed (the first includes numba compilation of cached kernels if not yet cached)."""
+    repeats: int = 15
+    """Calls of each piece on the last batch, of which the median is reported."""
 
     SCALES: ClassVar[dict[str, dict[str, Any]]] = {
-        "smoke": dict(episodes=100, epochs=1),
+        "smoke": dict(episodes=100, epochs=1, repeats=1),
         "quick": {},
         "paper": dict(epochs=5),
     }
@@ -34,6 +52,82 @@ class BenchConfig:
     def validate(self) -> None:
         require(self.episodes >= 1, "--episodes", "an integer >= 1", self.episodes)
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
+        require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
+
+
+def median_cpu_seconds(fn: Callable[[], Any], repeats: int) -> float:
+    """Median thread CPU time of ``repeats`` calls of ``fn`` (thread time: unaffected by other
+    processes on the machine, and every piece computes on this one thread)."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.thread_time()
+        fn()
+        times.append(time.thread_time() - t0)
+    return float(np.median(times))
+
+
+def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
+    """What each piece of the run's next epoch costs (the run itself is left as it was).
+
+    Columns: ``part`` (simulation; update, whose rows add up to the epoch's update; or trpo, the
+    TRPO step's parts), ``piece``, ``calls`` per epoch, ``seconds`` per call, ``seconds_per_epoch``,
+    ``us_per_decision`` and ``vs_simulation`` (seconds per epoch over the simulation's)."""
+    cfg, env = tr.cfg, tr.env
+
+    def sample():
+        # a fresh generator with the same seed each time: every call samples the same batch
+        sampler = Sampler(tr.policy, tr.normalizer, np.random.default_rng(cfg.seed))
+        return env.rollout(sampler, cfg.batch_episodes, trainer.epoch_seed(cfg.seed, tr.epoch))
+
+    ro = sample()
+    z, index = tr.normalizer(ro.obs), ro.step_index()
+    values = tr.baseline.predict(z, index)
+    adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
+    net = TanhMLP(tr.policy.net)
+    theta = net.get_flat().clone()
+    obs, actions = torch.as_tensor(z, dtype=DTYPE), torch.as_tensor(ro.actions)
+    adv_n = torch.as_tensor(normalize(adv), dtype=DTYPE)
+    rows = tr.fvp_rows(ro.n_decisions)
+    fwd = net.forward(obs)
+    logp_old = log_softmax(fwd.logits)
+    grad = surrogate_gradient(net, fwd, logp_old.exp(), actions, adv_n)
+    fvp = fisher_vector_product(net, fwd if rows is None else fwd.rows(rows), cfg.cg_damping)
+
+    def step():
+        stats = trpo_step(net, obs, actions, adv_n, max_kl=cfg.max_kl, cg_iters=cfg.cg_iters,
+                          cg_damping=cfg.cg_damping, backtrack_ratio=cfg.backtrack_ratio,
+                          max_backtracks=cfg.max_backtracks, fvp_rows=rows)
+        net.set_flat(theta)
+        return stats
+
+    trials = min(step().backtracks + 1, cfg.max_backtracks)
+    pieces = [
+        ("simulation", "rollout (engine and policy)", 1, sample),
+        ("update", "normalise observations", 2, lambda: tr.normalizer(ro.obs)),
+        ("update", "baseline predict", 1, lambda: tr.baseline.predict(z, index)),
+        ("update", "M-GAE", 1, lambda: m_gae_paths(ro.rewards, ro.durations, values,
+                                                   ro.path_start, env.gamma, cfg.lam)),
+        ("update", "TRPO step", 1, step),
+        ("update", "normaliser update", 1, lambda: copy.deepcopy(tr.normalizer).update(ro.obs)),
+        ("update", "baseline fit", 1, lambda: copy.deepcopy(tr.baseline).fit(z, index, ret)),
+        ("trpo", "forward pass and log-probabilities", 1,
+         lambda: log_softmax(net.forward(obs).logits)),
+        ("trpo", "surrogate gradient", 1,
+         lambda: surrogate_gradient(net, fwd, logp_old.exp(), actions, adv_n)),
+        ("trpo", f"conjugate gradient ({cfg.cg_iters} Fisher-vector products)", 1,
+         lambda: conjugate_gradient(fvp, grad, cfg.cg_iters)),
+        ("trpo", "Fisher-vector product (for the step size)", 1, lambda: fvp(grad)),
+        ("trpo", "line-search trial", trials,
+         lambda: surrogate_and_kl(net, obs, actions, adv_n, logp_old)),
+    ]
+    table = pd.DataFrame(
+        [(part, name, calls, median_cpu_seconds(fn, repeats)) for part, name, calls, fn in pieces],
+        columns=["part", "piece", "calls", "seconds"])
+    table["seconds_per_epoch"] = table.calls * table.seconds
+    table["us_per_decision"] = 1e6 * table.seconds_per_epoch / ro.n_decisions
+    table["vs_simulation"] = table.seconds_per_epoch / table.seconds_per_epoch[0]
+    table.insert(0, "decisions", ro.n_decisions)
+    return table
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -41,6 +135,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", default="toy", help="environment: " + ", ".join(trainer.ENVS))
     p.add_argument("--episodes", type=int, help="episodes per epoch (1000)")
     p.add_argument("--epochs", type=int, help="epochs timed (3)")
+    p.add_argument("--repeats", type=int, help="calls of each piece, median reported (15)")
 
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
@@ -48,7 +143,8 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(BenchConfig, args.scale, episodes=args.episodes, epochs=args.epochs)
+    cfg = for_scale(BenchConfig, args.scale, episodes=args.episodes, epochs=args.epochs,
+                    repeats=args.repeats)
     cfg.validate()
     pkg = trainer.env_package(args.env)
     train_cfg = trainer.train_config("quick", args.env, seed=args.seed, epochs=cfg.epochs,
@@ -57,13 +153,20 @@ def run(args: argparse.Namespace) -> int:
     results = check_writable_dir(args.results_dir, "--results-dir")
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as out:  # checkpoints are written, as in a real run
-        frame = trainer.Trainer(train_cfg, pkg.make_env(env_cfg), out, env_cfg).train()
+        run = trainer.Trainer(train_cfg, pkg.make_env(env_cfg), out, env_cfg)
+        frame = run.train()
+    with blas_on_one_thread():
+        pieces = epoch_pieces(run, cfg.repeats)
     wall = time.perf_counter() - t0
     table = frame[["epoch", "batch_episodes", "decisions", *trainer.TIMING_COLUMNS]].copy()
     table.insert(0, "env", args.env)
     table["update_share"] = table.seconds_update / (table.seconds_sim + table.seconds_update)
-    prov = provenance({"bench": cfg, "train": train_cfg, "env": trainer.config_dict(env_cfg)},
+    pieces.insert(0, "env", args.env)
+    prov = provenance({"bench": to_dict(cfg), "train": to_dict(train_cfg),
+                       "env": trainer.config_dict(env_cfg)},
                       command="bench-learn", scale=args.scale, seed=args.seed, wall_seconds=wall)
     write_result(results / "bench_learn.csv", table, prov)
+    write_result(results / "bench_learn_pieces.csv", pieces, prov)
     print(table.to_string(index=False))
+    print(pieces.to_string(index=False))
     return 0

@@ -190,20 +190,15 @@ class Trainer:
                          epoch_seed(cfg.seed, self.epoch))
         t1 = time.perf_counter()
         z = self.normalizer(ro.obs)
-        index = np.arange(ro.n_decisions) - np.repeat(ro.path_start[:-1], np.diff(ro.path_start))
+        index = ro.step_index()
         values = self.baseline.predict(z, index)
         adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
         explained = 1.0 - np.var(ret - values) / np.var(ret) if np.var(ret) > 0 else 0.0
-        fvp_rows = None
-        if cfg.fvp_subsample < 1:
-            rng = np.random.default_rng(_stream(cfg.seed, _FVP_STREAM, self.epoch))
-            n_rows = max(1, int(cfg.fvp_subsample * ro.n_decisions))
-            fvp_rows = torch.as_tensor(np.sort(rng.choice(ro.n_decisions, n_rows, replace=False)))
         stats = trpo_step(TanhMLP(self.policy.net), torch.as_tensor(z, dtype=DTYPE),
                           torch.as_tensor(ro.actions), torch.as_tensor(normalize(adv), dtype=DTYPE),
                           max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
                           backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks,
-                          fvp_rows=fvp_rows)
+                          fvp_rows=self.fvp_rows(ro.n_decisions))
         t2 = time.perf_counter()
         # the normaliser moves on first, so that the baseline is fitted in the coordinates in which
         # it will predict the next batch's values
@@ -225,6 +220,16 @@ class Trainer:
         )
         self.epoch += 1
         return row
+
+    def fvp_rows(self, n_decisions: int) -> torch.Tensor | None:
+        """The decisions of this epoch's batch on which TRPO computes Fisher-vector products:
+        ``fvp_subsample`` of them, drawn afresh each epoch (None: all)."""
+        cfg = self.cfg
+        if cfg.fvp_subsample == 1:
+            return None
+        rng = np.random.default_rng(_stream(cfg.seed, _FVP_STREAM, self.epoch))
+        n_rows = max(1, int(cfg.fvp_subsample * n_decisions))
+        return torch.as_tensor(np.sort(rng.choice(n_decisions, n_rows, replace=False)))
 
     def train(self) -> pd.DataFrame:
         """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table."""

@@ -101,6 +101,16 @@ def fisher_vector_product(net: TanhMLP, fwd: Forward,
     return fvp
 
 
+def surrogate_and_kl(net: TanhMLP, obs: torch.Tensor, actions: torch.Tensor, adv: torch.Tensor,
+                     logp_old: torch.Tensor) -> tuple[float, float]:
+    """(L, mean KL(old || current)) at the network's current parameters: one forward pass over
+    the batch, which is what each line-search trial costs."""
+    logp = log_softmax(net.forward(obs).logits)
+    taken = (actions, torch.arange(len(actions)))
+    ratio = (logp[taken] - logp_old[taken]).exp_()
+    return float((ratio * adv).mean(dtype=torch.float64)), mean_kl(logp_old, logp)
+
+
 def line_search(net: TanhMLP, evaluate: Callable[[], tuple[float, float]],
                 full_step: torch.Tensor, surrogate_before: float, max_kl: float,
                 backtrack_ratio: float, max_backtracks: int) -> tuple[bool, int, float, float]:
@@ -125,11 +135,9 @@ def trpo_step(net: TanhMLP, obs: torch.Tensor, actions: torch.Tensor, adv: torch
     ``fvp_rows`` (indices into the batch) restricts the Fisher-vector products, and so the step size,
     to those decisions (rllab's ``subsample_factor``); the gradient and the line search always use
     the whole batch."""
-    columns = torch.arange(len(actions))
     fwd = net.forward(obs)
     logp_old = log_softmax(fwd.logits)
     probs = logp_old.exp()
-    logp_old_a = logp_old[actions, columns]
     entropy = -float((probs * logp_old).sum(dim=0).mean(dtype=torch.float64))
     surr0 = float(adv.mean(dtype=torch.float64))  # the surrogate at theta_old: every ratio is 1
 
@@ -141,11 +149,7 @@ def trpo_step(net: TanhMLP, obs: torch.Tensor, actions: torch.Tensor, adv: torch
         return TRPOStats(0.0, entropy, surr0, surr0, 0, False)
     full_step = np.sqrt(2.0 * max_kl / shs) * direction
 
-    def evaluate() -> tuple[float, float]:
-        logp = log_softmax(net.forward(obs).logits)
-        ratio = (logp[actions, columns] - logp_old_a).exp_()
-        return float((ratio * adv).mean(dtype=torch.float64)), mean_kl(logp_old, logp)
-
-    accepted, backtracks, surr1, kl = line_search(net, evaluate, full_step, surr0, max_kl,
-                                                  backtrack_ratio, max_backtracks)
+    accepted, backtracks, surr1, kl = line_search(
+        net, lambda: surrogate_and_kl(net, obs, actions, adv, logp_old), full_step, surr0, max_kl,
+        backtrack_ratio, max_backtracks)
     return TRPOStats(kl, entropy, surr0, surr1, backtracks, accepted)
