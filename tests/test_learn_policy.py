@@ -29,6 +29,18 @@ def test_normalizer_equals_moments_of_everything_seen():
     assert np.all(z[:, 3] == 0.0)  # a constant feature maps to 0
 
 
+def test_normalizer_passes_give_numpys_bits():
+    """The compiled moments and standardisation are numpy's expressions bit for bit (the committed
+    training results were made with those); 30,000 rows, so a summation in another order would
+    show."""
+    x = np.random.default_rng(1).normal(100.0, 7.0, size=(30_000, 5))
+    norm = ObsNormalizer(5)
+    norm.update(x)
+    np.testing.assert_array_equal(norm.mean, x.mean(axis=0))
+    np.testing.assert_array_equal(norm.var, x.var(axis=0))
+    np.testing.assert_array_equal(norm(x), (x - norm.mean) / np.sqrt(norm.var + norm.eps))
+
+
 def test_sampler_matches_network_and_its_probabilities():
     torch.manual_seed(0)
     policy = CategoricalPolicy(3, 4, (16, 16))
@@ -96,6 +108,8 @@ def test_linear_baseline_features_are_rllabs():
 
     rng = np.random.default_rng(0)
     obs, index = rng.normal(size=(200, 5)) * 20, rng.integers(0, 300, 200)  # some clipped
+    obs[0, 0] = np.nan  # passed through, as np.clip does
     z, k = np.clip(obs, -10, 10), (index / 100.0)[:, None]
     expected = np.concatenate([z, z**2, k, k**2, k**3, np.ones_like(k)], axis=1)
     np.testing.assert_array_equal(LinearFeatureBaseline.features(obs, index), expected)
+    assert np.isnan(expected[0, 0])

@@ -17,6 +17,7 @@ from typing import Any, Protocol, Sequence
 
 import numpy as np
 import torch
+from numba import njit
 from torch import nn
 
 from repro.learn.policy import DTYPE, mlp
@@ -45,15 +46,11 @@ class LinearFeatureBaseline:
 
     @staticmethod
     def features(obs: np.ndarray, index: np.ndarray) -> np.ndarray:
-        """[z, z^2, k/100, (k/100)^2, (k/100)^3, 1], written into one array (building the pieces
-        and concatenating them took 2.5x as long on a training batch)."""
-        n, d = obs.shape
-        x = np.empty((n, 2 * d + 4))
-        z = np.clip(obs, -10.0, 10.0, out=x[:, :d])
-        np.square(z, out=x[:, d:2 * d])
+        """[z, z^2, k/100, (k/100)^2, (k/100)^3, 1], written row by row into one array by a
+        compiled loop (numpy's column-wise writes into the rows took 7 ms on a 37,000-decision
+        wildfire batch, this about 2). The powers of k are numpy's, so the bits are unchanged."""
         k = index / 100.0
-        x[:, 2 * d], x[:, 2 * d + 1], x[:, 2 * d + 2], x[:, 2 * d + 3] = k, k**2, k**3, 1.0
-        return x
+        return _features(obs, np.stack([k, k**2, k**3, np.ones_like(k)], axis=1))
 
     def predict(self, obs: np.ndarray, index: np.ndarray) -> np.ndarray:
         return self.features(obs, index) @ self.coeffs
@@ -113,6 +110,25 @@ class MLPBaseline(nn.Module):
         opt.step(closure)
         self.fitted = torch.ones((), dtype=torch.bool)
         return _relative_error(self.predict(obs, index), returns)
+
+
+@njit(cache=True)
+def _features(obs, tail):
+    """Rows [clip(z, -10, 10), its square, tail]."""
+    n, d = obs.shape
+    x = np.empty((n, 2 * d + tail.shape[1]))
+    for i in range(n):
+        for j in range(d):
+            z = obs[i, j]  # clipped like np.clip, which lets NaN through
+            if z < -10.0:
+                z = -10.0
+            elif z > 10.0:
+                z = 10.0
+            x[i, j] = z
+            x[i, d + j] = z * z
+        for j in range(tail.shape[1]):
+            x[i, 2 * d + j] = tail[i, j]
+    return x
 
 
 def _relative_error(pred: np.ndarray, target: np.ndarray) -> float:
