@@ -4,7 +4,7 @@ at about 1,000 episodes per epoch, so that the update is checked not to be the b
 Two tables: ``bench_learn.csv``, the trainer's own timing of each epoch (wall seconds, as in a run's
 progress.csv), and ``bench_learn_pieces.csv``, what each piece of an epoch costs: after the timed
 epochs, one batch of the next epoch is sampled and every piece of the epoch is repeated on it
-(median thread CPU seconds over ``repeats`` calls), with the TRPO step also taken apart.
+(median thread CPU seconds over ``repeats`` rounds of calls), with the TRPO step also taken apart.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ class BenchConfig:
     epochs: int = 3
     """Epochs timed (the first includes numba compilation of cached kernels if not yet cached)."""
     repeats: int = 15
-    """Calls of each piece on the last batch, of which the median is reported."""
+    """Rounds of calls of every piece on the last batch; each piece's median is reported."""
 
     SCALES: ClassVar[dict[str, dict[str, Any]]] = {
         "smoke": dict(episodes=100, epochs=1, repeats=1),
@@ -55,15 +55,17 @@ class BenchConfig:
         require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
 
 
-def median_cpu_seconds(fn: Callable[[], Any], repeats: int) -> float:
-    """Median thread CPU time of ``repeats`` calls of ``fn`` (thread time: unaffected by other
-    processes on the machine, and every piece computes on this one thread)."""
-    times = []
-    for _ in range(repeats):
-        t0 = time.thread_time()
-        fn()
-        times.append(time.thread_time() - t0)
-    return float(np.median(times))
+def median_cpu_seconds(fns: list[Callable[[], Any]], repeats: int) -> list[float]:
+    """Median thread CPU time of ``repeats`` calls of each of ``fns``, called in turn, round after
+    round, so that a slow spell of the machine (a shared VM's are seconds long) touches them all
+    alike. Thread time: every piece computes on this one thread."""
+    times = np.empty((repeats, len(fns)))
+    for r in range(repeats):
+        for i, fn in enumerate(fns):
+            t0 = time.thread_time()
+            fn()
+            times[r, i] = time.thread_time() - t0
+    return np.median(times, axis=0).tolist()
 
 
 def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
@@ -120,9 +122,8 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
         ("trpo", "line-search trial", trials,
          lambda: surrogate_and_kl(net, obs, actions, adv_n, logp_old)),
     ]
-    table = pd.DataFrame(
-        [(part, name, calls, median_cpu_seconds(fn, repeats)) for part, name, calls, fn in pieces],
-        columns=["part", "piece", "calls", "seconds"])
+    table = pd.DataFrame([piece[:3] for piece in pieces], columns=["part", "piece", "calls"])
+    table["seconds"] = median_cpu_seconds([piece[3] for piece in pieces], repeats)
     table["seconds_per_epoch"] = table.calls * table.seconds
     table["us_per_decision"] = 1e6 * table.seconds_per_epoch / ro.n_decisions
     table["vs_simulation"] = table.seconds_per_epoch / table.seconds_per_epoch[0]
