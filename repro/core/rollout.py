@@ -77,7 +77,8 @@ class Rollout:
 
     def step_index(self) -> np.ndarray:
         """(D,) every decision's number k = 0, 1, ... along its own path."""
-        return np.arange(self.n_decisions) - np.repeat(self.path_start[:-1], np.diff(self.path_start))
+        starts = self.path_start[:-1]
+        return np.arange(self.n_decisions) - np.repeat(starts, np.diff(self.path_start))
 
     def discounted_path_returns(self, gamma: float) -> np.ndarray:
         """(P,) R = r_0 + e^{-gamma dt_0}(r_1 + e^{-gamma dt_1}(r_2 + ...)) for every path."""
