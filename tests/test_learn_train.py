@@ -157,6 +157,24 @@ def test_bad_options_exit_2_with_one_line(tmp_path, capsys, bad, param):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("env", ["wildfire", "bus"])
+@pytest.mark.parametrize("gamma", ["0", "-1", "inf"])
+def test_bad_gamma_of_each_environment_exits_2(tmp_path, capsys, env, gamma):
+    out = tmp_path / "run"
+    assert main(["train", "--env", env, "--out", str(out), "--gamma", gamma]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--gamma" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("env, gamma", [("wildfire", 0.05), ("bus", 2e-5)])
+def test_gamma_option_reaches_the_environment(tmp_path, env, gamma):
+    out = tmp_path / "run"
+    assert main(["train", "--env", env, "--scale", "smoke", "--epochs", "1", "--batch-episodes",
+                 "2", "--out", str(out), "--gamma", str(gamma)]) == 0
+    assert json.loads((out / "config.json").read_text())["env"]["gamma"] == gamma
+
+
 def test_unknown_env_exits_2(tmp_path, capsys):
     assert main(["train", "--env", "chess", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip()

@@ -56,10 +56,12 @@ def assert_same(ref: Rollout, fast: Rollout) -> None:
 @given(seed=st.integers(0, 2 ** 32 - 1), dt=st.sampled_from(DTS),
        t_health=st.sampled_from((3.0, 2.9999)), q1=st.booleans(), q2=st.booleans(),
        kind=st.sampled_from(("scripted", "random", "nearest", "flowchart")),
-       max_decisions=st.sampled_from((None, None, 1, 3, 12)))
-def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, kind, max_decisions):
+       max_decisions=st.sampled_from((None, None, 1, 3, 12)),
+       gamma=st.sampled_from((0.02, 0.02, 0.05)))  # gamma also sets the episode cap T_max
+def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, kind, max_decisions,
+                                            gamma):
     cfg = WildfireConfig(dt=dt, t_health=t_health, quirk_q1_stale_attack=q1,
-                         quirk_q2_penalty_party_only=q2, max_decisions=max_decisions)
+                         quirk_q2_penalty_party_only=q2, max_decisions=max_decisions, gamma=gamma)
     n = 2
     ref = make_reference_env(cfg).rollout(make_policy(kind, seed, cfg, n), n, seed)
     fast = make_env(cfg).rollout(make_policy(kind, seed, cfg, n), n, seed)

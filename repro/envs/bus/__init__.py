@@ -14,11 +14,15 @@ from repro.envs.bus.reference import ReferenceBusEnv
 
 
 def add_env_arguments(parser: argparse.ArgumentParser) -> None:
-    """The bus environment has no command-line options: its parameters are the paper's."""
+    """The bus environment's one command-line option, its discount rate; every other parameter is
+    the paper's."""
+    parser.add_argument("--gamma", type=float, default=BusConfig.gamma,
+                        help="continuous-time discount rate per second (1e-5)")
 
 
 def config_from_args(args: argparse.Namespace) -> BusConfig:
-    return BusConfig()
+    """The validated config of the options of :func:`add_env_arguments` (UsageError if bad)."""
+    return BusConfig(gamma=args.gamma)
 
 
 def make_env(cfg: BusConfig | None = None) -> BusEnv:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from repro.core.errors import require
@@ -52,6 +53,9 @@ class BusConfig:
         require(self.travel_time > 0.0, "travel_time", "> 0", self.travel_time)
         require(self.t_hold >= 0.0, "t_hold", ">= 0", self.t_hold)
         require(self.horizon > 0.0, "horizon", "> 0", self.horizon)
+        # 0 (no discounting) is a valid corridor; training needs gamma > 0 (the trainer checks)
+        require(self.gamma >= 0.0 and math.isfinite(self.gamma), "--gamma", "a number >= 0",
+                self.gamma)
         require(self.n_actions >= 1, "n_actions", "an integer >= 1", self.n_actions)
 
     @property

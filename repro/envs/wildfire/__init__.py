@@ -16,12 +16,16 @@ from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episo
 
 
 def add_env_arguments(parser: argparse.ArgumentParser) -> None:
-    """The simulator options: ED or FS-dT, T_health, the quirk switches, the decision limit."""
+    """The simulator options: ED or FS-dT, T_health, the discount rate, the quirk switches, the
+    decision limit."""
     parser.add_argument("--sim", choices=("ed", "fs"), default="ed",
                         help="event-driven, or fixed-step (needs --dt)")
     parser.add_argument("--dt", type=float, help="FS time step dT in seconds (only with --sim fs)")
     parser.add_argument("--t-health", type=float, default=WildfireConfig.t_health,
                         help="UAV-seconds to put out a fire (paper: 3.0; C9 uses 2.9999)")
+    parser.add_argument("--gamma", type=float, default=WildfireConfig.gamma,
+                        help="continuous-time discount rate per second (0.02); it also sets the "
+                             "episode cap T_max = ln(0.005) / -gamma")
     parser.add_argument("--quirk-q1", action=argparse.BooleanOptionalAction,
                         default=WildfireConfig.quirk_q1_stale_attack,
                         help="Q1: a UAV that flew off does not rejoin the fire it attacked")
@@ -39,7 +43,8 @@ def config_from_args(args: argparse.Namespace) -> WildfireConfig:
         require(args.dt is not None, "--dt", "given with --sim fs")
     else:
         require(args.dt is None, "--dt", "only used with --sim fs", args.dt)
-    cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, quirk_q1_stale_attack=args.quirk_q1,
+    cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, gamma=args.gamma,
+                         quirk_q1_stale_attack=args.quirk_q1,
                          quirk_q2_penalty_party_only=args.quirk_q2,
                          max_decisions=args.max_decisions or None)  # 0: no limit
     cfg.validate()

@@ -70,7 +70,8 @@ class WildfireConfig:
         require(self.dt is None or (self.dt > 0 and math.isfinite(self.dt)), "--dt",
                 "a number > 0", self.dt)
         require(self.v_uav > 0, "--v-uav", "a number > 0", self.v_uav)
-        require(self.gamma > 0, "--gamma", "a number > 0", self.gamma)
+        require(self.gamma > 0 and math.isfinite(self.gamma), "--gamma", "a number > 0",
+                self.gamma)
         require(0 < self.horizon_discount < 1, "horizon_discount", "in (0, 1)",
                 self.horizon_discount)
         require(self.decision_latency >= 0, "decision_latency", "a number >= 0",
