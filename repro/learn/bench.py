@@ -1,5 +1,6 @@
 """``bench-learn``: seconds per training epoch split into simulation and update (TRPO + baseline),
-at about 1,000 episodes per epoch, so that the update is checked not to be the bottleneck.
+at about 1,000 episodes per epoch: where an epoch's time goes, and which part bounds training (the
+README's Speed section gives the measured balance).
 
 Two tables: ``bench_learn.csv``, the trainer's own timing of each epoch (wall seconds, as in a run's
 progress.csv), and ``bench_learn_pieces.csv``, what each piece of an epoch costs: after the timed
