@@ -311,6 +311,12 @@ PROGRESS_COLUMNS = [
     "batch_episodes", "decisions", "seconds_sim", "seconds_trpo", "seconds_baseline",
     "seconds_update", "seconds",
 ]
+"""The columns of progress.csv, one row per epoch. Timing (wall seconds): ``seconds_sim`` the
+rollout; ``seconds_trpo`` everything from the batch to the TRPO step's end (standardisation,
+baseline prediction, M-GAE, the step); ``seconds_baseline`` the normaliser's update, the
+standardisation in its new moments and the baseline's fit; ``seconds_update`` the last two
+together; ``seconds`` the epoch (without writing its row and checkpoint). ``bench-learn`` times
+the pieces one by one."""
 TIMING_COLUMNS = [c for c in PROGRESS_COLUMNS if c.startswith("seconds")]
 
 
