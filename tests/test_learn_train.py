@@ -126,6 +126,25 @@ def test_resume_after_a_stop_between_row_and_checkpoint(tmp_path, stop):
     pd.testing.assert_frame_equal(a, b, check_exact=True)
 
 
+@pytest.mark.parametrize("damage", ["deleted", "short"])
+def test_resume_refuses_a_progress_table_missing_checkpointed_rows(tmp_path, capsys, damage):
+    """Rows of checkpointed epochs cannot be rebuilt: resuming says so (exit 2), touching nothing."""
+    opts = ["train", "--env", "toy", "--batch-episodes", "6", "--horizon", "10", "--out",
+            str(tmp_path)]
+    assert main([*opts, "--epochs", "2"]) == 0
+    progress = tmp_path / "progress.csv"
+    if damage == "deleted":
+        progress.unlink()
+    else:
+        progress.write_text("".join(progress.read_text().splitlines(keepends=True)[:2]))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    capsys.readouterr()
+    assert main([*opts, "--epochs", "3"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--out" in err and "holds the 2 epochs" in err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
 def test_cli_smoke_and_checkpoint_policy(tmp_path):
     out = tmp_path / "run"
     res = run_cli("train", "--env", "toy", "--scale", "smoke", "--hidden", "8", "--out", str(out))

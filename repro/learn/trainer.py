@@ -284,11 +284,24 @@ class Trainer:
         assert self.out is not None
         if not holds_same_run(self.out, self.cfg, self.env_config, self.env.name):
             raise UsageError("--out", "empty or holding a run with the same settings", str(self.out))
-        write_json(self.out / "config.json", self.run_config)
+        state = None
         if (self.out / CHECKPOINT).exists():
             state = load_checkpoint(self.out / CHECKPOINT)
+            _check_rows(self.out / PROGRESS, int(state["epoch"]), state.get("rows"))
+        write_json(self.out / "config.json", self.run_config)
+        if state is not None:
             self.load_state_dict(state)
             self.rows = _completed_rows(self.out / PROGRESS, self.epoch, state.get("rows"))
+
+
+def _check_rows(path: Path, epochs: int, saved_rows: list | None) -> None:
+    """Refuse to resume a run whose progress.csv lacks rows of the checkpointed epochs (deleted or
+    replaced by hand): they cannot be rebuilt without running those epochs again."""
+    rows = len(saved_rows) if saved_rows is not None else (
+        len(path.read_text().splitlines()) - 1 if path.exists() else 0)
+    require(rows >= epochs, "--out", f"a run folder whose {PROGRESS} holds the {epochs} epochs of "
+            f"its {CHECKPOINT} (it holds {max(rows, 0)}; delete {CHECKPOINT} to start again)",
+            str(path.parent))
 
 
 def _completed_rows(path: Path, epochs: int, saved_rows: list | None) -> list[dict[str, Any]]:
