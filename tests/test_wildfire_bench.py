@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from repro.envs.wildfire import WildfireConfig
+from repro.experiments.bench_common import load_trained_run
 from repro.experiments.bench_wildfire import WildfireBenchConfig, measure
 
 
@@ -63,7 +64,8 @@ def trained_run(tmp_path_factory):
 
 def test_checkpoint_times_the_trained_policy_on_its_runs_environment(trained_run):
     cfg = WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1)
-    frame = measure(cfg, seed=4, checkpoint=str(trained_run / "wildfire" / "checkpoint.pt"))
+    frame = measure(cfg, seed=4, trained=load_trained_run(trained_run / "wildfire" / "checkpoint.pt",
+                                                           "wildfire"))
     assert sorted(zip(frame.engine, frame.policy)) == [
         ("fast", "checkpoint"), ("fast", "random"),
         ("reference", "checkpoint"), ("reference", "random")]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import pandas as pd
 
@@ -27,11 +27,11 @@ class BusBenchConfig(BenchConfig):
     SCALES: ClassVar[dict[str, dict[str, int]]] = bench_common.scales("bus")
 
 
-def measure(cfg: BusBenchConfig, seed: int, checkpoint: str | None = None) -> pd.DataFrame:
-    env_cfg = BusConfig() if checkpoint is None else bench_common.trained_env_config(
-        bench_common.load_trained_run(checkpoint, "bus"), BusConfig)
+def measure(cfg: BusBenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
+    """``trained``: a loaded checkpoint of a bus run (``bench_common.load_trained_run``)."""
+    env_cfg = BusConfig() if trained is None else bench_common.trained_env_config(trained, BusConfig)
     return bench_common.measure(make_env(env_cfg), make_reference_env(env_cfg), "nohold",
-                                lambda env, rng: no_holding, cfg, seed, checkpoint)
+                                lambda env, rng: no_holding, cfg, seed, trained)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -50,8 +50,7 @@ from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
-from repro.learn.trainer import (ENV_DEFAULTS, TrainConfig, load_checkpoint,
-                                 policy_from_checkpoint)
+from repro.learn.trainer import ENV_DEFAULTS, TrainConfig, load_checkpoint, policy_from_state
 
 C = TypeVar("C")
 
@@ -148,9 +147,10 @@ def trained_env_config(state: dict[str, Any], config: type[C]) -> C:
 
 
 def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,
-            cfg: BenchConfig, seed: int, checkpoint: str | Path | None = None) -> pd.DataFrame:
-    """One row per engine and policy (see the module docstring)."""
-    if checkpoint is None:
+            cfg: BenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
+    """One row per engine and policy (see the module docstring); ``trained``: a loaded
+    checkpoint (:func:`load_trained_run`) whose policy is timed instead of a fresh network."""
+    if trained is None:
         warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
         normalizer = ObsNormalizer(fast.obs_dim)
         normalizer.update(warm_up.obs)
@@ -164,7 +164,7 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
         }
     else:
         fast.rollout(cheap(fast, np.random.default_rng(seed)), 1, seed)  # compiles the engine
-        policies = {"checkpoint": lambda env, rng: policy_from_checkpoint(checkpoint, rng),
+        policies = {"checkpoint": lambda env, rng: policy_from_state(trained, rng),
                     cheap_name: cheap}
     rows = []
     with blas_on_one_thread():  # as in training
@@ -193,18 +193,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
-        measure_env: Callable[[BenchConfig, int, str | None], pd.DataFrame]) -> int:
+        measure_env: Callable[[BenchConfig, int, dict[str, Any] | None], pd.DataFrame]) -> int:
     """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``
     (``<command>_checkpoint.csv`` with ``--checkpoint``)."""
     cfg = for_scale(config, args.scale, fast_episodes=args.fast_episodes,
                     reference_episodes=args.reference_episodes, repeats=args.repeats)
     cfg.validate()
-    if args.checkpoint is not None:
-        load_trained_run(args.checkpoint, command.removeprefix("bench-"))
+    trained = (None if args.checkpoint is None
+               else load_trained_run(args.checkpoint, command.removeprefix("bench-")))
     results = check_writable_dir(args.results_dir, "--results-dir")
     load_before = os.getloadavg()[0]
     t0 = time.perf_counter()
-    frame = measure_env(cfg, args.seed, args.checkpoint)
+    frame = measure_env(cfg, args.seed, trained)
     prov = provenance(cfg, command=command, scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra={"note": "timings vary between runs and machines; one thread",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import pandas as pd
 
@@ -29,12 +29,12 @@ class WildfireBenchConfig(BenchConfig):
     SCALES: ClassVar[dict[str, dict[str, int]]] = bench_common.scales("wildfire")
 
 
-def measure(cfg: WildfireBenchConfig, seed: int, checkpoint: str | None = None) -> pd.DataFrame:
-    env_cfg = WildfireConfig() if checkpoint is None else bench_common.trained_env_config(
-        bench_common.load_trained_run(checkpoint, "wildfire"), WildfireConfig)
+def measure(cfg: WildfireBenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
+    """``trained``: a loaded checkpoint of a wildfire run (``bench_common.load_trained_run``)."""
+    env_cfg = WildfireConfig() if trained is None else bench_common.trained_env_config(trained, WildfireConfig)
     return bench_common.measure(
         make_env(env_cfg), make_reference_env(env_cfg), "random",
-        lambda env, rng: RandomPolicy(rng, n_observed=env_cfg.n_observed), cfg, seed, checkpoint)
+        lambda env, rng: RandomPolicy(rng, n_observed=env_cfg.n_observed), cfg, seed, trained)
 
 
 def run(args: argparse.Namespace) -> int:

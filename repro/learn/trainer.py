@@ -346,7 +346,11 @@ def epochs_done(out: str | Path) -> int:
 
 def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sampler:
     """The trained policy of a run folder's checkpoint, ready to hand to an engine."""
-    state = load_checkpoint(path)
+    return policy_from_state(load_checkpoint(path), rng)
+
+
+def policy_from_state(state: dict[str, Any], rng: np.random.Generator) -> Sampler:
+    """The trained policy of a loaded checkpoint (:func:`load_checkpoint`)."""
     cfg = state["run_config"]["train"]
     obs_dim = len(state["normalizer"]["mean"])
     n_actions = state["policy"][next(reversed(state["policy"]))].shape[0]
