@@ -12,7 +12,7 @@ ARGS   ?=
 TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup reproduce test claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
+.PHONY: setup reproduce test lint claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
 	fig-bus-arrivals fig-bus-load \
 	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour clean
 .DEFAULT_GOAL := help
@@ -36,8 +36,11 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP) ## create .venv and install the suite
 
-test: $(STAMP) ## run the test suite
+test: lint ## lint, then run the test suite
 	$(PY) -m pytest
+
+lint: $(STAMP) ## ruff: style (100 columns) and likely bugs (pyproject.toml says which rules)
+	$(BIN)/ruff check repro tests
 
 reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) table-race SCALE=$(SCALE) SEED=$(SEED)

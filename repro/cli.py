@@ -18,7 +18,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bus-eval": ("repro.experiments.bus_eval", "evaluate a bus policy (return, loads, regularity)"),
     "bus-thresholds": ("repro.experiments.bus_thresholds",
                        "Optimized Thresholds by differential evolution (bus baseline)"),
-    "fig-bus-arrivals": ("repro.experiments.fig_bus_arrivals", "bus arrival-time figure per policy"),
+    "fig-bus-arrivals": ("repro.experiments.fig_bus_arrivals",
+                         "bus arrival-time figure per policy"),
     "fig-bus-load": ("repro.experiments.fig_bus_load", "bus 4th-cycle load figure per policy (C4)"),
     "fig-bus-lambda": ("repro.experiments.fig_bus_lambda",
                        "bus training curves over lambda, with the baselines (C1, C2)"),
@@ -28,7 +29,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "wildfire-eval": ("repro.experiments.wildfire_eval", "ADR of a heuristic wildfire policy"),
     "bench-wildfire": ("repro.experiments.bench_wildfire",
                        "decisions/s of the fast and SimPy wildfire engines (MLP policy)"),
-    "scaling": ("repro.experiments.scaling", "event-driven vs time-stepped compute against N (C11)"),
+    "scaling": ("repro.experiments.scaling",
+                "event-driven vs time-stepped compute against N (C11)"),
     "fig-transfer": ("repro.experiments.transfer",
                      "train on ED and FS simulators, test on ED (C8, C9)"),
     "wildfire-behaviour": ("repro.experiments.wildfire_behaviour",
@@ -52,7 +54,8 @@ def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0) -> None
     """Options every driver takes: scale, seed and where results and figures go."""
     parser.add_argument("--scale", default=DEFAULT_SCALE, help=f"one of {', '.join(SCALES)}")
     if seed is not None:
-        parser.add_argument("--seed", type=int, default=seed, help="root seed of every random stream")
+        parser.add_argument("--seed", type=int, default=seed,
+                            help="root seed of every random stream")
     parser.add_argument("--results-dir", default="results", help="folder for CSVs and sidecars")
     parser.add_argument("--figures-dir", default="figures", help="folder for PNG and PDF figures")
 

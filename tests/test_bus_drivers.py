@@ -42,7 +42,8 @@ def test_outputs_and_c4(smoke):
 def test_thresholds_deterministic(smoke, tmp_path):
     res, _ = smoke
     assert main(["bus-thresholds", "--scale", "smoke", "--results-dir", str(tmp_path)]) == 0
-    assert (tmp_path / "bus_thresholds.csv").read_bytes() == (res / "bus_thresholds.csv").read_bytes()
+    assert ((tmp_path / "bus_thresholds.csv").read_bytes()
+            == (res / "bus_thresholds.csv").read_bytes())
 
 
 def test_eval_json(smoke, capsys):

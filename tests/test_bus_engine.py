@@ -1,4 +1,5 @@
-"""The bus engine against its SimPy reference, the paper's worked No Holding numbers, conventions."""
+"""The bus engine against its SimPy reference, the paper's worked No Holding numbers,
+conventions."""
 
 from __future__ import annotations
 

@@ -37,7 +37,8 @@ def test_unit_durations_equal_standard_gae(seed, done):
     gamma, lam = rng.uniform(0.01, 0.5), rng.uniform(0.5, 2.0)
     adv, ret = m_gae(rewards, np.ones(n), values, last, gamma, lam)
     # M-GAE's per-step factor exp(-gamma lam) is GAE's gamma_d * lambda_d with gamma_d = exp(-gamma)
-    sb_adv, sb_ret = sb3_gae(rewards, values, last, done, np.exp(-gamma), np.exp(-gamma * (lam - 1)))
+    sb_adv, sb_ret = sb3_gae(rewards, values, last, done, np.exp(-gamma),
+                             np.exp(-gamma * (lam - 1)))
     np.testing.assert_allclose(adv, sb_adv, rtol=1e-5, atol=1e-5)  # sb3 stores float32
     # sb3's returns are A + V (TD(lambda)); with lam = 1 they are the discounted returns
     adv1, ret1 = m_gae(rewards, np.ones(n), values, last, gamma, 1.0)

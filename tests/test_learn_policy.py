@@ -56,7 +56,8 @@ def test_sampler_matches_network_and_its_probabilities():
     n = 40_000
     actions = sampler(batch(np.repeat(obs, n, axis=0)))
     freq = np.bincount(actions, minlength=4) / n
-    assert np.all(np.abs(freq - expected[0]) < 4 * np.sqrt(expected[0] * (1 - expected[0]) / n) + 1e-9)
+    assert np.all(np.abs(freq - expected[0])
+                  < 4 * np.sqrt(expected[0] * (1 - expected[0]) / n) + 1e-9)
     # the generator alone decides the draws
     again = Sampler(policy, norm, np.random.default_rng(2))(batch(np.repeat(obs, n, axis=0)))
     np.testing.assert_array_equal(actions, again)

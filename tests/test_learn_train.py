@@ -40,9 +40,11 @@ def test_reaches_toy_optimum():
     np.testing.assert_array_equal(probs.argmax(axis=1), best_actions)
     learned_adr = toy.expected_adr(env_cfg, probs)
     # within 1% of the optimum, having started about 40% below it
-    assert learned_adr >= best_adr - 0.01 * (best_adr - 0) and best_adr - uniform_adr > 0.3 * best_adr
+    assert (learned_adr >= best_adr - 0.01 * (best_adr - 0)
+            and best_adr - uniform_adr > 0.3 * best_adr)
     # training curves: the batch estimate rose with the policy
-    assert frame.average_discounted_return.iloc[-5:].mean() > frame.average_discounted_return.iloc[0]
+    assert (frame.average_discounted_return.iloc[-5:].mean()
+            > frame.average_discounted_return.iloc[0])
     assert (frame.kl <= 0.01).all()
 
 
@@ -94,7 +96,8 @@ def test_resume_equals_uninterrupted_run(tmp_path):
         frames = [pd.read_csv(tmp_path / n / "progress.csv").drop(columns=TIMING_COLUMNS)
                   for n in ("a", other)]
         pd.testing.assert_frame_equal(*frames, check_exact=True)
-    assert (tmp_path / "b" / "config.json").read_text() == (tmp_path / "a" / "config.json").read_text()
+    assert ((tmp_path / "b" / "config.json").read_text()
+            == (tmp_path / "a" / "config.json").read_text())
     # and a run with a different seed differs
     assert not tensors_equal(ck["a"]["policy"], Trainer(
         train_config("quick", "toy", epochs=1, seed=4), toy.make_env(toy.ToyConfig())
@@ -128,7 +131,8 @@ def test_resume_after_a_stop_between_row_and_checkpoint(tmp_path, stop):
 
 @pytest.mark.parametrize("damage", ["deleted", "short"])
 def test_resume_refuses_a_progress_table_missing_checkpointed_rows(tmp_path, capsys, damage):
-    """Rows of checkpointed epochs cannot be rebuilt: resuming says so (exit 2), touching nothing."""
+    """Rows of checkpointed epochs cannot be rebuilt: resuming says so (exit 2), touching
+    nothing."""
     opts = ["train", "--env", "toy", "--batch-episodes", "6", "--horizon", "10", "--out",
             str(tmp_path)]
     assert main([*opts, "--epochs", "2"]) == 0

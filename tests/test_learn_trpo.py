@@ -137,7 +137,8 @@ def test_surrogate_and_kl_are_the_modules():
     assert surr == pytest.approx(float(adv.mean()), abs=1e-12) and kl == pytest.approx(0, abs=1e-12)
     net.set_flat(net.get_flat() + 0.01 * torch.randn(len(net.get_flat()), dtype=DTYPE))
     logp = logp_of(policy, obs)
-    taken = logp[actions, torch.arange(len(actions))] - logp_old[actions, torch.arange(len(actions))]
+    taken = (logp[actions, torch.arange(len(actions))]
+             - logp_old[actions, torch.arange(len(actions))])
     surr, kl = surrogate_and_kl(net, obs, actions, adv, logp_old)
     assert surr == pytest.approx(float((torch.exp(taken) * adv).mean()), rel=1e-12)
     expected_kl = float((logp_old.exp() * (logp_old - logp)).sum(dim=0).mean())
@@ -147,8 +148,8 @@ def test_surrogate_and_kl_are_the_modules():
 def test_line_search_rejects_step_that_lowers_surrogate():
     policy, obs, actions, adv = tiny_problem(4)
     theta0 = parameters_to_vector(policy.parameters()).detach().clone()
-    accepted, _, _, _ = line_search(TanhMLP(policy.net), lambda: (0.0, 0.0), torch.ones_like(theta0), 1.0,
-                                    0.01, 0.8, 5)
+    accepted, _, _, _ = line_search(TanhMLP(policy.net), lambda: (0.0, 0.0),
+                                    torch.ones_like(theta0), 1.0, 0.01, 0.8, 5)
     assert not accepted
     assert torch.equal(parameters_to_vector(policy.parameters()), theta0)
 

@@ -22,11 +22,13 @@ HAND = draws_of([1.0, 1.0, 1.0, 1.0], [1.5, 1.5, 1.5])
 
 def test_event_driven_hand_case_ties_in_scheduling_order():
     out = simulate_events(HAND, 3.2)
-    # Agent 1 scheduled its t=3 event at t=1.5, before agent 0 did (at t=2): SimPy processes it first.
+    # Agent 1 scheduled its t=3 event at t=1.5, before agent 0 did (at t=2):
+    # SimPy processes it first.
     assert out.agents.tolist() == [0, 1, 0, 1, 0]
     assert out.times.tolist() == [1.0, 1.5, 2.0, 3.0, 3.0]
     assert out.count.tolist() == [3, 2]
-    # Score: others' events so far, summed over own events: agent 0 reads 0, 1, 2; agent 1 reads 1, 2.
+    # Score: others' events so far, summed over own events: agent 0 reads 0, 1, 2;
+    # agent 1 reads 1, 2.
     assert out.score.tolist() == [3, 3]
     assert (out.events, out.tied_events, out.steps, out.agent_visits) == (5, 1, 0, 0)
 

@@ -64,8 +64,9 @@ def trained_run(tmp_path_factory):
 
 def test_checkpoint_times_the_trained_policy_on_its_runs_environment(trained_run):
     cfg = WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1)
-    frame = measure(cfg, seed=4, trained=load_trained_run(trained_run / "wildfire" / "checkpoint.pt",
-                                                           "wildfire"))
+    frame = measure(cfg, seed=4,
+                    trained=load_trained_run(trained_run / "wildfire" / "checkpoint.pt",
+                                             "wildfire"))
     assert sorted(zip(frame.engine, frame.policy)) == [
         ("fast", "checkpoint"), ("fast", "random"),
         ("reference", "checkpoint"), ("reference", "random")]

@@ -47,7 +47,8 @@ HEALTH0 = 2 + 4
 def test_fire_layout():
     f = fire_positions()
     assert f.shape == (9, 2)
-    np.testing.assert_allclose(f[:3], [[-0.01, 1.0], [0.01, 1.0], [0, 1 - 0.02 * np.sin(np.pi / 3)]])
+    np.testing.assert_allclose(f[:3], [[-0.01, 1.0], [0.01, 1.0],
+                                       [0, 1 - 0.02 * np.sin(np.pi / 3)]])
     np.testing.assert_allclose(np.linalg.norm(f[:3].mean(0)), 1 - 0.02 * np.sin(np.pi / 3) / 3)
     # every pair within a cluster is 0.02 m apart; clusters are rotations by 120 deg
     for c in range(3):

@@ -130,7 +130,7 @@ def test_pettingzoo_rewards_match_the_reference():
     e = make()
     e.reset(seed=3)
     rewards, durations, obs = [], [], []
-    for agent in e.agent_iter():
+    for _ in e.agent_iter():
         o, r, term, trunc, info = e.last()
         if len(obs):  # the reward and duration of the agent's previous decision
             rewards.append(r)

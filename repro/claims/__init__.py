@@ -55,7 +55,8 @@ class Claim:
         try:
             v = self.check(results)
         except FileNotFoundError as err:
-            return Verdict("-", NOT_RUN, f"missing {Path(err.filename).name if err.filename else err}")
+            return Verdict("-", NOT_RUN,
+                           f"missing {Path(err.filename).name if err.filename else err}")
         require(v.verdict in VERDICTS, "verdict", "one of " + ", ".join(VERDICTS), v.verdict)
         return v
 
@@ -82,9 +83,9 @@ def render(results: Path) -> str:
     lines = [
         "# Paper claims: the paper's numbers beside ours",
         "",
-        "Rendered by `make claims` (`python -m repro claims`) from the CSVs under `results/`; do not",
-        "edit by hand. A claim whose results are missing reads \"not yet run\". The scale column says",
-        "which scale (SPEC section 6: smoke, quick, paper) produced the numbers.",
+        "Rendered by `make claims` (`python -m repro claims`) from the CSVs under `results/`; do",
+        "not edit by hand. A claim whose results are missing reads \"not yet run\". The scale",
+        "column says which scale (SPEC section 6: smoke, quick, paper) produced the numbers.",
         "",
         "| id | claim | paper | ours | tolerance | verdict | scale | regenerate |",
         "|----|-------|-------|------|-----------|---------|-------|------------|",

@@ -64,7 +64,8 @@ def check_c2(results: Path) -> Verdict:
     ours = (f"spread over lambda {spread[0]:.0f} [{spread[1]:.0f}, {spread[2]:.0f}] vs gap to "
             f"thresholds {gap[0]:.0f} [{gap[1]:.0f}, {gap[2]:.0f}]")
     return Verdict(ours, _verdict(spread[2] < gap[1], spread[0] < gap[0]),
-                   f"range over lambda in {{{', '.join(f'{x:g}' for x in sorted(runs['lambda'].unique()))}}} "
+                   "range over lambda in "
+                   f"{{{', '.join(f'{x:g}' for x in sorted(runs['lambda'].unique()))}}} "
                    "of the final-return "
                    f"IQM, {scores.shape[0]} seeds each", scale_of(path))
 
@@ -120,7 +121,8 @@ def check_c5(results: Path) -> Verdict:
             f"across buses: MLP {var['mlp']:.0f}, thresholds {var['thresholds']:.0f} pax^2")
     paper = PAPER_REGULARITY_MIN
     return Verdict(ours, _verdict(sooner and lower, sooner or lower),
-                   f"paper: {paper['mlp']:.0f} vs {paper['thresholds']:.0f} min, MLP lower variance. "
+                   f"paper: {paper['mlp']:.0f} vs {paper['thresholds']:.0f} min, "
+                   "MLP lower variance. "
                    f"Regular = from then on at least {REGULARITY_SHARE:.0%} of the headways within "
                    f"H +- {REGULARITY_BAND_MIN:g} min, with at least one fleet cycle of arrivals "
                    "left (never within the 3 h episode = not reached); one episode per policy, the "
@@ -132,10 +134,12 @@ CLAIMS = [
     Claim("C1", "PS-TRPO + M-GAE (MLP) beats Optimized Thresholds, which beats No Holding",
           "MLP > thresholds > no holding (Figs. bbtraining, bbtest)",
           "ordering holds with bootstrap CIs over seeds", "make fig-bus-lambda", check_c1),
-    Claim("C2", "lambda changes the final return only slightly compared with the MLP-thresholds gap",
+    Claim("C2",
+          "lambda changes the final return only slightly compared with the MLP-thresholds gap",
           "spread over lambda small (Fig. bbtraining)", "spread over lambda < gap MLP - thresholds",
           "make fig-bus-lambda", check_c2),
-    Claim("C3", "smaller batches degrade convergence", "return after E epochs rises with batch size",
+    Claim("C3", "smaller batches degrade convergence",
+          "return after E epochs rises with batch size",
           "monotone in batch size", "make fig-bus-batch", check_c3),
     Claim("C4", "No Holding bunches the fleet: the leader saturates at L_max, the others run empty",
           "leader 4th-cycle loads 50, 64, 60, 75, ... and followers 0", "exact",

@@ -23,7 +23,8 @@ def check_c11(results: Path) -> Verdict:
 
     steps, events = pick(full, "time_stepped", "steps"), pick(full, "event_driven", "events")
     if steps.empty or events.empty:
-        return Verdict("-", "not yet run", "no step or event fit in scaling_fit.csv", scale_of(path))
+        return Verdict("-", "not yet run", "no step or event fit in scaling_fit.csv",
+                       scale_of(path))
     ok = steps.exponent.between(*STEPS_RANGE).all() and events.exponent.between(*EVENTS_RANGE).all()
 
     def exponents(frame: pd.DataFrame) -> str:

@@ -27,7 +27,8 @@ FLOAT_FORMAT = "%.10g"
 """Ten significant digits: well above every quantity's precision, and stable across platforms."""
 
 PROVENANCE_PACKAGES = (
-    "numpy", "scipy", "torch", "simpy", "pandas", "statsmodels", "numba", "matplotlib", "pettingzoo",
+    "numpy", "scipy", "torch", "simpy", "pandas", "statsmodels", "numba", "matplotlib",
+    "pettingzoo",
 )
 
 
@@ -55,7 +56,8 @@ def atomic_path(dest: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``dest``; on success it is renamed onto ``dest``."""
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp" + dest.suffix, dir=dest.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp" + dest.suffix,
+                               dir=dest.parent)
     os.close(fd)
     try:
         yield Path(tmp)
@@ -82,7 +84,7 @@ def write_csv(dest: str | Path, frame: pd.DataFrame) -> None:
 def append_csv(dest: str | Path, frame: pd.DataFrame) -> None:
     """Append ``frame``'s rows to the CSV ``dest`` (created with a header), formatted as
     :func:`write_csv` formats them. Not atomic: a reader that must see whole rows only keeps the
-    rows it knows to be complete (a resumed training run keeps as many as its checkpoint's epochs)."""
+    rows it knows to be complete (a resumed training run keeps its checkpoint's epochs)."""
     dest = Path(dest)
     new = not dest.exists()
     with dest.open("a", newline="") as f:

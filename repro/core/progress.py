@@ -1,4 +1,4 @@
-"""Progress bars on stderr for anything longer than a few seconds (silent when REPRO_QUIET is set)."""
+"""Progress bars on stderr for anything that takes seconds (silent when REPRO_QUIET is set)."""
 
 from __future__ import annotations
 

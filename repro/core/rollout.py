@@ -121,7 +121,8 @@ def concat(rollouts: list[Rollout]) -> Rollout:
     )
 
 
-def episode_streams(seed: int | np.random.SeedSequence, n_episodes: int) -> list[np.random.SeedSequence]:
+def episode_streams(seed: int | np.random.SeedSequence,
+                    n_episodes: int) -> list[np.random.SeedSequence]:
     """One independent random stream per episode of a batch.
 
     Both engines of an environment (SimPy reference and fast) draw episode ``e``'s randomness from

@@ -29,9 +29,11 @@ class WildfireBenchConfig(BenchConfig):
     SCALES: ClassVar[dict[str, dict[str, int]]] = bench_common.scales("wildfire")
 
 
-def measure(cfg: WildfireBenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
+def measure(cfg: WildfireBenchConfig, seed: int,
+            trained: dict[str, Any] | None = None) -> pd.DataFrame:
     """``trained``: a loaded checkpoint of a wildfire run (``bench_common.load_trained_run``)."""
-    env_cfg = WildfireConfig() if trained is None else bench_common.trained_env_config(trained, WildfireConfig)
+    env_cfg = (WildfireConfig() if trained is None
+               else bench_common.trained_env_config(trained, WildfireConfig))
     return bench_common.measure(
         make_env(env_cfg), make_reference_env(env_cfg), "random",
         lambda env, rng: RandomPolicy(rng, n_observed=env_cfg.n_observed), cfg, seed, trained)

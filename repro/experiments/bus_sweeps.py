@@ -3,8 +3,8 @@ training curves over lambda (at 540 episodes per epoch) and over the batch size 
 with the No Holding and Optimized Thresholds returns as horizontal lines.
 
 Every (lambda, batch, seed) is one checkpointed run under ``<runs-dir>/bus/`` (see
-``repro.experiments.sweep``); the two sweeps share the lambda = 2, batch = 540 runs, and re-running a
-driver skips what is finished. Outputs, for sweep ``s`` in {lambda, batch}:
+``repro.experiments.sweep``); the two sweeps share the lambda = 2, batch = 540 runs, and re-running
+a driver skips what is finished. Outputs, for sweep ``s`` in {lambda, batch}:
 
 - ``results/bus_<s>.csv``: one row per run and epoch (lambda, batch, seed, epoch, average_return,
   average_discounted_return);
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -147,7 +147,8 @@ def summary(cfg: BusSweepConfig, finals: pd.DataFrame, baselines: dict[str, floa
     for lam, batch, s, ret in zip(finals["lambda"], finals.batch, finals.seed, finals.final_return):
         if runs is not None:
             rows.append(dict(policy="mlp-run", **{"lambda": lam}, batch=batch, runs=1,
-                             final_iqm=ret, ci_low=ret, ci_high=ret, run=str(runs[(lam, batch, s)])))
+                             final_iqm=ret, ci_low=ret, ci_high=ret,
+                             run=str(runs[(lam, batch, s)])))
     return pd.DataFrame(rows).astype({"batch": "Int64"})  # the baselines have no batch
 
 

@@ -1,11 +1,11 @@
 """Optimized Thresholds (SPEC 5.3): T1 > T2 > T3 found by scipy's differential evolution.
 
-The objective is the average episode return (undiscounted sum of -nu_k (h - H)^2 over the arrivals of
-a 3 h episode), the same return the MLP maximises. Environment and policy are deterministic, so one
-episode per candidate is exact, and a whole population is one batched rollout (``vectorized=True``,
-which implies ``updating='deferred'``). The ordering is guaranteed by optimising
-x = (T3, T2 - T3, T1 - T2) with positive lower bounds on the gaps. Polishing is off: the return is
-piecewise constant in the thresholds, so a gradient method has nothing to follow.
+The objective is the average episode return (undiscounted sum of -nu_k (h - H)^2 over the arrivals
+of a 3 h episode), the same return the MLP maximises. Environment and policy are deterministic, so
+one episode per candidate is exact, and a whole population is one batched rollout
+(``vectorized=True``, which implies ``updating='deferred'``). The ordering is guaranteed by
+optimising x = (T3, T2 - T3, T1 - T2) with positive lower bounds on the gaps. Polishing is off: the
+return is piecewise constant in the thresholds, so a gradient method has nothing to follow.
 """
 
 from __future__ import annotations

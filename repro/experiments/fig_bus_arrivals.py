@@ -1,4 +1,5 @@
-"""Arrival times of the six buses at the ten stops, one panel per policy (paper Fig. bbarrival_times).
+"""Arrival times of the six buses at the ten stops, one panel per policy (paper Fig.
+bbarrival_times).
 
 Writes results/bus_arrivals.csv (every arrival of one episode per policy) and figures/bus_arrivals.
 The trained MLP panel is the lambda sweep's best run (highest final return; ``--mlp-run`` names
@@ -20,7 +21,8 @@ from repro.envs.bus import BusConfig
 from repro.envs.bus.policies import POLICIES, best_run
 from repro.experiments.bus_eval import evaluate, policy_from_args
 
-TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy", "thresholds": "Optimized Thresholds"}
+TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",
+          "thresholds": "Optimized Thresholds"}
 
 
 def add_policy_arguments(p: argparse.ArgumentParser) -> None:
@@ -61,7 +63,8 @@ def plot(arrivals: pd.DataFrame, stem) -> None:
     import matplotlib.pyplot as plt
 
     names = list(dict.fromkeys(arrivals.policy))
-    fig, axes = plt.subplots(1, len(names), figsize=(5 * len(names), 3.6), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(1, len(names), figsize=(5 * len(names), 3.6), sharey=True,
+                             squeeze=False)
     for ax, name in zip(axes[0], names):
         sel = arrivals[arrivals.policy == name]
         for bus, grp in sel.groupby("bus"):

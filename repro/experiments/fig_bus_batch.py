@@ -1,4 +1,5 @@
-"""``fig-bus-batch``: the bus training curves over the batch sweep (see repro.experiments.bus_sweeps)."""
+"""``fig-bus-batch``: the bus training curves over the batch sweep (see
+repro.experiments.bus_sweeps)."""
 
 from __future__ import annotations
 

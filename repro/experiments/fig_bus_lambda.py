@@ -1,4 +1,5 @@
-"""``fig-bus-lambda``: the bus training curves over the lambda sweep (see repro.experiments.bus_sweeps)."""
+"""``fig-bus-lambda``: the bus training curves over the lambda sweep (see
+repro.experiments.bus_sweeps)."""
 
 from __future__ import annotations
 

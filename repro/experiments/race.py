@@ -2,11 +2,12 @@
 
 N event times are drawn i.i.d. from p(t). A race occurs when two or more fall into the same interval
 [k dT, (k+1) dT) of a grid anchored at 0. For each N the driver finds, by bisection in log dT, the
-largest dT whose race probability stays below delta, and fits log dT = log alpha - beta log N by OLS.
+largest dT whose race probability stays below delta, and fits log dT = log alpha - beta log N by
+OLS.
 
 Beyond the paper, the race probability is also computed exactly. With bin probabilities p_b, the
-probability of no race is N! e_N(p), e_N the elementary symmetric polynomial. Writing G_n = n! e_n and
-P_k = sum_b p_b^k (power sums), Newton's identities become
+probability of no race is N! e_N(p), e_N the elementary symmetric polynomial. Writing G_n = n! e_n
+and P_k = sum_b p_b^k (power sums), Newton's identities become
 
     G_n = sum_{k>=1} (-1)^(k+1) P_k (n-1)!/(n-k)! G_{n-k},    G_0 = 1,
 
@@ -20,6 +21,7 @@ from __future__ import annotations
 import argparse
 import time
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import ClassVar
 
@@ -229,7 +231,7 @@ def run_study(cfg: RaceConfig, seed: int) -> dict[str, pd.DataFrame]:
             times = np.sort(dist.sample(np.random.default_rng(nss), (cfg.n_sets, int(n))), axis=1)
             gaps = np.diff(times, axis=1)
             lo = float(gaps[gaps > 0].min()) / 4  # below the smallest gap: no set can race
-            dt = largest_safe_dt(lambda d: race_probability_mc(times, d), cfg.delta, lo, hi,
+            dt = largest_safe_dt(partial(race_probability_mc, times), cfg.delta, lo, hi,
                                  cfg.bisection_steps)
             dts.append(dt)
             points.append(dict(distribution=dist.name, parameters=dist.parameters, n=int(n),

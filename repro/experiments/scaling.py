@@ -2,10 +2,10 @@
 
 The paper argues, without measuring, that a fixed-step simulator must shrink dT as alpha N^-beta
 (beta ~ 2.2, the race study) to keep the race probability below delta, so its compute grows like
-N^2.2, while an event-driven simulator's grows about linearly. This driver measures it on the N-agent
-renewal process of ``repro.envs.renewal``: for each N, dT is the largest step whose exact race
-probability (``repro.experiments.race``) is below delta, and the process is simulated for a fixed
-duration by
+N^2.2, while an event-driven simulator's grows about linearly. This driver measures it on the
+N-agent renewal process of ``repro.envs.renewal``: for each N, dT is the largest step whose exact
+race probability (``repro.experiments.race``) is below delta, and the process is simulated for a
+fixed duration by
 
 - ``event_driven``: work = events processed;
 - ``rounding_fixed_step``: the simulator used for training (event times rounded up to the dT grid,

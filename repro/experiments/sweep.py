@@ -80,7 +80,8 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
 
 def add_sweep_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs-dir", default="runs",
-                   help="folder of the sweep's run folders (checkpoints; re-running skips what is done)")
+                   help="folder of the sweep's run folders (checkpoints; re-running skips "
+                        "what is done)")
     p.add_argument("--n-jobs", type=int, help="joblib worker processes (default: all cores)")
     p.add_argument("--scheduler", help="address of an existing Dask scheduler to run on instead")
 

@@ -38,9 +38,10 @@ def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = T
              on_batch: Callable[[Rollout], object] | None = None) -> Rollout:
     """Roll out ``n_episodes`` in batches seeded from children of ``seed``. ``keep_obs=False`` drops
     each batch's observations and engine log (``info``) as soon as it is done (the result's ``obs``
-    has 0 columns): ADR does not need them, and a learned policy that keeps flying to the fire it is at can take tens of
-    millions of decisions over 10,000 test episodes; with their observations, one paper-scale
-    transfer test filled the machine's 24 GB. ``on_batch`` sees each whole batch first."""
+    has 0 columns): ADR does not need them, and a learned policy that keeps flying to the fire it is
+    at can take tens of millions of decisions over 10,000 test episodes; with their observations,
+    one paper-scale transfer test filled the machine's 24 GB. ``on_batch`` sees each whole batch
+    first."""
     n_batches = -(-n_episodes // BATCH_EPISODES)
     children = np.random.SeedSequence(seed).spawn(n_batches)
     sizes = [min(BATCH_EPISODES, n_episodes - c * BATCH_EPISODES) for c in range(n_batches)]

@@ -6,8 +6,10 @@ from repro.learn.m_gae import m_gae, m_gae_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn.trainer import TrainConfig, Trainer, policy_from_checkpoint, train_config
-from repro.learn.trpo import TRPOStats, conjugate_gradient, fisher_vector_product, line_search, trpo_step
+from repro.learn.trpo import (TRPOStats, conjugate_gradient, fisher_vector_product, line_search,
+                              trpo_step)
 
-__all__ = ["m_gae", "m_gae_paths", "TanhMLP", "CategoricalPolicy", "ObsNormalizer", "Sampler", "LinearFeatureBaseline", "MLPBaseline",
-           "TrainConfig", "Trainer", "train_config", "policy_from_checkpoint", "TRPOStats",
-           "conjugate_gradient", "fisher_vector_product", "line_search", "trpo_step"]
+__all__ = ["m_gae", "m_gae_paths", "TanhMLP", "CategoricalPolicy", "ObsNormalizer", "Sampler",
+           "LinearFeatureBaseline", "MLPBaseline", "TrainConfig", "Trainer", "train_config",
+           "policy_from_checkpoint", "TRPOStats", "conjugate_gradient", "fisher_vector_product",
+           "line_search", "trpo_step"]

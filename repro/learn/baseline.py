@@ -1,4 +1,5 @@
-"""Value baselines V(o) that M-GAE subtracts; both are fitted to the latest batch's discounted returns.
+"""Value baselines V(o) that M-GAE subtracts; both are fitted to the latest batch's discounted
+returns.
 
 - ``linear`` (default): rllab's LinearFeatureBaseline, which the released implementation used. Per
   decision k of a path the features are [z, z^2, k/100, (k/100)^2, (k/100)^3, 1], z the normalised
@@ -31,7 +32,7 @@ class Baseline(Protocol):
         ...
 
     def fit(self, obs: np.ndarray, index: np.ndarray, returns: np.ndarray) -> float:
-        """Regress on ``returns``; returns the final mean squared error relative to their variance."""
+        """Regress on ``returns``; returns the final mean squared error over their variance."""
         ...
 
     def state_dict(self) -> dict[str, Any]: ...

@@ -1,8 +1,9 @@
 """The shared categorical MLP policy, the observation normaliser, and the sampler the engines call.
 
-Parameter sharing (PS-TRPO): every agent of every episode acts with the same network; the agent's own
-observation is its only input. Networks are float32 (3-4x faster than float64 on CPU, and what rllab
-and stable-baselines use); everything around them (returns, advantages, statistics) is float64.
+Parameter sharing (PS-TRPO): every agent of every episode acts with the same network; the agent's
+own observation is its only input. Networks are float32 (3-4x faster than float64 on CPU, and what
+rllab and stable-baselines use); everything around them (returns, advantages, statistics) is
+float64.
 """
 
 from __future__ import annotations
@@ -53,8 +54,8 @@ class ObsNormalizer:
 
     Updated only between batches, never within one: the policy that sampled a batch, the one TRPO
     differentiates, and the baseline all see the same normalisation. Needed because raw observations
-    mix scales (the bus's headways in minutes with times in seconds). A feature with zero variance so
-    far (a constant) maps to 0. Until the first update it is the identity.
+    mix scales (the bus's headways in minutes with times in seconds). A feature with zero variance
+    so far (a constant) maps to 0. Until the first update it is the identity.
     """
 
     def __init__(self, dim: int, eps: float = 1e-8):
@@ -64,7 +65,7 @@ class ObsNormalizer:
         self.eps = eps
 
     def update(self, x: np.ndarray) -> None:
-        """Merge the batch ``x`` (N, dim) into the running moments (Chan et al.'s parallel formula)."""
+        """Merge the batch ``x`` (N, dim) into the running moments (Chan et al.'s formula)."""
         n = len(x)
         if n == 0:
             return
@@ -84,7 +85,8 @@ class ObsNormalizer:
         return {"count": self.count, "mean": self.mean.copy(), "var": self.var.copy()}
 
     def load_state_dict(self, state: dict) -> None:
-        self.count, self.mean, self.var = int(state["count"]), state["mean"].copy(), state["var"].copy()
+        self.count, self.mean, self.var = (int(state["count"]), state["mean"].copy(),
+                                           state["var"].copy())
 
 
 # The normaliser's passes over a batch, compiled: on a 37,000 x 28 wildfire batch numpy's took 7 ms
@@ -133,16 +135,16 @@ class CategoricalPolicy(nn.Module):
 
 class Sampler:
     """The :data:`~repro.core.rollout.Policy` handed to an engine: for every row of a DecisionBatch,
-    a forward pass and inverse-CDF sampling with one uniform from the trainer's Generator, so the same
-    generator state gives the same actions.
+    a forward pass and inverse-CDF sampling with one uniform from the trainer's Generator, so the
+    same generator state gives the same actions.
 
     Engines call it once per round, often for a handful of rows, where torch's per-operation
     overhead (tens of microseconds) would dominate. So the sampler evaluates a numpy snapshot of the
     network and normaliser, taken when it is created (the policy is fixed during a rollout): float32
     like the network, each layer one BLAS product and one vectorised tanh written into buffers that
-    are reused from call to call, and the sampling step (a dozen small numpy operations along rows of
-    a few entries) one compiled loop, :func:`_sample_rows`. In the engine benchmarks it costs about
-    1 us per decision, calls included (``policy_cpu_seconds`` in results/bench_*.csv).
+    are reused from call to call, and the sampling step (a dozen small numpy operations along rows
+    of a few entries) one compiled loop, :func:`_sample_rows`. In the engine benchmarks it costs
+    about 1 us per decision, calls included (``policy_cpu_seconds`` in results/bench_*.csv).
 
     A round of at most :data:`~repro.core.policy_kernel.MAX_ROWS` rows skips those calls: it is
     evaluated row by row in one compiled function, and an engine may do that itself without calling

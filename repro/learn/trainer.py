@@ -1,18 +1,19 @@
 """PS-TRPO with M-GAE: the training loop and the ``train`` command (SPEC section 4).
 
 One epoch = sample ``batch_episodes`` whole episodes with the current shared policy, compute M-GAE
-advantages with the current baseline, take one TRPO step, update the observation normaliser, then fit
-the baseline to the batch's discounted returns (in the new normalisation, which it will be used
+advantages with the current baseline, take one TRPO step, update the observation normaliser, then
+fit the baseline to the batch's discounted returns (in the new normalisation, which it will be used
 with). After every epoch a row is appended to the run folder's ``progress.csv`` and a checkpoint is
 written atomically; running the same command again resumes from the checkpoint and ends with
 exactly the parameters and progress table of an uninterrupted run.
 
 Threads: torch and numpy's BLAS run on one thread (:func:`~repro.learn.policy.blas_on_one_thread`
-says why). Memory: malloc keeps freed blocks (:func:`~repro.core.memory.keep_freed_memory` says why).
+says why). Memory: malloc keeps freed blocks (:func:`~repro.core.memory.keep_freed_memory` says
+why).
 
-Determinism: torch is seeded from the run seed; the policy's sampling draws
-come from one numpy Generator owned by the trainer (its state is checkpointed); epoch e's environment
-seed is derived from (seed, e). Timing columns are the only run-to-run differences in the outputs.
+Determinism: torch is seeded from the run seed; the policy's sampling draws come from one numpy
+Generator owned by the trainer (its state is checkpointed); epoch e's environment seed is derived
+from (seed, e). Timing columns are the only run-to-run differences in the outputs.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ ENVS = ("toy", "wildfire", "bus")
 
 ENV_DEFAULTS: dict[str, dict[str, Any]] = {
     "toy": dict(lam=1.0, batch_episodes=50, epochs=40),
-    "wildfire": dict(lam=1.0, batch_episodes=600, epochs=300),  # paper: 600-1200 episodes, 300 epochs
+    "wildfire": dict(lam=1.0, batch_episodes=600, epochs=300),  # paper: 600-1200 eps, 300 epochs
     "bus": dict(lam=2.0, batch_episodes=540, epochs=300),  # paper: lambda 2.0, 540 episodes
 }
 """Per-environment defaults (the paper's settings), applied under the scale and the command line."""
@@ -111,7 +112,8 @@ class TrainConfig:
     def validate(self) -> None:
         require(self.env in ENVS, "--env", "one of " + ", ".join(ENVS), self.env)
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1", self.batch_episodes)
+        require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
+                self.batch_episodes)
         require(self.lam >= 0, "--lam", ">= 0", self.lam)
         require(self.max_kl > 0, "--max-kl", "> 0", self.max_kl)
         require(len(self.hidden) >= 1 and min(self.hidden) >= 1, "--hidden",
@@ -283,7 +285,8 @@ class Trainer:
         checkpoint. Only ``epochs`` may differ (to extend or finish a run)."""
         assert self.out is not None
         if not holds_same_run(self.out, self.cfg, self.env_config, self.env.name):
-            raise UsageError("--out", "empty or holding a run with the same settings", str(self.out))
+            raise UsageError("--out", "empty or holding a run with the same settings",
+                             str(self.out))
         state = None
         if (self.out / CHECKPOINT).exists():
             state = load_checkpoint(self.out / CHECKPOINT)
@@ -411,7 +414,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
     p.add_argument("--fvp-subsample", type=float,
                    help="fraction of decisions for Fisher-vector products (1 = all)")
-    p.add_argument("--no-obs-norm", action="store_true", help="switch off observation normalisation")
+    p.add_argument("--no-obs-norm", action="store_true",
+                   help="switch off observation normalisation")
 
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:

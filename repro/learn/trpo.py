@@ -6,9 +6,9 @@ s.t.      mean_k KL(pi_old(.|o_k) || pi_theta(.|o_k)) <= max_kl
 
 The natural-gradient direction s solves F s = grad L by conjugate gradient, F being the Hessian of
 the mean KL at theta_old (the Fisher matrix, applied as a product, never formed). The step
-sqrt(2 max_kl / s'Fs) s would meet the KL bound exactly under the quadratic model; a backtracking line
-search shrinks it until the true KL is within the bound AND the surrogate improved, and otherwise
-leaves the parameters where they were.
+sqrt(2 max_kl / s'Fs) s would meet the KL bound exactly under the quadratic model; a backtracking
+line search shrinks it until the true KL is within the bound AND the surrogate improved, and
+otherwise leaves the parameters where they were.
 
 The products with the network's Jacobian are written out (:mod:`repro.learn.network`), not taken by
 autograd. Batches: observations (N, obs_dim); log-probabilities action-major, (n_actions, N). The
@@ -132,9 +132,9 @@ def trpo_step(net: TanhMLP, obs: torch.Tensor, actions: torch.Tensor, adv: torch
               max_backtracks: int, fvp_rows: torch.Tensor | None = None) -> TRPOStats:
     """One constrained update of the logit network ``net`` on a batch: normalised observations
     ``obs`` (N, obs_dim) in the network's dtype, ``actions`` (N,), ``adv`` (N,) already normalised.
-    ``fvp_rows`` (indices into the batch) restricts the Fisher-vector products, and so the step size,
-    to those decisions (rllab's ``subsample_factor``); the gradient and the line search always use
-    the whole batch."""
+    ``fvp_rows`` (indices into the batch) restricts the Fisher-vector products, and so the step
+    size, to those decisions (rllab's ``subsample_factor``); the gradient and the line search always
+    use the whole batch."""
     fwd = net.forward(obs)
     logp_old = log_softmax(fwd.logits)
     probs = logp_old.exp()

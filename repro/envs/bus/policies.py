@@ -1,4 +1,4 @@
-"""The bus baselines (SPEC 5.3) as batched policies, and the name -> policy map the drivers share."""
+"""The bus baselines (SPEC 5.3) as batched policies, and the name -> policy map of the drivers."""
 
 from __future__ import annotations
 
@@ -40,7 +40,8 @@ class ThresholdPolicy:
         self.thresholds = check_thresholds(thresholds)
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
-        t = self.thresholds[batch.episode if len(self.thresholds) > 1 else np.zeros(len(batch), int)]
+        t = self.thresholds[batch.episode if len(self.thresholds) > 1
+                            else np.zeros(len(batch), int)]
         h = batch.obs[:, H_COLUMN][:, None]
         return (h <= t).sum(axis=1).astype(np.int64)
 
@@ -75,7 +76,8 @@ def read_thresholds(results_dir: str | Path) -> np.ndarray:
     """T1, T2, T3 (minutes) from results/bus_thresholds.csv, written by `make table-thresholds`."""
     path = Path(results_dir) / THRESHOLDS_CSV
     if not path.exists():
-        raise UsageError("--thresholds", f"given, or {path} written first by `make table-thresholds`")
+        raise UsageError("--thresholds",
+                         f"given, or {path} written first by `make table-thresholds`")
     row = pd.read_csv(path).iloc[0]
     return np.array([row.T1, row.T2, row.T3], float)
 

@@ -9,8 +9,8 @@ each bus is a SimPy process::
 
 Decisions are batched like the fast engine's (see ``engine.py`` for the round and reward
 conventions): a bus yields an untriggered ``decision`` event; an episode runs until some bus waits
-and the next event lies later; the driver then succeeds the waiting events with the policy's actions.
-The model favours plainness over speed; ``engine.py`` must agree with it exactly.
+and the next event lies later; the driver then succeeds the waiting events with the policy's
+actions. The model favours plainness over speed; ``engine.py`` must agree with it exactly.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import simpy
 
 from repro.core.errors import require
 from repro.core.rollout import DecisionBatch, Rollout
-from repro.envs.bus.engine import OBS_DIM, BusEnv, drive
+from repro.envs.bus.engine import OBS_DIM, BusEnv
 from repro.envs.bus.params import BusConfig
 
 
@@ -145,7 +145,8 @@ class ReferenceBatch:
             rewards=np.array([r for ep, b in paths for r in ep.rewards[b]], float),
             durations=np.array([d for ep, b in paths for d in ep.durations[b]], float),
             path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
-            path_episode=np.repeat(np.arange(len(eps)), n), path_agent=np.tile(np.arange(n), len(eps)),
+            path_episode=np.repeat(np.arange(len(eps)), n),
+            path_agent=np.tile(np.arange(n), len(eps)),
             episode_return=np.array([ep.episode_return for ep in eps]),
             info={"arrivals": self.arrivals()})
 

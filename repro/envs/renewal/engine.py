@@ -2,8 +2,8 @@
 
 Agent i's inter-event times are i.i.d. draws from p(t), pre-drawn from its own random stream, so
 every simulator consumes exactly the same draws. At each of its events an agent acts: it reads how
-many events the *other* agents have had so far and adds that to its score, then counts its own event.
-The scores therefore depend on the order in which events are processed, which is what race
+many events the *other* agents have had so far and adds that to its score, then counts its own
+event. The scores therefore depend on the order in which events are processed, which is what race
 conditions corrupt.
 
 Three simulators:
@@ -11,8 +11,8 @@ Three simulators:
 - ``simulate_events(draws, T)``: event-driven (ED). A binary heap of the agents' next event times;
   events are processed in time order, and the clock jumps from event to event.
 - ``simulate_events(draws, T, dt)``: the rounding fixed-step simulator used for training (SPEC
-  section 3): every delay d scheduled at time ``now`` ends at ceil((now + d)/dT) dT instead. It still
-  jumps from event to event, so its cost does not depend on dT. Events at the same instant are
+  section 3): every delay d scheduled at time ``now`` ends at ceil((now + d)/dT) dT instead. It
+  still jumps from event to event, so its cost does not depend on dT. Events at the same instant are
   processed in scheduling order, as SimPy does (``tie_order="scheduled"``), or in agent order
   (``tie_order="agent"``, the order of the time-stepped simulator).
 - ``simulate_steps(draws, T, dt)``: genuinely time-stepped (TS). The clock advances by dT and every
@@ -190,7 +190,8 @@ def _simulate_events(delays, offsets, duration, dt, tie_order):
     count = np.zeros(n, np.int64)
     score = np.zeros(n, np.int64)
     nxt = offsets[:-1].copy()
-    # The heap holds each agent's one pending event, keyed by (time, tie-break); tie-breaks are unique.
+    # The heap holds each agent's one pending event, keyed by (time, tie-break);
+    # tie-breaks are unique.
     ht = np.empty(n, np.float64)
     hb = np.empty(n, np.int64)
     ha = np.empty(n, np.int64)

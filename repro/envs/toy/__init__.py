@@ -13,10 +13,10 @@ episode ends at ``horizon`` seconds, cutting the running actions. The episode re
 undiscounted total paid.
 
 The optimum takes durations into account: per decision, ``long`` pays more, but per second it pays
-1.25 in context 0 and 0.625 in context 1, so the best policy is long in context 0 and quick in context
-1 (for the default gamma and horizon; :func:`optimal_policy` checks every deterministic policy
-exactly). Durations are whole seconds, so all decisions happen on integer times and the expected
-discounted return has an exact recursion (:func:`expected_adr`).
+1.25 in context 0 and 0.625 in context 1, so the best policy is long in context 0 and quick in
+context 1 (for the default gamma and horizon; :func:`optimal_policy` checks every deterministic
+policy exactly). Durations are whole seconds, so all decisions happen on integer times and the
+expected discounted return has an exact recursion (:func:`expected_adr`).
 """
 
 from __future__ import annotations

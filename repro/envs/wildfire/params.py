@@ -107,7 +107,8 @@ class WildfireConfig:
 def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
     """(9, 2) fire locations: cluster A, then A rotated by +120 deg (B) and by -120 deg (C).
 
-    Cluster A is (-s/2, R), (s/2, R), (0, R - s sin 60deg) with s = fire_spacing, R = cluster_radius.
+    Cluster A is (-s/2, R), (s/2, R), (0, R - s sin 60deg) with s = fire_spacing,
+    R = cluster_radius.
     """
     s, r = cfg.fire_spacing, cfg.cluster_radius
     a = np.array([[-s / 2, r], [s / 2, r], [0.0, r - s * math.sin(math.radians(60))]])

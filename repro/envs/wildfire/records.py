@@ -25,7 +25,8 @@ def rollout_from_records(*, episode: np.ndarray, agent: np.ndarray, index: np.nd
     first = np.flatnonzero(np.r_[True, path_key[1:] != path_key[:-1]]) if len(order) else \
         np.zeros(0, dtype=np.int64)
     path_start = np.r_[first, len(order)].astype(np.int64)
-    if not np.array_equal(index[order], np.arange(len(order)) - np.repeat(first, np.diff(path_start))):
+    if not np.array_equal(index[order],
+                          np.arange(len(order)) - np.repeat(first, np.diff(path_start))):
         raise ValueError("each path's decisions must come in index order, numbered from 0")
     return Rollout(
         obs=np.take(obs, order, axis=0), actions=actions[order].astype(np.int64),

@@ -1,4 +1,5 @@
-"""The wildfire environment of SPEC section 3 as a SimPy model: the oracle the fast engine must match.
+"""The wildfire environment of SPEC section 3 as a SimPy model: the oracle the fast engine must
+match.
 
 One process per UAV and one per fire, as the paper describes event-driven simulation:
 
@@ -80,7 +81,7 @@ class WildfireModel:
             self.events += 1
 
     def act(self, i: int, action: int) -> None:
-        """Give pending UAV ``i`` its action (0..n_observed-1 fly to the k-th closest, else hold)."""
+        """Pending UAV ``i`` takes ``action``: 0..n_observed-1 fly to the k-th closest, or hold."""
         self.pending.remove(i)
         self.action[i] = int(action)
         self.rec[self.current[i]]["action"] = int(action)
