@@ -92,13 +92,18 @@ def append_csv(dest: str | Path, frame: pd.DataFrame) -> None:
 
 
 def save_figure(fig: Any, stem: str | Path) -> list[Path]:
-    """Write ``stem.png`` and ``stem.pdf`` atomically (PDF without a timestamp, so it is stable)."""
+    """Lay ``fig`` out, write ``stem.png`` and ``stem.pdf`` atomically (PDF without a timestamp, so
+    it is stable), and close it."""
+    import matplotlib.pyplot as plt  # loaded already by the caller that drew ``fig``
+
+    fig.tight_layout()
     out = []
     for ext, kw in ((".png", {"dpi": 150}), (".pdf", {"metadata": {"CreationDate": None}})):
         dest = Path(str(stem) + ext)
         with atomic_path(dest) as tmp:
             fig.savefig(tmp, format=ext[1:], bbox_inches="tight", **kw)
         out.append(dest)
+    plt.close(fig)
     return out
 
 

@@ -177,9 +177,7 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     ax.set_ylabel("Average return per episode")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
     save_figure(fig, stem)
-    plt.close(fig)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

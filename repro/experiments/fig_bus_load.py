@@ -44,9 +44,7 @@ def plot(table: pd.DataFrame, stem) -> None:
         ax.grid(True, alpha=0.3)
     axes[0][0].set_ylabel("Load at arrival [pax]")
     axes[0][-1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.tight_layout()
     save_figure(fig, stem)
-    plt.close(fig)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

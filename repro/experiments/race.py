@@ -291,9 +291,7 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
     ax2.set_ylabel(r"local exponent $-d\log\Delta T / d\log N$ (exact)")
     ax2.legend(fontsize=7)
     ax2.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
     save_figure(fig, stem)
-    plt.close(fig)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -198,9 +198,7 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
         axes[1, col].set_title(f"{d.name}, median wall seconds", fontsize=9)
     axes[0, 0].set_ylabel("operations per simulated duration")
     axes[1, 0].set_ylabel("seconds")
-    fig.tight_layout()
     save_figure(fig, stem)
-    plt.close(fig)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

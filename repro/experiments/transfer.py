@@ -213,9 +213,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     ax.set_title(title, fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
     save_figure(fig, stem)
-    plt.close(fig)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
