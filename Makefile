@@ -19,7 +19,7 @@ STAMP  := $(VENV)/.installed
 
 help:
 	@echo "make reproduce   # every driver at SCALE=$(SCALE), then paper_claims.md"
-	@echo "make test        # the test suite"
+	@echo "make test        # lint (ruff), then the test suite"
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed 's/:.*## /\t/' | sort
 
 # torch is installed first and on its own so that pip takes a CPU build: the `+cpu` build from a
