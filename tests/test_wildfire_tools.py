@@ -120,6 +120,24 @@ def test_pettingzoo_api():
     api_test(env(WildfireConfig(dt=1.0)), num_cycles=200)
 
 
+@pytest.mark.parametrize("cfg", [WildfireConfig(), WildfireConfig(dt=1.0),
+                                 WildfireConfig(quirk_q1_stale_attack=False,
+                                                quirk_q2_penalty_party_only=False, n_agents=5)],
+                         ids=["ed", "fs1", "corrected-5-uavs"])
+def test_observations_lie_in_the_pettingzoo_observation_space(cfg):
+    """Both engines' observations, over many random-policy episodes, within the wrapper's bounds
+    (api_test checks only the few it sees)."""
+    from repro.envs.wildfire import make_env, make_reference_env
+    from repro.envs.wildfire.pettingzoo_env import observation_box
+
+    box = observation_box(cfg)
+    assert box.shape == (cfg.obs_dim,)
+    for make, episodes in ((make_env, 400), (make_reference_env, 20)):
+        ro = make(cfg).rollout(RandomPolicy(np.random.default_rng(1), n_observed=cfg.n_observed),
+                               episodes, 2)
+        assert np.all((ro.obs >= box.low) & (ro.obs <= box.high)), make.__name__
+
+
 def test_pettingzoo_rewards_match_the_reference():
     """Driving the AEC env with an observation-driven policy reproduces the reference rollout of
     the same episode: every decision's observation, reward and duration."""

@@ -13,7 +13,7 @@ import gymnasium
 import numpy as np
 from pettingzoo import AECEnv
 
-from repro.envs.wildfire.params import WildfireConfig, draw_episodes
+from repro.envs.wildfire.params import WildfireConfig, draw_episodes, fire_positions
 from repro.envs.wildfire.reference import WildfireModel
 
 
@@ -25,7 +25,7 @@ class WildfireAEC(AECEnv):
         cfg.validate()
         self.cfg = cfg
         self.possible_agents = [f"uav_{i}" for i in range(cfg.n_agents)]
-        self._obs_space = gymnasium.spaces.Box(-np.inf, np.inf, (cfg.obs_dim,), np.float64)
+        self._obs_space = observation_box(cfg)
         self._act_space = gymnasium.spaces.Discrete(cfg.n_actions)
         self._seed_seq = np.random.SeedSequence()
         self.model: WildfireModel | None = None
@@ -85,6 +85,19 @@ class WildfireAEC(AECEnv):
                 self.infos[a] = {"duration": m.rec[prev]["duration"], "time": m.env.now}
             self.agent_selection = a
         self._accumulate_rewards()
+
+
+def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
+    """Bounds of an observation: own x, y (UAVs start uniformly on [-1, 1]^2 and fly straight
+    between starts and fires, so they stay in the square that holds both); per observed fire its
+    distance (at most the square's diagonal), level (1), interest party size (0..N), status (0 or
+    1) and remaining health (0..T_health); the sojourn time (0..T_max)."""
+    side = max(1.0, float(np.abs(fire_positions(cfg)).max()))
+    per_fire_low = [0, 1, 0, 0, 0]
+    per_fire_high = [2 * np.sqrt(2) * side, 1, cfg.n_agents, 1, cfg.t_health]
+    low = [-side, -side, *per_fire_low * cfg.n_observed, 0]
+    high = [side, side, *per_fire_high * cfg.n_observed, cfg.t_max]
+    return gymnasium.spaces.Box(np.array(low, float), np.array(high, float), dtype=np.float64)
 
 
 def env(cfg: WildfireConfig = WildfireConfig()) -> WildfireAEC:
