@@ -24,3 +24,19 @@ def test_no_holding_return_matches_engine():
         env.step(None if term or trunc else 0)
     expected = make_env(BusConfig()).rollout(no_holding, 1).episode_return[0]
     np.testing.assert_allclose(list(total.values()), expected, rtol=1e-12)
+
+
+def test_observations_lie_in_the_observation_space():
+    """Both engines' observations, over many episodes of random holding, within the wrapper's
+    bounds (api_test checks only the few it sees)."""
+    from repro.envs.bus import make_reference_env
+
+    rng = np.random.default_rng(0)
+
+    def random_holds(batch):
+        return rng.integers(0, 4, len(batch))
+
+    space = BusAECEnv().observation_space("bus_0")
+    for make, episodes in ((make_env, 200), (make_reference_env, 5)):
+        ro = make(BusConfig()).rollout(random_holds, episodes, 3)
+        assert np.all((ro.obs >= space.low) & (ro.obs <= space.high)), make.__name__
