@@ -24,14 +24,14 @@ def rollout_from_records(*, episode: np.ndarray, agent: np.ndarray, index: np.nd
     path_key = ep * n_agents + ag
     first = np.flatnonzero(np.r_[True, path_key[1:] != path_key[:-1]]) if len(order) else \
         np.zeros(0, dtype=np.int64)
-    path_start = np.r_[first, len(order)].astype(np.int64)
-    if not np.array_equal(index[order],
-                          np.arange(len(order)) - np.repeat(first, np.diff(path_start))):
-        raise ValueError("each path's decisions must come in index order, numbered from 0")
-    return Rollout(
+    ro = Rollout(
         obs=np.take(obs, order, axis=0), actions=actions[order].astype(np.int64),
-        rewards=rewards[order], durations=durations[order], path_start=path_start,
+        rewards=rewards[order], durations=durations[order],
+        path_start=np.r_[first, len(order)].astype(np.int64),
         path_episode=ep[first].astype(np.int64), path_agent=ag[first].astype(np.int64),
         episode_return=agent_returns.mean(axis=1),
         info={"decision_time": time[order], "end_time": end_time, "events": events},
     )
+    if not np.array_equal(index[order], ro.step_index()):
+        raise ValueError("each path's decisions must come in index order, numbered from 0")
+    return ro
