@@ -56,16 +56,19 @@ def test_eval_json(smoke, capsys):
     assert json.loads(capsys.readouterr().out)["return"] > out["return"]
 
 
-@pytest.mark.parametrize("args", [
-    ["bus-eval", "--policy", "thresholds", "--thresholds", "3", "5", "1"],
-    ["bus-eval", "--policy", "mystery"],
-    ["fig-bus-load", "--policies", "nohold", "thresholds", "--thresholds", "6", "6", "1"],
-    ["fig-bus-load", "--policies", "nohold", "mystery"],
+@pytest.mark.parametrize("args, param", [
+    (["bus-eval", "--policy", "thresholds", "--thresholds", "3", "5", "1"], "--thresholds"),
+    (["bus-eval", "--policy", "mystery"], "--policy"),
+    (["fig-bus-load", "--policies", "nohold", "thresholds", "--thresholds", "6", "6", "1"],
+     "--thresholds"),
+    (["fig-bus-load", "--policies", "nohold", "mystery"], "--policies"),
+    (["fig-bus-arrivals", "--policies", "mystery"], "--policies"),
 ])
-def test_bad_input(args, tmp_path):
+def test_bad_input(args, param, tmp_path):
     proc = _repro(*args, "--results-dir", str(tmp_path / "r"))
     assert proc.returncode == 2
-    assert len(proc.stderr.strip().splitlines()) == 1
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"error: {param}:" in lines[0], proc.stderr
     assert not (tmp_path / "r").exists()
 
 

@@ -131,6 +131,16 @@ def test_bad_thresholds(bad):
         ThresholdPolicy(np.array(bad))
 
 
+@pytest.mark.parametrize("field, value", [
+    ("n_buses", 0), ("n_buses", 2.5), ("n_stops", 1), ("l_max", 0), ("l_max", -1),
+    ("n_actions", 0), ("t_alight", -5.0), ("t_board", -5.0), ("headway", 0.0),
+    ("travel_time", 0.0), ("t_hold", -1.0), ("horizon", 0.0), ("gamma", float("nan")),
+])
+def test_bad_config_is_refused_naming_the_field(field, value):
+    with pytest.raises(UsageError, match=f"^-*{field}: "):
+        dataclasses.replace(CFG, **{field: value})
+
+
 @pytest.mark.parametrize("make", [make_env, make_reference_env])
 def test_bad_actions(make):
     batch = make(CFG).start(1)

@@ -68,6 +68,52 @@ def test_claim_checks_give_verdicts(sweeps):
         assert v.verdict in VERDICTS and v.scale == "smoke" and v.ours
 
 
+def _write_summary(res, sweep: str, settings: dict[float, list[float]], thresholds: float,
+                   nohold: float = -90000.0) -> None:
+    """A sweep summary like the drivers write: per setting its runs' final returns, their IQM and a
+    CI spanning them, and the two exact baselines."""
+    key = "lambda" if sweep == "lambda" else "batch"
+    rows = [dict(policy=p, runs=1, final_iqm=v, ci_low=v, ci_high=v)
+            for p, v in (("nohold", nohold), ("thresholds", thresholds))]
+    for setting, finals in settings.items():
+        rows.append(dict(policy="mlp", runs=len(finals), final_iqm=float(pd.Series(finals).mean()),
+                         ci_low=min(finals), ci_high=max(finals), **{key: setting}))
+        rows += [dict(policy="mlp-run", runs=1, final_iqm=v, ci_low=v, ci_high=v, **{key: setting})
+                 for v in finals]
+    pd.DataFrame(rows).to_csv(res / f"bus_{sweep}_summary.csv", index=False)
+
+
+@pytest.mark.parametrize("mlp, thresholds, verdict", [
+    ([-100.0, -99.0, -98.0], -200.0, "PASS"),      # MLP's whole interval above thresholds
+    ([-300.0, -100.0, -99.0], -200.0, "PARTIAL"),  # only the point estimate above
+    ([-300.0, -299.0, -298.0], -200.0, "FAIL"),
+    ([-100.0, -99.0, -98.0], -95000.0, "FAIL"),    # thresholds below No Holding
+])
+def test_c1_verdict_follows_the_orderings(tmp_path, mlp, thresholds, verdict):
+    _write_summary(tmp_path, "lambda", {2.0: mlp}, thresholds)
+    assert check_c1(tmp_path).verdict == verdict
+
+
+@pytest.mark.parametrize("settings, verdict", [
+    ({0.5: [-101.0, -100.0, -99.0], 2.0: [-100.0, -99.0, -98.0]}, "PASS"),  # spread ~1, gap ~100
+    ({0.5: [-190.0, -189.0, -188.0], 2.0: [-100.0, -99.0, -98.0]}, "FAIL"),  # spread 90, gap 56
+])
+def test_c2_verdict_compares_the_spread_over_lambda_with_the_gap(tmp_path, settings, verdict):
+    _write_summary(tmp_path, "lambda", settings, thresholds=-200.0)
+    assert check_c2(tmp_path).verdict == verdict
+
+
+@pytest.mark.parametrize("means, verdict", [
+    ((-300.0, -200.0, -100.0), "PASS"),     # monotone, ends separated
+    ((-300.0, -50.0, -100.0), "PARTIAL"),   # not monotone, but the largest beats the smallest
+    ((-100.0, -200.0, -300.0), "FAIL"),
+])
+def test_c3_verdict_needs_a_monotone_rise(tmp_path, means, verdict):
+    settings = {b: [m - 1.0, m, m + 1.0] for b, m in zip((54, 135, 540), means)}
+    _write_summary(tmp_path, "batch", settings, thresholds=-400.0)
+    assert check_c3(tmp_path).verdict == verdict
+
+
 @pytest.mark.parametrize("args", [
     ["fig-bus-lambda", "--seeds", "0"],
     ["fig-bus-batch", "--epochs", "2", "--final-epochs", "3"],

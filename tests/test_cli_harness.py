@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from repro.claims import NOT_RUN, registry, render
-from tests.conftest import tree_snapshot
+from tests.conftest import ROOT, tree_snapshot
 
 SMALL = ("--scale", "smoke", "--n-sets", "400", "--n-max", "5", "--distribution", "exponential")
 
@@ -62,6 +62,20 @@ def test_claims_never_pass_without_results(tmp_path):
     assert "**PASS**" not in text  # verdict cells are bold; tolerances may mention PASS
     for claim in registry():
         assert claim.evaluate(tmp_path).verdict == NOT_RUN
+
+
+@pytest.mark.parametrize("content", ["", "x\n1\n"])
+def test_claims_never_pass_with_incomplete_results(tmp_path, content):
+    """Stale or hand-edited result files (empty, or without the columns a check reads) give
+    "not yet run" with the reason, and the table still renders."""
+    for csv in (ROOT / "results").glob("*.csv"):
+        (tmp_path / csv.name).write_text(content)
+    text = render(tmp_path)
+    assert "**PASS**" not in text
+    for claim in registry():
+        v = claim.evaluate(tmp_path)
+        assert v.verdict == NOT_RUN, (claim.id, v)
+        assert "incomplete" in v.detail or "missing" in v.detail, (claim.id, v)
 
 
 def test_c10_check_can_pass_and_fail(tmp_path):

@@ -157,6 +157,8 @@ def test_c8_c9_verdicts_follow_the_intervals():
     assert claims.c9_verdict(flat)[0] == "FAIL"
     inverted = _summary({**paper, "ED": 1.0}, 0.03)
     assert claims.c8_verdict(inverted)[0] == "FAIL"
+    better = _summary({**paper, "FS-0.1": 2.9}, 0.03)  # transfers better than ED: not "as well"
+    assert claims.c8_verdict(better) == ("PARTIAL", "failed: FS-0.1 (CI above ED's)")
     assert claims._at_most_partial("PASS", _summary(paper, 0.0, n=1))[0] == "PARTIAL"
 
 

@@ -1,8 +1,9 @@
 """The claims registry: one small check per claim C1..C11 of SPEC section 1, rendered to
 ``paper_claims.md`` by ``python -m repro claims`` (``make claims``).
 
-A check reads result files and returns a :class:`Verdict`. A claim whose result files do not exist
-reads "not yet run", never PASS. Each experiment module contributes its claims in
+A check reads result files and returns a :class:`Verdict`. A claim whose result files do not exist,
+or lack the rows and columns its check reads (a stale or hand-edited file), reads "not yet run",
+never PASS. Each experiment module contributes its claims in
 ``repro/claims/<topic>.py`` as a list ``CLAIMS``.
 """
 
@@ -57,6 +58,10 @@ class Claim:
         except FileNotFoundError as err:
             return Verdict("-", NOT_RUN,
                            f"missing {Path(err.filename).name if err.filename else err}")
+        # a file without the rows or columns the check reads; pandas' EmptyDataError is a ValueError
+        except (KeyError, AttributeError, IndexError, ValueError) as err:
+            return Verdict("-", NOT_RUN, f"results incomplete ({type(err).__name__}: {err}); "
+                           f"rerun `{self.command}`")
         require(v.verdict in VERDICTS, "verdict", "one of " + ", ".join(VERDICTS), v.verdict)
         return v
 

@@ -49,7 +49,9 @@ class Rollout:
     actions: np.ndarray
     """(D,) int64 action of every decision."""
     rewards: np.ndarray
-    """(D,) macro-action reward r_k, discounted within the macro-action to its start."""
+    """(D,) macro-action reward r_k, discounted within the macro-action to its start. Rewards an
+    agent gets before its first decision (a bus queueing for Stop 1) go into its first
+    macro-action, discounted to t = 0, where every agent's process starts."""
     durations: np.ndarray
     """(D,) macro-action duration dt_k in seconds."""
     path_start: np.ndarray

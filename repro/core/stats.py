@@ -3,6 +3,12 @@
 The interquartile mean (IQM) is the mean of the middle 50% of the scores; confidence intervals come
 from a stratified bootstrap: every group (for example one training simulator or one lambda) is
 resampled within itself, so each bootstrap replicate keeps the design's group sizes.
+
+With as few runs as the paper has, percentile intervals are narrower than their nominal level: for
+the mean of normal scores, a nominal 95% interval covered the true mean in 75% of 1,000 trials with
+3 runs, 83% with 5 and 91% with 10 (2,000 resamples each, seed 0). Claims that need intervals to
+overlap are therefore judged strictly, and those that need them to separate leniently; the claims'
+details give the intervals.
 """
 
 from __future__ import annotations
@@ -14,7 +20,8 @@ from scipy import stats as sps
 
 
 def iqm(x: np.ndarray, axis: int = -1) -> np.ndarray:
-    """Interquartile mean: the 25%-trimmed mean (with fractional weights at the trim points)."""
+    """Interquartile mean: the 25%-trimmed mean, as rliable computes it (scipy's ``trim_mean``
+    drops int(n / 4) whole scores at each end, so with fewer than 4 runs it is the plain mean)."""
     return sps.trim_mean(np.asarray(x, dtype=float), 0.25, axis=axis)
 
 

@@ -1,8 +1,9 @@
 """Evaluate a bus policy: return, discounted return, 4th-cycle loads, time to regularity.
 
-``python -m repro bus-eval --policy {nohold,thresholds} [--thresholds T1 T2 T3] [--json]`` prints
-the numbers and writes nothing. The environment is deterministic, so a deterministic policy needs
-one episode; ``--episodes`` averages a stochastic one (the per-episode figures come from episode 0).
+``python -m repro bus-eval --policy {nohold,thresholds,mlp} [--thresholds T1 T2 T3] [--json]``
+prints the numbers and writes nothing. The corridor is deterministic and so is every policy here
+(the MLP acts greedily), so one episode is the exact value. :func:`evaluate` also takes more
+episodes, for sampling policies built in code (its per-episode figures come from episode 0).
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ import json
 import numpy as np
 import pandas as pd
 
-from repro.core.errors import require
 from repro.core.rollout import Policy
 from repro.envs.bus import BusConfig, make_env
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, arrival_table, cycle_loads,
@@ -62,15 +62,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="thresholds in minutes (default: results/bus_thresholds.csv)")
     p.add_argument("--mlp-run", help="training run folder of the mlp policy "
                    "(default: the best run in results/bus_lambda_summary.csv)")
-    p.add_argument("--episodes", type=int, default=1, help="episodes to average (default 1)")
     p.add_argument("--results-dir", default="results", help="where bus_thresholds.csv is read")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
 def run(args: argparse.Namespace) -> int:
-    require(args.episodes >= 1, "--episodes", "an integer >= 1", args.episodes)
     policy = policy_from_args(args.policy, args)
-    summary, _ = evaluate(policy, BusConfig(), args.episodes)
+    summary, _ = evaluate(policy, BusConfig())
     summary["policy"] = args.policy
     if args.json:
         print(json.dumps(summary))

@@ -16,6 +16,7 @@ from typing import Callable
 import pandas as pd
 
 from repro.cli import add_common
+from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.envs.bus import BusConfig
 from repro.envs.bus.policies import POLICIES, best_run
@@ -86,6 +87,8 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
                       plot_table: Callable[[pd.DataFrame, Path], None]) -> int:
     """Shared body of the per-policy bus figures: simulate each policy's episode, derive the
     figure's table from the arrival records, write it with provenance, and draw it."""
+    for name in args.policies:
+        require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()

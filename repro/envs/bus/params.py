@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 from repro.core.errors import require
@@ -40,8 +41,10 @@ class BusConfig:
     """Continuous-time discount rate (1/s) inside macro-actions and for M-GAE (paper Table 2)."""
 
     def __post_init__(self) -> None:
-        require(self.n_buses >= 1, "n_buses", "an integer >= 1", self.n_buses)
-        require(self.n_stops >= 2, "n_stops", "an integer >= 2", self.n_stops)
+        for name, low in (("n_buses", 1), ("n_stops", 2), ("l_max", 1), ("n_actions", 1)):
+            value = getattr(self, name)
+            require(isinstance(value, numbers.Integral) and value >= low, name,
+                    f"an integer >= {low}", value)
         require(len(self.alight_fraction) == self.n_stops, "alight_fraction",
                 f"{self.n_stops} values (one per stop)", len(self.alight_fraction))
         require(len(self.arrival_rate) == self.n_stops, "arrival_rate",
@@ -51,12 +54,15 @@ class BusConfig:
         require(all(v >= 0.0 for v in self.arrival_rate), "arrival_rate", "values >= 0",
                 self.arrival_rate)
         require(self.travel_time > 0.0, "travel_time", "> 0", self.travel_time)
+        # negative service times would schedule events in the past (SimPy refuses them)
+        require(self.t_alight >= 0.0, "t_alight", ">= 0", self.t_alight)
+        require(self.t_board >= 0.0, "t_board", ">= 0", self.t_board)
+        require(self.headway > 0.0, "headway", "> 0", self.headway)
         require(self.t_hold >= 0.0, "t_hold", ">= 0", self.t_hold)
         require(self.horizon > 0.0, "horizon", "> 0", self.horizon)
         # 0 (no discounting) is a valid corridor; training needs gamma > 0 (the trainer checks)
         require(self.gamma >= 0.0 and math.isfinite(self.gamma), "--gamma", "a number >= 0",
                 self.gamma)
-        require(self.n_actions >= 1, "n_actions", "an integer >= 1", self.n_actions)
 
     @property
     def max_arrivals_per_bus(self) -> int:
