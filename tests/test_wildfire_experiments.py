@@ -162,6 +162,20 @@ def test_c8_c9_verdicts_follow_the_intervals():
     assert claims._at_most_partial("PASS", _summary(paper, 0.0, n=1))[0] == "PARTIAL"
 
 
+@pytest.mark.parametrize("learned, flowchart, verdict", [
+    ([3.0, 3.1, 2.9], 2.1, "PASS"),       # about 30% worse
+    ([3.0, 3.1, 2.9], 2.7, "PARTIAL"),    # worse for every policy, by about 10%
+    ([3.0, 2.0, 2.9], 2.5, "FAIL"),       # better than one policy
+    ([-2.0, -2.1, -1.9], -1.4, "FAIL"),   # the flowchart is better, yet the ratio reads 30% worse
+])
+def test_c7_verdict_follows_the_adr_ratio(tmp_path, learned, flowchart, verdict):
+    learned = np.array(learned)
+    pd.DataFrame(dict(adr_learned=learned, adr_flowchart=flowchart,
+                      flowchart_worse=1.0 - flowchart / learned)).to_csv(
+        tmp_path / "wildfire_behaviour.csv", index=False)
+    assert claims.check_c7(tmp_path).verdict == verdict
+
+
 def test_fs1_trained_with_t_health_2_9999_transfers_worse_than_with_3(tmp_path):
     """C9 at a small budget (30 epochs x 60 episodes, 300 ED test episodes): the FS-1 policy trained
     with T_health = 2.9999 scores clearly below the one trained with 3.0. Measured while choosing

@@ -77,6 +77,10 @@ def _without_stays(t: pd.DataFrame, results: Path) -> str:
 def check_c7(results: Path) -> Verdict:
     path = results / "wildfire_behaviour.csv"
     t = pd.read_csv(path)
+    if (t.adr_learned <= 0).any():  # the ratio's sign no longer says which policy is better
+        return Verdict("-", "FAIL", f"a learned policy's ADR is not positive "
+                       f"({t.adr_learned.min():.3f}): the ratio of ADRs is undefined",
+                       scale_of(path))
     mean, lo, hi = _ci(t.flowchart_worse.to_numpy())
     verdict = ("PASS" if C7_BAND[0] <= mean <= C7_BAND[1] else
                "PARTIAL" if (t.flowchart_worse > 0).all() else "FAIL")
