@@ -78,6 +78,26 @@ def test_engines_agree_on_a_larger_batch():
     assert ref.rewards.max() > 0
 
 
+@pytest.mark.parametrize("n_agents", [64, 140])
+def test_engines_agree_with_many_uavs(n_agents):
+    """Beyond the 128 pending events the engine's heap once had (60 UAVs overfilled it, 140
+    overran it): the heap is sized from the number of UAVs."""
+    cfg = WildfireConfig(n_agents=n_agents, dt=1.0)
+    ref = make_reference_env(cfg).rollout(make_policy("random", 3, cfg, 1), 1, 5)
+    fast = make_env(cfg).rollout(make_policy("random", 3, cfg, 1), 1, 5)
+    assert_same(ref, fast)
+
+
+def test_fs_rounding_does_not_overflow_at_huge_step_counts():
+    """numba's math.ceil returns an int64, which wrapped to a delay of 0 past 2^63 steps."""
+    from repro.envs.wildfire.engine import fs_delay_nb
+    from repro.envs.wildfire.params import fs_delay
+
+    for now, delay, dt in [(100.0, 3.0, 1e-17), (0.5, 2.0, 1e-300), (7.0, 0.4, 1.0)]:
+        assert fs_delay_nb(now, delay, dt) == fs_delay(now, delay, dt)
+        assert fs_delay(now, delay, dt) >= delay - 1e-9
+
+
 class FlyToClosest:
     """Always action 0: once at a fire, every flight is to that fire, takes no time, and the UAV
     decides again after the latency (the regime long ED training drifts into)."""
@@ -151,9 +171,26 @@ def test_draws_are_deterministic_per_seed():
     again = draw_episodes(cfg, 3, 5)
     np.testing.assert_array_equal(d.starts, again.starts)
     assert d.starts.shape == (3, cfg.n_agents, 2) and np.all(np.abs(d.starts) <= 1)
-    assert d.holds.shape == (3, cfg.n_agents, cfg.hold_table_size)
+    assert d.holds.shape == (3, cfg.n_agents, cfg.hold_table)
     assert abs(d.holds.mean() - cfg.hold_mean) < 0.05
     assert not np.array_equal(d.starts[0], d.starts[1])
+
+
+def test_draws_take_a_seed_sequence_without_advancing_it():
+    cfg = WildfireConfig()
+    ss = np.random.SeedSequence(7)
+    first, second = draw_episodes(cfg, 3, ss), draw_episodes(cfg, 3, ss)
+    np.testing.assert_array_equal(first.starts, second.starts)
+    np.testing.assert_array_equal(first.starts, draw_episodes(cfg, 3, 7).starts)
+
+
+def test_hold_table_outlasts_t_max():
+    """A UAV that only holds never reuses a duration: the table grows when T_max does."""
+    assert WildfireConfig().hold_table == 128  # the paper's settings: the draws as always
+    cfg = WildfireConfig(gamma=0.005)  # T_max 1060 s
+    holds = draw_episodes(cfg, 1, 0).holds[0]
+    assert holds.shape[1] == cfg.hold_table > cfg.t_max / (cfg.hold_mean - 3 * cfg.hold_std)
+    assert holds.sum(axis=1).min() > cfg.t_max  # every UAV's table lasts past T_max
 
 
 def test_draws_are_prefix_stable():

@@ -97,6 +97,7 @@ def test_cli_json():
     ("--policy", "nearest", "--sim", "fs", "--dt", "0"),
     ("--policy", "nearest", "--t-health", "-1"), ("--policy", "nearest", "--episodes", "0"),
     ("--policy", "nearest", "--sim", "fs"), ("--policy", "nearest", "--dt", "1"),
+    ("--policy", "nearest", "--t-health", "inf"), ("--policy", "nearest", "--t-health", "nan"),
 ])
 def test_cli_bad_input(args, tmp_path, monkeypatch, capsys):
     from repro.cli import main
@@ -110,6 +111,39 @@ def test_cli_bad_input(args, tmp_path, monkeypatch, capsys):
     assert code == 2
     assert out == "" and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("argv, expected", [
+    ([], dict(dt=None, t_health=3.0, quirk_q1_stale_attack=True,
+              quirk_q2_penalty_party_only=True, max_decisions=None)),
+    (["--no-quirk-q1", "--no-quirk-q2", "--max-decisions", "0"],
+     dict(quirk_q1_stale_attack=False, quirk_q2_penalty_party_only=False, max_decisions=None)),
+    (["--sim", "fs", "--dt", "0.316", "--t-health", "2.9999", "--gamma", "0.05",
+      "--max-decisions", "7"], dict(dt=0.316, t_health=2.9999, gamma=0.05, max_decisions=7)),
+])
+def test_command_line_options_give_the_config(argv, expected):
+    import argparse
+
+    from repro.envs.wildfire import add_env_arguments, config_from_args
+
+    parser = argparse.ArgumentParser()
+    add_env_arguments(parser)
+    cfg = config_from_args(parser.parse_args(argv))
+    assert {k: getattr(cfg, k) for k in expected} == expected
+
+
+@pytest.mark.parametrize("field, value", [
+    ("n_agents", 0), ("n_agents", 2.5), ("t_health", float("inf")), ("v_uav", float("inf")),
+    ("decision_latency", 0.0), ("hold_mean", 0.0), ("hold_std", -0.1),
+    ("hold_mean", float("nan")),
+])
+def test_bad_config_is_refused_naming_the_field(field, value):
+    import dataclasses
+
+    from repro.core.errors import UsageError
+
+    with pytest.raises(UsageError, match=f"^-*{field.replace('_', '[-_]')}: "):
+        dataclasses.replace(WildfireConfig(), **{field: value}).validate()
 
 
 def test_pettingzoo_api():
@@ -140,32 +174,36 @@ def test_observations_lie_in_the_pettingzoo_observation_space(cfg):
 
 def test_pettingzoo_rewards_match_the_reference():
     """Driving the AEC env with an observation-driven policy reproduces the reference rollout of
-    the same episode: every decision's observation, reward and duration."""
+    the same episode: every agent's observations, rewards and durations, decision by decision."""
     from repro.envs.wildfire import make_reference_env
     from repro.envs.wildfire.pettingzoo_env import env as make
 
     policy = NearestPolicy(uniforms=lambda b: np.full((len(b), 2), 0.5))
     e = make()
     e.reset(seed=3)
-    rewards, durations, obs = [], [], []
-    for _ in e.agent_iter():
+    paths = {a: {"obs": [], "rewards": [], "durations": []} for a in e.possible_agents}
+    for agent in e.agent_iter():
         o, r, term, trunc, info = e.last()
-        if len(obs):  # the reward and duration of the agent's previous decision
-            rewards.append(r)
-            durations.append(info["duration"])
+        path = paths[agent]
+        if path["obs"]:  # the reward and duration of the agent's previous decision
+            path["rewards"].append(r)
+            path["durations"].append(info["duration"])
         if term or trunc:
             e.step(None)
             continue
-        obs.append(o)
+        path["obs"].append(o)
         e.step(int(policy(DecisionBatch(o[None], np.zeros(1, int), np.zeros(1, int),
                                         np.zeros(1, int)))[0]))
     ref = make_reference_env(WildfireConfig()).rollout(
         policy, 1, np.random.SeedSequence(3).spawn(1)[0])
-    assert ref.n_decisions == len(obs) > 3
-    assert sum(rewards) == pytest.approx(ref.rewards.sum())
-    assert sum(durations) == pytest.approx(ref.durations.sum())
-    order = np.argsort(ref.info["decision_time"], kind="stable")
-    np.testing.assert_allclose(np.sort(np.array(obs)[:, 0]), np.sort(ref.obs[order, 0]))
+    assert ref.n_decisions == sum(len(p["obs"]) for p in paths.values()) > 3
+    for k, agent in enumerate(e.possible_agents):
+        rows = slice(ref.path_start[k], ref.path_start[k + 1])
+        assert ref.path_agent[k] == k
+        for key, expected in (("obs", ref.obs), ("rewards", ref.rewards),
+                              ("durations", ref.durations)):
+            np.testing.assert_allclose(np.array(paths[agent][key]), expected[rows], rtol=0,
+                                       atol=1e-12, err_msg=f"{agent} {key}")
 
 
 def test_evaluate_without_observations_keeps_everything_adr_needs(monkeypatch):

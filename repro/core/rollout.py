@@ -123,6 +123,15 @@ def concat(rollouts: list[Rollout]) -> Rollout:
     )
 
 
+def children(seed: int | np.random.SeedSequence, n: int) -> list[np.random.SeedSequence]:
+    """The ``n`` children ``seed.spawn(n)`` would give, without advancing ``seed``: ``spawn`` moves
+    a SeedSequence on, so handing the same object to a function twice would otherwise give other
+    draws the second time, where the same int seed gives the same."""
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    return np.random.SeedSequence(ss.entropy, spawn_key=ss.spawn_key, pool_size=ss.pool_size,
+                                  n_children_spawned=ss.n_children_spawned).spawn(n)
+
+
 def episode_streams(seed: int | np.random.SeedSequence,
                     n_episodes: int) -> list[np.random.SeedSequence]:
     """One independent random stream per episode of a batch.
@@ -131,8 +140,7 @@ def episode_streams(seed: int | np.random.SeedSequence,
     ``episode_streams(seed, n)[e]`` in the same order, which is what makes them comparable draw by
     draw. The policy's own randomness is separate (the policy owns its generator).
     """
-    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-    return ss.spawn(n_episodes)
+    return children(seed, n_episodes)
 
 
 class BatchEnv(Protocol):

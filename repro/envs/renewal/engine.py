@@ -32,6 +32,7 @@ import numpy as np
 from numba import njit
 
 from repro.core.errors import require
+from repro.core.rollout import children
 
 if TYPE_CHECKING:
     from repro.experiments.race import Distribution
@@ -70,7 +71,7 @@ def draw_inter_event_times(dist: Distribution, n_agents: int, duration: float,
     require(duration > 0, "duration", "> 0", duration)
     chunk = int(duration / dist.mean) + 16
     per_agent = []
-    for ss in stream.spawn(n_agents):
+    for ss in children(stream, n_agents):
         rng = np.random.default_rng(ss)
         parts, total = [], 0.0
         while total < duration:

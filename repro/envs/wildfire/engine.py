@@ -58,13 +58,17 @@ LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK = range(6)
 went out), fire interrupted (its party changed), T_max reached."""
 OK, GROW_LOG, HEAP_FULL, BAD_ACTION = range(4)
 """Status codes of ``_advance``."""
-HEAP_CAPACITY = 128
-"""Pending events per episode: live waits (N UAVs, 9 fires, the clock) plus stale ones."""
+def heap_capacity(cfg: WildfireConfig) -> int:
+    """Pending events an episode's heap holds: the live waits (N UAVs, the fires, the clock) and
+    stale ones not yet come due; 128 (about ten per process at the paper's sizes), and 8 per
+    process beyond that, so that any number of UAVs fits."""
+    return max(128, 8 * (cfg.n_agents + len(fire_positions(cfg)) + 1))
+
 WHO_BITS, KIND_BITS, PRIO_SHIFT = 20, 3, 62
 """A heap entry's integer key: priority << 62 | sequence << 23 | kind << 20 | who. Sequence numbers
 are unique within an episode, so comparing keys compares (priority, sequence) as SimPy does; the
-39 bits of the sequence outlast any episode, and the heap's capacity bounds who (an agent or fire
-index) far below 2^20."""
+39 bits of the sequence outlast any episode, and who (an agent or fire index) must stay below
+2^20 (params check the number of UAVs)."""
 SEQ_SHIFT = WHO_BITS + KIND_BITS
 
 # Flags inside records are int8 (numba does not support nested boolean arrays); int32 counters and
@@ -100,7 +104,8 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         ("done", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8), ("events", i8),
         ("uwait", i8, n), ("act", i8, n),
         # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence
-        ("hkey", i8, HEAP_CAPACITY), ("ht", f8, HEAP_CAPACITY), ("hn", i4), ("seq", i8),
+        ("hkey", i8, heap_capacity(cfg)), ("ht", f8, heap_capacity(cfg)), ("hn", i4),
+        ("seq", i8),
         # UAV motion
         ("pos", f8, (n, 2)), ("origin", f8, (n, 2)), ("goal", f8, (n, 2)), ("t_dep", f8, n),
         ("length", f8, n), ("flying", i1, n),
@@ -429,7 +434,7 @@ def _advance(states, live, log, used, params, holds, actions, first):
             if row >= len(log):
                 status = GROW_LOG
                 break
-            if s.hn + p.n_agents + 2 > HEAP_CAPACITY:
+            if s.hn + p.n_agents + 2 > s.hkey.shape[0]:
                 status = HEAP_FULL
                 break
             t, key = _pop(s)
@@ -571,7 +576,7 @@ class WildfireEnv:
                 log = _grow(log)
                 continue
             if status == HEAP_FULL:
-                raise RuntimeError(f"event heap of {HEAP_CAPACITY} entries is full")
+                raise RuntimeError(f"event heap of {heap_capacity(self.cfg)} entries is full")
             end = int(used[0])
             if end == first:
                 break

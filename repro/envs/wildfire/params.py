@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
 from repro.core.errors import require
+from repro.core.rollout import children
 
 OBS_PER_FIRE = 5
 """Per observed fire: distance, level, interest party size, status, remaining health."""
@@ -61,21 +63,31 @@ class WildfireConfig:
     is at, over and over, comes near a limit of a thousand: each such flight takes no time, so the
     UAV decides again after the latency, up to T_max / 1e-5 s = 26 million times an episode."""
     hold_table_size: int = 128
-    """Hold durations pre-drawn per agent and episode (used in order, cyclically: far more holds
-    than fit into T_max). Both engines index this table by the agent's hold count."""
+    """Hold durations pre-drawn per agent and episode, at least: :attr:`hold_table` adds more when
+    T_max needs them. Used in order, cyclically; both engines index the table by the agent's hold
+    count."""
 
     def validate(self) -> None:
-        require(self.n_agents >= 1, "--n-agents", "an integer >= 1", self.n_agents)
-        require(self.t_health > 0, "--t-health", "a number > 0", self.t_health)
+        # the fast engine's event keys hold an agent index in 20 bits
+        require(isinstance(self.n_agents, numbers.Integral) and 1 <= self.n_agents < 2**20,
+                "--n-agents", "an integer from 1 to 2^20 - 1", self.n_agents)
+        require(self.t_health > 0 and math.isfinite(self.t_health), "--t-health", "a number > 0",
+                self.t_health)
         require(self.dt is None or (self.dt > 0 and math.isfinite(self.dt)), "--dt",
                 "a number > 0", self.dt)
-        require(self.v_uav > 0, "--v-uav", "a number > 0", self.v_uav)
+        require(self.v_uav > 0 and math.isfinite(self.v_uav), "v_uav", "a number > 0",
+                self.v_uav)
         require(self.gamma > 0 and math.isfinite(self.gamma), "--gamma", "a number > 0",
                 self.gamma)
         require(0 < self.horizon_discount < 1, "horizon_discount", "in (0, 1)",
                 self.horizon_discount)
-        require(self.decision_latency >= 0, "decision_latency", "a number >= 0",
-                self.decision_latency)
+        # with no latency a UAV flying to the fire it is at would decide forever at one instant
+        require(self.decision_latency > 0 and math.isfinite(self.decision_latency),
+                "decision_latency", "a number > 0", self.decision_latency)
+        require(self.hold_mean > 0 and math.isfinite(self.hold_mean), "hold_mean", "a number > 0",
+                self.hold_mean)
+        require(self.hold_std >= 0 and math.isfinite(self.hold_std), "hold_std", "a number >= 0",
+                self.hold_std)
         require(1 <= self.n_observed <= 9, "n_observed", "between 1 and the number of fires",
                 self.n_observed)
         require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
@@ -87,6 +99,16 @@ class WildfireConfig:
     def t_max(self) -> float:
         """Episode length cap T_max (s)."""
         return math.log(self.horizon_discount) / (-self.gamma)
+
+    @property
+    def hold_table(self) -> int:
+        """Holds drawn per agent and episode: ``hold_table_size``, or as many as a UAV that only
+        holds could make within T_max, each hold three standard deviations short, if that is more.
+        With the defaults that is 127, so the table stays at 128; with gamma = 0.005 (T_max 1060 s)
+        it is 505, where a table of 128 would repeat its durations after 128 holds."""
+        shortest = self.hold_mean - 3.0 * self.hold_std
+        need = math.ceil(self.t_max / shortest) if shortest > 0 else 0
+        return max(self.hold_table_size, need)
 
     @property
     def n_actions(self) -> int:
@@ -123,12 +145,14 @@ def fs_delay(now: float, delay: float, dt: float) -> float:
     """The FS replacement of a delay scheduled at ``now``: its end is rounded up to the dT grid.
 
     ``dt <= 0`` stands for ED (no rounding). Negative delays (round-off in a fire's re-planned
-    health) count as 0. Plain float arithmetic, so the numba engine compiles the same operations.
+    health) count as 0. Plain float arithmetic, so the numba engine compiles the same operations;
+    a float ceiling, because numba's ``math.ceil`` returns an int64, which overflows (to a delay of
+    0) once the number of steps passes 2^63.
     """
     d = max(delay, 0.0)
     if dt <= 0.0:
         return d
-    return max(0.0, math.ceil((now + d) / dt) * dt - now)
+    return max(0.0, np.ceil((now + d) / dt) * dt - now)
 
 
 @dataclass(frozen=True)
@@ -138,7 +162,7 @@ class EpisodeDraws:
     starts: np.ndarray
     """(E, N, 2) UAV start positions."""
     holds: np.ndarray
-    """(E, N, hold_table_size) hold durations; agent i's h-th hold lasts holds[e, i, h % size]."""
+    """(E, N, cfg.hold_table) hold durations; agent i's h-th hold lasts holds[e, i, h % size]."""
 
     @property
     def n_episodes(self) -> int:
@@ -155,9 +179,8 @@ def draw_episodes(cfg: WildfireConfig, n_episodes: int,
     same seed. One generator per batch, not per episode: creating a generator costs more than
     simulating a short episode.
     """
-    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-    start_ss, hold_ss = ss.spawn(2)
+    start_ss, hold_ss = children(seed, 2)
     starts = np.random.default_rng(start_ss).uniform(-1.0, 1.0, size=(n_episodes, cfg.n_agents, 2))
     holds = np.random.default_rng(hold_ss).normal(
-        cfg.hold_mean, cfg.hold_std, size=(n_episodes, cfg.n_agents, cfg.hold_table_size))
+        cfg.hold_mean, cfg.hold_std, size=(n_episodes, cfg.n_agents, cfg.hold_table))
     return EpisodeDraws(starts, holds)
