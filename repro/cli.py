@@ -50,22 +50,27 @@ class OneLineParser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0) -> None:
-    """Options every driver takes: scale, seed and where results and figures go."""
+def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0,
+               figures: bool = True) -> None:
+    """Options every driver takes: scale, seed (``None``: the driver has no randomness) and where
+    results and figures (for drivers that draw some) go."""
     parser.add_argument("--scale", default=DEFAULT_SCALE, help=f"one of {', '.join(SCALES)}")
     if seed is not None:
         parser.add_argument("--seed", type=int, default=seed,
-                            help="root seed of every random stream")
+                            help="root seed of every random stream (an integer >= 0)")
     parser.add_argument("--results-dir", default="results", help="folder for CSVs and sidecars")
-    parser.add_argument("--figures-dir", default="figures", help="folder for PNG and PDF figures")
+    if figures:
+        parser.add_argument("--figures-dir", default="figures",
+                            help="folder for PNG and PDF figures")
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
-        print("usage: python -m repro <command> [options]\n\ncommands:")
-        for name, (_, desc) in COMMANDS.items():
-            print(f"  {name:<18} {desc}")
+        usage = "usage: python -m repro <command> [options]\n\ncommands:\n" + "".join(
+            f"  {name:<18} {desc}\n" for name, (_, desc) in COMMANDS.items())
+        # asked for: the standard output; a missing command is an error
+        print(usage, end="", file=sys.stdout if argv else sys.stderr)
         return 0 if argv else 2
     name = argv[0]
     if name not in COMMANDS:
@@ -80,7 +85,14 @@ def main(argv: list[str] | None = None) -> int:
         if hasattr(module, "extend_arguments"):
             module.extend_arguments(parser, argv[1:])
         args = parser.parse_args(argv[1:])
+        # every seed becomes a numpy SeedSequence, which takes no negative entropy
+        if getattr(args, "seed", None) is not None and args.seed < 0:
+            raise UsageError("--seed", "an integer >= 0", args.seed)
         return int(module.run(args) or 0)
     except UsageError as err:
         print(f"repro {name}: error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"repro {name}: interrupted; the same command resumes a training run or sweep from "
+              "its last checkpoint", file=sys.stderr)
+        return 130

@@ -63,12 +63,24 @@ def test_eval_json(smoke, capsys):
      "--thresholds"),
     (["fig-bus-load", "--policies", "nohold", "mystery"], "--policies"),
     (["fig-bus-arrivals", "--policies", "mystery"], "--policies"),
+    (["bus-eval", "--policy", "nohold", "--thresholds", "6", "4", "2"], "--thresholds"),
+    (["bus-eval", "--policy", "thresholds", "--mlp-run", "runs/x"], "--mlp-run"),
 ])
 def test_bad_input(args, param, tmp_path):
     proc = _repro(*args, "--results-dir", str(tmp_path / "r"))
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and f"error: {param}:" in lines[0], proc.stderr
+    assert not (tmp_path / "r").exists()
+
+
+def test_mlp_run_of_another_environment_is_refused(tmp_path):
+    run = tmp_path / "toy"
+    assert main(["train", "--env", "toy", "--scale", "smoke", "--out", str(run)]) == 0
+    for cmd in (["bus-eval", "--policy", "mlp"], ["fig-bus-load", "--policies", "mlp"]):
+        proc = _repro(*cmd, "--mlp-run", str(run), "--results-dir", str(tmp_path / "r"))
+        assert proc.returncode == 2 and "error: --mlp-run: must be the checkpoint.pt of a bus" \
+            in proc.stderr, proc.stderr
     assert not (tmp_path / "r").exists()
 
 

@@ -17,6 +17,7 @@ SMALL = ("--scale", "smoke", "--n-sets", "400", "--n-max", "5", "--distribution"
     (("--delta", "0"), "--delta"),
     (("--n-min", "1"), "--n-min"),
     (("--n-sets", "-5"), "--n-sets"),
+    (("--seed", "-1"), "--seed"),
     (("--scale", "huge"), "--scale"),
     (("--results-dir", "/proc/forbidden/results"), "--results-dir"),
     (("--figures-dir", "{tmp}/results/keep.csv/figs"), "--figures-dir"),
@@ -97,6 +98,32 @@ def test_claims_command_renders_the_table(cli, tmp_path):
     for cid in ("C1", "C10", "C11"):
         assert f"| {cid} |" in text
     assert NOT_RUN in text
+
+
+@pytest.mark.parametrize("args, param", [
+    (("--results-dir", "{tmp}/missing"), "--results-dir"),
+    (("--results-dir", "{tmp}/file.csv"), "--results-dir"),
+    (("--out", "{tmp}"), "--out"),
+])
+def test_claims_bad_paths_are_one_line_errors(cli, tmp_path, args, param):
+    (tmp_path / "file.csv").write_text("x\n")
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    out = cli("claims", *(["--results-dir", str(tmp_path)] if args[0] == "--out" else []), *args)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert f"error: {param}:" in out.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.csv"]
+
+
+def test_result_files_get_the_permissions_of_an_ordinary_write(tmp_path):
+    import os
+    import stat
+
+    from repro.core.io import write_csv
+
+    write_csv(tmp_path / "a.csv", pd.DataFrame({"x": [1]}))
+    (tmp_path / "b.csv").write_text("x\n1\n")
+    modes = {stat.S_IMODE(os.stat(tmp_path / n).st_mode) for n in ("a.csv", "b.csv")}
+    assert len(modes) == 1, modes  # mkstemp alone would make a.csv private (0600)
 
 
 def test_git_commit_is_dirty_for_code_changes_not_for_outputs(tmp_path):

@@ -156,6 +156,9 @@ def test_cli_smoke_and_checkpoint_policy(tmp_path):
     assert {"config.json", "progress.csv", CHECKPOINT} <= {p.name for p in out.iterdir()}
     frame = pd.read_csv(out / "progress.csv")
     assert list(frame.epoch) == [0, 1] and (frame.batch_episodes == 8).all()
+    prov = json.loads((out / "progress.provenance.json").read_text())
+    assert prov["command"] == "train" and prov["git_commit"] and "torch" in prov["versions"]
+    assert prov["config"]["train"]["hidden"] == [8] and prov["epochs_after"] == 2
     sampler = policy_from_checkpoint(out / CHECKPOINT, np.random.default_rng(0))
     ro = toy.make_env(toy.ToyConfig()).rollout(sampler, 3, 0)
     assert ro.n_decisions > 0 and set(np.unique(ro.actions)) <= {0, 1, 2}
@@ -171,6 +174,10 @@ def test_cli_smoke_and_checkpoint_policy(tmp_path):
     (["--fvp-subsample", "0"], "--fvp-subsample"),
     (["--fvp-subsample", "1.5"], "--fvp-subsample"),
     (["--scale", "huge"], "--scale"),
+    (["--gamma", "inf"], "--gamma"),
+    (["--lam", "inf"], "--lam"),
+    (["--max-kl", "inf"], "--max-kl"),
+    (["--seed", "-1"], "--seed"),
 ])
 def test_bad_options_exit_2_with_one_line(tmp_path, capsys, bad, param):
     out = tmp_path / "run"
@@ -209,6 +216,18 @@ def test_resume_with_other_settings_refused(tmp_path, capsys):
     assert main(["train", "--env", "toy", "--scale", "smoke", "--out", out]) == 0
     assert main(["train", "--env", "toy", "--scale", "smoke", "--lam", "0.5", "--out", out]) == 2
     assert "--out" in capsys.readouterr().err
+
+
+def test_out_folder_of_other_files_refused(tmp_path, capsys):
+    out = tmp_path / "figures"
+    out.mkdir()
+    (out / "plot.png").write_bytes(b"png")
+    assert main(["train", "--env", "toy", "--scale", "smoke", "--out", str(out)]) == 2
+    assert "--out" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == ["plot.png"]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["train", "--env", "toy", "--scale", "smoke", "--out", str(empty)]) == 0
 
 
 def test_resume_of_a_run_older_than_a_setting(tmp_path):

@@ -102,7 +102,8 @@ def test_fig_transfer_cli_smoke(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("command", ["fig-transfer", "wildfire-behaviour"])
 @pytest.mark.parametrize("argv", [["--seeds", "0"], ["--test-episodes", "0"], ["--n-jobs", "0"],
-                                  ["--epochs", "0"], ["--scale", "huge"]])
+                                  ["--epochs", "0"], ["--scale", "huge"], ["--seed", "-1"],
+                                  ["--scheduler", "notanaddress", "--scale", "smoke"]])
 def test_bad_input_writes_nothing(tmp_path, monkeypatch, capsys, command, argv):
     monkeypatch.chdir(tmp_path)
     assert _main([command, *argv]) == 2
@@ -116,7 +117,7 @@ def test_sweep_refuses_finished_runs_made_with_other_settings(tmp_path, capsys):
     nothing is trained, evaluated or written."""
     runs, res = tmp_path / "runs", tmp_path / "res"
     argv = ["wildfire-behaviour", "--scale", "smoke", "--test-episodes", "5", "--n-jobs", "1",
-            "--runs-dir", str(runs), "--results-dir", str(res), "--figures-dir", str(tmp_path)]
+            "--runs-dir", str(runs), "--results-dir", str(res)]
     assert _main(argv) == 0
     before = tree_snapshot(runs, res)
     capsys.readouterr()

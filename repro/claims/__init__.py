@@ -88,8 +88,8 @@ def render(results: Path) -> str:
     lines = [
         "# Paper claims: the paper's numbers beside ours",
         "",
-        "Rendered by `make claims` (`python -m repro claims`) from the CSVs under `results/`; do",
-        "not edit by hand. A claim whose results are missing reads \"not yet run\". The scale",
+        f"Rendered by `make claims` (`python -m repro claims`) from the CSVs under `{results}/`;",
+        "do not edit by hand. A claim whose results are missing reads \"not yet run\". The scale",
         "column says which scale (SPEC section 6: smoke, quick, paper) produced the numbers.",
         "",
         "| id | claim | paper | ours | tolerance | verdict | scale | regenerate |",
@@ -114,9 +114,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    check_writable_dir(out.parent if str(out.parent) else ".", "--out")
-    text = render(Path(args.results_dir))
+    results, out = Path(args.results_dir), Path(args.out)
+    # a mistyped folder would otherwise render a table of "not yet run"
+    require(results.is_dir(), "--results-dir", "an existing folder of result files", str(results))
+    require(not out.is_dir(), "--out", "a file, not a folder", str(out))
+    check_writable_dir(out.parent, "--out")
+    text = render(results)
     write_text(out, text)
     print(f"wrote {out}")
     return 0

@@ -165,8 +165,10 @@ def _corrected_line(results: Path, judge, means: bool) -> str:
         return (" Corrected semantics (Q1, Q2 off): not yet run "
                 "(`make fig-transfer ARGS=--corrected`).")
     verdict, why = judge(s)
+    verdict, caveat = _at_most_partial(verdict, s)
     shown = f"{_means(s)}; " if means else ""
-    return f" Corrected semantics (Q1, Q2 off; {scale_of(path)} scale): {verdict}: {shown}{why}."
+    return (f" Corrected semantics (Q1, Q2 off; {scale_of(path)} scale): {verdict}: {shown}{why}."
+            f"{caveat}")
 
 
 CLAIMS = [

@@ -51,9 +51,20 @@ def check_writable_dir(path: str | Path, param: str) -> Path:
     return p
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+FILE_MODE = 0o666 & ~_umask()
+"""The mode an ordinary ``open`` would give a new file; mkstemp's files are private (0600)."""
+
+
 @contextmanager
 def atomic_path(dest: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``dest``; on success it is renamed onto ``dest``."""
+    """Yield a temporary path beside ``dest``; on success it is renamed onto ``dest``, with the
+    permissions an ordinary write would give it."""
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp" + dest.suffix,
@@ -61,6 +72,7 @@ def atomic_path(dest: str | Path) -> Iterator[Path]:
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, FILE_MODE)
         os.replace(tmp, dest)
     finally:
         if os.path.exists(tmp):
@@ -137,9 +149,10 @@ def versions() -> dict[str, str]:
     return out
 
 
-def provenance(config: Any, *, command: str, scale: str, seed: int | None, wall_seconds: float,
-               extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The sidecar content: what was run, on what, from which commit, and how long it took."""
+def provenance(config: Any, *, command: str, scale: str | None, seed: int | None,
+               wall_seconds: float, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The sidecar content: what was run, on what, from which commit, and how long it took
+    (``scale`` None where the config alone says what was run, as for a training run)."""
     from repro.core.config import to_dict
 
     rec = {

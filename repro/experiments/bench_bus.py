@@ -28,7 +28,7 @@ class BusBenchConfig(BenchConfig):
 
 
 def measure(cfg: BusBenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
-    """``trained``: a loaded checkpoint of a bus run (``bench_common.load_trained_run``)."""
+    """``trained``: a loaded checkpoint of a bus run (``trainer.load_trained_run``)."""
     env_cfg = (BusConfig() if trained is None
                else bench_common.trained_env_config(trained, BusConfig))
     return bench_common.measure(make_env(env_cfg), make_reference_env(env_cfg), "nohold",

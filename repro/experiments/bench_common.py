@@ -37,7 +37,6 @@ import argparse
 import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 import numpy as np
@@ -46,11 +45,11 @@ import torch
 
 from repro.cli import add_common
 from repro.core.config import for_scale
-from repro.core.errors import UsageError, require
+from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
-from repro.learn.trainer import ENV_DEFAULTS, TrainConfig, load_checkpoint, policy_from_state
+from repro.learn.trainer import ENV_DEFAULTS, TrainConfig, load_trained_run, policy_from_state
 
 C = TypeVar("C")
 
@@ -126,19 +125,6 @@ def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int)
                 engine_decisions_per_cpu_second=np.median(d / (cpu - policy_cpu)))
 
 
-def load_trained_run(path: str | Path, env_name: str) -> dict[str, Any]:
-    """The checkpoint at ``path`` of a training run on ``env_name`` (UsageError otherwise)."""
-    allowed = f"the checkpoint.pt of a {env_name} training run"
-    require(Path(path).is_file(), "--checkpoint", allowed, str(path))
-    try:
-        state = load_checkpoint(path)
-    except Exception:  # not a torch file: reported as bad input, not as a crash
-        raise UsageError("--checkpoint", allowed, str(path)) from None
-    require(isinstance(state, dict) and state.get("run_config", {}).get("env_name") == env_name,
-            "--checkpoint", allowed, str(path))
-    return state
-
-
 def trained_env_config(state: dict[str, Any], config: type[C]) -> C:
     """The environment settings of a checkpoint's run as ``config`` (settings newer than the run
     keep their defaults, as when it resumes)."""
@@ -184,7 +170,7 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
+    add_common(p, figures=False)
     p.add_argument("--fast-episodes", type=int, help="episodes per batch of the fast engine")
     p.add_argument("--reference-episodes", type=int, help="episodes per batch of the reference")
     p.add_argument("--repeats", type=int, help="batches each engine runs per policy")

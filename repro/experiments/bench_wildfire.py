@@ -31,7 +31,7 @@ class WildfireBenchConfig(BenchConfig):
 
 def measure(cfg: WildfireBenchConfig, seed: int,
             trained: dict[str, Any] | None = None) -> pd.DataFrame:
-    """``trained``: a loaded checkpoint of a wildfire run (``bench_common.load_trained_run``)."""
+    """``trained``: a loaded checkpoint of a wildfire run (``trainer.load_trained_run``)."""
     env_cfg = (WildfireConfig() if trained is None
                else bench_common.trained_env_config(trained, WildfireConfig))
     return bench_common.measure(

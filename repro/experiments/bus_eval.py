@@ -14,6 +14,7 @@ import json
 import numpy as np
 import pandas as pd
 
+from repro.core.errors import require
 from repro.core.rollout import Policy
 from repro.envs.bus import BusConfig, make_env
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, arrival_table, cycle_loads,
@@ -67,6 +68,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    for option, value, used_by in (("--thresholds", args.thresholds, "thresholds"),
+                                   ("--mlp-run", args.mlp_run, "mlp")):
+        require(value is None or args.policy == used_by, option, f"used with --policy {used_by}")
     policy = policy_from_args(args.policy, args)
     summary, _ = evaluate(policy, BusConfig())
     summary["policy"] = args.policy

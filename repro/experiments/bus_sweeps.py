@@ -125,7 +125,7 @@ def final_returns(cfg: BusSweepConfig, table: pd.DataFrame) -> pd.DataFrame:
 
 def baseline_returns(results: Path) -> dict[str, float]:
     """Average return of No Holding and of the Optimized Thresholds in ``results``."""
-    thresholds = ThresholdPolicy(read_thresholds(results))
+    thresholds = ThresholdPolicy(read_thresholds(results, "--results-dir"))
     env = make_env(BusConfig())
     return {name: float(env.rollout(policy, 1).episode_return[0])
             for name, policy in (("nohold", no_holding), ("thresholds", thresholds))}

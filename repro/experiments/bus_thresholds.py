@@ -84,7 +84,7 @@ def optimise(cfg: ThresholdsConfig, bus: BusConfig, seed: int) -> dict:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
+    add_common(p, figures=False)
     p.add_argument("--popsize", type=int, help="DE population multiplier")
     p.add_argument("--maxiter", type=int, help="DE generations")
 

@@ -68,7 +68,12 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
     if pending and scheduler:
         from dask.distributed import Client
 
-        with Client(scheduler) as client:
+        try:
+            client = Client(scheduler, timeout=30)
+        except (OSError, ValueError, TypeError):  # a malformed address, or no scheduler there
+            raise UsageError("--scheduler", "the address of a running Dask scheduler",
+                             scheduler) from None
+        with client:
             client.gather(client.map(run_job, pending, root=Path(root), pure=False))
     elif pending:
         from joblib import Parallel, delayed

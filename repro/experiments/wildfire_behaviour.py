@@ -210,7 +210,7 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
+    add_common(p, figures=False)
     add_sweep_arguments(p)
     p.add_argument("--seeds", type=int, help="policies trained (paper: 1)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 3000)")

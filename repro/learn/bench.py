@@ -133,7 +133,7 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
+    add_common(p, figures=False)
     p.add_argument("--env", default="toy", help="environment: " + ", ".join(trainer.ENVS))
     p.add_argument("--episodes", type=int, help="episodes per epoch (1000)")
     p.add_argument("--epochs", type=int, help="epochs timed (3)")

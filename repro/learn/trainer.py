@@ -22,6 +22,7 @@ import argparse
 import dataclasses
 import importlib
 import json
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,8 +35,8 @@ import torch
 
 from repro.core.config import SCALES, to_dict
 from repro.core.errors import UsageError, require
-from repro.core.io import (append_csv, atomic_path, check_writable_dir, write_csv,
-                           write_json, write_text)
+from repro.core.io import (append_csv, atomic_path, check_writable_dir, provenance, sidecar_path,
+                           write_csv, write_json, write_text)
 from repro.core.memory import keep_freed_memory
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
@@ -114,8 +115,9 @@ class TrainConfig:
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
         require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
                 self.batch_episodes)
-        require(self.lam >= 0, "--lam", ">= 0", self.lam)
-        require(self.max_kl > 0, "--max-kl", "> 0", self.max_kl)
+        require(self.lam >= 0 and math.isfinite(self.lam), "--lam", "a number >= 0", self.lam)
+        require(self.max_kl > 0 and math.isfinite(self.max_kl), "--max-kl", "a number > 0",
+                self.max_kl)
         require(len(self.hidden) >= 1 and min(self.hidden) >= 1, "--hidden",
                 "one or more positive layer sizes", list(self.hidden))
         require(self.baseline in BASELINES, "--baseline", "one of " + ", ".join(BASELINES),
@@ -167,7 +169,7 @@ class Trainer:
     def __init__(self, cfg: TrainConfig, env: BatchEnv, out: str | Path | None = None,
                  env_config: Any = None):
         cfg.validate()
-        require(env.gamma > 0, "--gamma", "> 0", env.gamma)
+        require(env.gamma > 0 and math.isfinite(env.gamma), "--gamma", "a number > 0", env.gamma)
         self.cfg, self.env = cfg, env
         self.out = None if out is None else Path(out)
         self.env_config = env_config
@@ -234,9 +236,12 @@ class Trainer:
         return torch.as_tensor(np.sort(rng.choice(n_decisions, n_rows, replace=False)))
 
     def train(self) -> pd.DataFrame:
-        """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table."""
+        """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table. A run folder
+        also gets ``progress.provenance.json``: what this call ran, from which commit, on what."""
+        t_start, first_epoch = time.perf_counter(), self.epoch
         if self.out is not None:
             self._start_or_resume()
+            first_epoch = self.epoch
         with blas_on_one_thread():
             for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
                               total=self.cfg.epochs - self.epoch):
@@ -250,6 +255,11 @@ class Trainer:
                     # run (0.18 s per epoch by epoch 1,550 of a paper-scale C6 run)
                     append_csv(self.out / PROGRESS, pd.DataFrame([row], columns=PROGRESS_COLUMNS))
                     self.save_checkpoint(self.out / CHECKPOINT)
+        if self.out is not None:
+            write_json(sidecar_path(self.out / PROGRESS), provenance(
+                self.run_config, command="train", scale=None, seed=self.cfg.seed,
+                wall_seconds=time.perf_counter() - t_start,
+                extra={"epochs_before": first_epoch, "epochs_after": self.epoch}))
         return self.progress()
 
     def progress(self) -> pd.DataFrame:
@@ -341,6 +351,21 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     return torch.load(path, weights_only=False)
 
 
+def load_trained_run(path: str | Path, env_name: str,
+                     param: str = "--checkpoint") -> dict[str, Any]:
+    """The checkpoint at ``path`` of a training run on ``env_name``; a UsageError naming ``param``
+    if it is none (missing, not a checkpoint, or a run on another environment)."""
+    allowed = f"the {CHECKPOINT} of a {env_name} training run"
+    require(Path(path).is_file(), param, allowed, str(path))
+    try:
+        state = load_checkpoint(path)
+    except Exception:  # not a torch file: reported as bad input, not as a crash
+        raise UsageError(param, allowed, str(path)) from None
+    require(isinstance(state, dict) and state.get("run_config", {}).get("env_name") == env_name,
+            param, allowed, str(path))
+    return state
+
+
 def epochs_done(out: str | Path) -> int:
     """Epochs of the run in folder ``out`` that its checkpoint holds (0 if it has none)."""
     path = Path(out) / CHECKPOINT
@@ -375,11 +400,11 @@ def run_config(cfg: TrainConfig, env_config: Any, env_name: str) -> dict[str, An
 
 
 def holds_same_run(out: Path, cfg: TrainConfig, env_config: Any, env_name: str) -> bool:
-    """Whether the run folder ``out`` is new (no config.json) or holds a run with these settings;
+    """Whether the run folder ``out`` is new (missing or empty) or holds a run with these settings;
     only ``epochs`` may differ, to extend or finish a run."""
     path = Path(out) / "config.json"
-    if not path.exists():
-        return True
+    if not path.exists():  # a folder of other files is not a run to mix this one into
+        return not Path(out).is_dir() or not any(Path(out).iterdir())
     saved = json.loads(path.read_text())
     # settings added to the code since the run started held their defaults then
     defaults = {"train": TrainConfig(),
@@ -444,6 +469,8 @@ def run(args: argparse.Namespace) -> int:
     out = check_writable_dir(args.out or f"runs/{cfg.env}/seed{cfg.seed}", "--out")
     frame = Trainer(cfg, env, out, env_cfg).train()
     last = frame.iloc[-1]
-    print(f"{cfg.env}: {len(frame)} epochs, average return {last.average_return:.6g}, "
+    extra = (f" (the run already had more than --epochs {cfg.epochs}: nothing trained)"
+             if len(frame) > cfg.epochs else "")
+    print(f"{cfg.env}: {len(frame)} epochs{extra}, average return {last.average_return:.6g}, "
           f"average discounted return {last.average_discounted_return:.6g} -> {out}")
     return 0

@@ -61,8 +61,8 @@ class BusConfig:
         require(self.t_hold >= 0.0, "t_hold", ">= 0", self.t_hold)
         require(self.horizon > 0.0, "horizon", "> 0", self.horizon)
         # 0 (no discounting) is a valid corridor; training needs gamma > 0 (the trainer checks)
-        require(self.gamma >= 0.0 and math.isfinite(self.gamma), "--gamma", "a number >= 0",
-                self.gamma)
+        require(self.gamma >= 0.0 and math.isfinite(self.gamma), "--gamma",
+                "a number >= 0 (> 0 to train)", self.gamma)
 
     @property
     def max_arrivals_per_bus(self) -> int:

@@ -54,12 +54,11 @@ class GreedyPolicy:
     """
 
     def __init__(self, run: str | Path):
-        from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
+        from repro.learn.trainer import CHECKPOINT, load_trained_run, policy_from_state
 
-        path = Path(run) / CHECKPOINT
-        require(path.exists(), "--mlp-run", "a training run folder holding " + CHECKPOINT, str(run))
+        state = load_trained_run(Path(run) / CHECKPOINT, "bus", "--mlp-run")
         # the generator is never drawn from: greedy actions need no randomness
-        self.sampler = policy_from_checkpoint(path, np.random.default_rng(0))
+        self.sampler = policy_from_state(state, np.random.default_rng(0))
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
         return self.sampler.probabilities(batch.obs).argmax(axis=1).astype(np.int64)
@@ -72,12 +71,15 @@ THRESHOLDS_CSV = "bus_thresholds.csv"
 LAMBDA_SUMMARY_CSV = "bus_lambda_summary.csv"
 
 
-def read_thresholds(results_dir: str | Path) -> np.ndarray:
-    """T1, T2, T3 (minutes) from results/bus_thresholds.csv, written by `make table-thresholds`."""
+def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.ndarray:
+    """T1, T2, T3 (minutes) from results/bus_thresholds.csv, written by `make table-thresholds`;
+    without it, a UsageError naming ``param``, the option that could have supplied them."""
     path = Path(results_dir) / THRESHOLDS_CSV
     if not path.exists():
-        raise UsageError("--thresholds",
-                         f"given, or {path} written first by `make table-thresholds`")
+        if param == "--thresholds":
+            raise UsageError(param, f"given, or {path} written first by `make table-thresholds`")
+        raise UsageError(param, f"a folder holding {THRESHOLDS_CSV} (`make table-thresholds` "
+                         "writes it)", str(results_dir))
     row = pd.read_csv(path).iloc[0]
     return np.array([row.T1, row.T2, row.T3], float)
 

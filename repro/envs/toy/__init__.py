@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,7 +51,8 @@ class ToyConfig:
     def validate(self) -> None:
         require(self.n_agents >= 1, "--n-agents", "an integer >= 1", self.n_agents)
         require(self.horizon >= 1, "--horizon", "an integer >= 1", self.horizon)
-        require(self.gamma > 0, "--gamma", "> 0", self.gamma)
+        require(self.gamma > 0 and math.isfinite(self.gamma), "--gamma", "a number > 0",
+                self.gamma)
 
 
 class ToyEnv:
