@@ -19,7 +19,7 @@ def rollout_from_records(*, episode: np.ndarray, agent: np.ndarray, index: np.nd
     ``info`` keeps every decision's observation time, each episode's end time and event count.
     The event counts are each engine's own work measure and differ between them: the fast engine
     counts the events it pops from its heap, SimPy also counts process starts, process ends and
-    interrupts (92 against 71 in one episode).
+    interrupts (94 against 73 in one episode of the nearest-fire policy).
     """
     n_agents = agent_returns.shape[1]
     order = np.argsort(episode * n_agents + agent, kind="stable")
