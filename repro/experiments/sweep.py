@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from repro.core.errors import UsageError
-from repro.learn.trainer import Trainer, env_package, epochs_done, holds_same_run
+from repro.learn.run_folder import is_finished
+from repro.learn.trainer import Trainer, check_run_folder, env_package
 
 
 @dataclass(frozen=True)
@@ -38,9 +39,9 @@ def run_dir(root: Path, job: TrainJob) -> Path:
 
 
 def is_done(root: Path, job: TrainJob) -> bool:
-    """A run is done when its checkpoint holds every epoch the job asks for (its settings are
-    checked by :func:`run_sweep`)."""
-    return epochs_done(run_dir(root, job)) >= job.train.epochs
+    """A run is done when it has every epoch the job asks for and its last ``train`` call ended
+    (its settings are checked by :func:`run_sweep`)."""
+    return is_finished(run_dir(root, job), job.train.epochs)
 
 
 def run_job(job: TrainJob, root: Path) -> str:
@@ -59,11 +60,8 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
         raise ValueError("job names must be unique within a sweep")
     # checked before anything runs, so that a finished run of other settings is neither taken for
     # this sweep's nor left half-overwritten by a sweep that stops at the first clash
-    clash = next((j for j in jobs if not holds_same_run(run_dir(root, j), j.train, j.env_config,
-                                                        j.train.env)), None)
-    if clash is not None:
-        raise UsageError("--runs-dir", "new or holding runs made with these settings",
-                         str(run_dir(root, clash)))
+    for j in jobs:
+        check_run_folder(run_dir(root, j), j.train, j.env_config, j.train.env, "--runs-dir")
     pending = [j for j in jobs if not is_done(root, j)]
     if pending and scheduler:
         from dask.distributed import Client

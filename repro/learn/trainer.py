@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib
-import json
 import math
 import time
 from dataclasses import dataclass
@@ -35,8 +34,7 @@ import torch
 
 from repro.core.config import SCALES, to_dict
 from repro.core.errors import UsageError, require
-from repro.core.io import (append_csv, atomic_path, check_writable_dir, provenance, sidecar_path,
-                           write_csv, write_json, write_text)
+from repro.core.io import check_writable_dir, provenance, write_json
 from repro.core.memory import keep_freed_memory
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
@@ -45,6 +43,9 @@ from repro.learn.m_gae import m_gae_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
                                 blas_on_one_thread)
+from repro.learn.run_folder import (CHECKPOINT, PROVENANCE, append_row, check_same_run,
+                                    load_checkpoint, restore, resume_state, save_checkpoint,
+                                    writer_lock)
 from repro.learn.trpo import normalize, trpo_step
 
 ENVS = ("toy", "wildfire", "bus")
@@ -238,10 +239,20 @@ class Trainer:
     def train(self) -> pd.DataFrame:
         """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table. A run folder
         also gets ``progress.provenance.json``: what this call ran, from which commit, on what."""
-        t_start, first_epoch = time.perf_counter(), self.epoch
-        if self.out is not None:
-            self._start_or_resume()
-            first_epoch = self.epoch
+        if self.out is None:
+            self._epochs()
+            return self.progress()
+        t_start = time.perf_counter()
+        with writer_lock(self.out):
+            first_epoch = self._start_or_resume()
+            self._epochs()
+            write_json(self.out / PROVENANCE, provenance(
+                self.run_config, command="train", scale=None, seed=self.cfg.seed,
+                wall_seconds=time.perf_counter() - t_start,
+                extra={"epochs_before": first_epoch, "epochs_after": self.epoch}))
+        return self.progress()
+
+    def _epochs(self) -> None:
         with blas_on_one_thread():
             for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
                               total=self.cfg.epochs - self.epoch):
@@ -251,16 +262,9 @@ class Trainer:
                 self.rows.append(row)
                 if self.out is not None:
                     # the row goes first, so progress.csv never holds fewer rows than the checkpoint
-                    # has epochs; appended, because rewriting the table every epoch grows with the
-                    # run (0.18 s per epoch by epoch 1,550 of a paper-scale C6 run)
-                    append_csv(self.out / PROGRESS, pd.DataFrame([row], columns=PROGRESS_COLUMNS))
-                    self.save_checkpoint(self.out / CHECKPOINT)
-        if self.out is not None:
-            write_json(sidecar_path(self.out / PROGRESS), provenance(
-                self.run_config, command="train", scale=None, seed=self.cfg.seed,
-                wall_seconds=time.perf_counter() - t_start,
-                extra={"epochs_before": first_epoch, "epochs_after": self.epoch}))
-        return self.progress()
+                    # has epochs (a resumed run cuts off any more)
+                    append_row(self.out, row, PROGRESS_COLUMNS)
+                    save_checkpoint(self.out / CHECKPOINT, self.state_dict())
 
     def progress(self) -> pd.DataFrame:
         return pd.DataFrame(self.rows, columns=PROGRESS_COLUMNS)
@@ -273,7 +277,7 @@ class Trainer:
             "policy": self.policy.state_dict(),
             "baseline": self.baseline.state_dict(),
             "normalizer": self.normalizer.state_dict(),
-            "sampler_rng": self.rng.bit_generator.state,
+            "sampler_rng": self.rng.bit_generator.state,  # saved as JSON
             "torch_rng": torch.get_rng_state(),
             "run_config": self.run_config,
         }
@@ -286,51 +290,30 @@ class Trainer:
         self.rng.bit_generator.state = state["sampler_rng"]
         torch.set_rng_state(state["torch_rng"])
 
-    def save_checkpoint(self, path: Path) -> None:
-        with atomic_path(path) as tmp:
-            torch.save(self.state_dict(), tmp)
-
-    def _start_or_resume(self) -> None:
-        """Write config.json, or check it against the run already in ``out`` and load its
-        checkpoint. Only ``epochs`` may differ (to extend or finish a run)."""
+    def _start_or_resume(self) -> int:
+        """Check the folder (changing nothing if it is refused), then bring it to the state of an
+        uninterrupted run after its checkpoint's epochs and load the checkpoint; returns those
+        epochs. Only ``epochs`` may differ from the folder's run (to extend or finish it); its
+        config.json keeps the larger number."""
         assert self.out is not None
-        if not holds_same_run(self.out, self.cfg, self.env_config, self.env.name):
-            raise UsageError("--out", "empty or holding a run with the same settings",
-                             str(self.out))
-        state = None
-        if (self.out / CHECKPOINT).exists():
-            state = load_checkpoint(self.out / CHECKPOINT)
-            _check_rows(self.out / PROGRESS, int(state["epoch"]), state.get("rows"))
-        write_json(self.out / "config.json", self.run_config)
+        defaults = run_config(TrainConfig(), _default_like(self.env_config), self.env.name)
+        state = resume_state(self.out, self.run_config, defaults)
+        epochs = 0 if state is None else int(state["epoch"])
+        config = self.run_config
+        if state is not None:
+            saved = state["run_config"]["train"].get("epochs", 0)
+            config = {**config, "train": {**config["train"], "epochs": max(saved, self.cfg.epochs)}}
+        self.rows = restore(self.out, epochs, config)
         if state is not None:
             self.load_state_dict(state)
-            self.rows = _completed_rows(self.out / PROGRESS, self.epoch, state.get("rows"))
+        return epochs
 
 
-def _check_rows(path: Path, epochs: int, saved_rows: list | None) -> None:
-    """Refuse to resume a run whose progress.csv lacks rows of the checkpointed epochs (deleted or
-    replaced by hand): they cannot be rebuilt without running those epochs again."""
-    rows = len(saved_rows) if saved_rows is not None else (
-        len(path.read_text().splitlines()) - 1 if path.exists() else 0)
-    require(rows >= epochs, "--out", f"a run folder whose {PROGRESS} holds the {epochs} epochs of "
-            f"its {CHECKPOINT} (it holds {max(rows, 0)}; delete {CHECKPOINT} to start again)",
-            str(path.parent))
+def _default_like(env_config: Any) -> Any:
+    """The default config of ``env_config``'s type (None for configs that are not dataclasses)."""
+    return type(env_config)() if dataclasses.is_dataclass(env_config) else None
 
 
-def _completed_rows(path: Path, epochs: int, saved_rows: list | None) -> list[dict[str, Any]]:
-    """The progress rows of a resumed run's ``epochs`` checkpointed epochs; progress.csv is cut
-    back to them (a run stopped between appending a row and checkpointing leaves one more, perhaps
-    cut short). Checkpoints from before progress.csv was appended to carry the rows themselves."""
-    if saved_rows is not None:
-        write_csv(path, pd.DataFrame(saved_rows[:epochs], columns=PROGRESS_COLUMNS))
-    lines = path.read_text().splitlines(keepends=True)
-    if len(lines) != epochs + 1:
-        write_text(path, "".join(lines[:epochs + 1]))
-    return pd.read_csv(path).to_dict("records")
-
-
-CHECKPOINT = "checkpoint.pt"
-PROGRESS = "progress.csv"
 PROGRESS_COLUMNS = [
     "epoch", "average_return", "average_discounted_return", "kl", "entropy", "surrogate_before",
     "surrogate_after", "backtracks", "accepted", "explained_variance", "baseline_loss",
@@ -346,30 +329,15 @@ the pieces one by one."""
 TIMING_COLUMNS = [c for c in PROGRESS_COLUMNS if c.startswith("seconds")]
 
 
-def load_checkpoint(path: str | Path) -> dict[str, Any]:
-    # weights_only=False: the file holds numpy RNG state and plain rows, and is written by this code
-    return torch.load(path, weights_only=False)
-
-
 def load_trained_run(path: str | Path, env_name: str,
                      param: str = "--checkpoint") -> dict[str, Any]:
     """The checkpoint at ``path`` of a training run on ``env_name``; a UsageError naming ``param``
     if it is none (missing, not a checkpoint, or a run on another environment)."""
     allowed = f"the {CHECKPOINT} of a {env_name} training run"
     require(Path(path).is_file(), param, allowed, str(path))
-    try:
-        state = load_checkpoint(path)
-    except Exception:  # not a torch file: reported as bad input, not as a crash
-        raise UsageError(param, allowed, str(path)) from None
-    require(isinstance(state, dict) and state.get("run_config", {}).get("env_name") == env_name,
-            param, allowed, str(path))
+    state = load_checkpoint(path, param, allowed)
+    require(state.get("run_config", {}).get("env_name") == env_name, param, allowed, str(path))
     return state
-
-
-def epochs_done(out: str | Path) -> int:
-    """Epochs of the run in folder ``out`` that its checkpoint holds (0 if it has none)."""
-    path = Path(out) / CHECKPOINT
-    return int(load_checkpoint(path)["epoch"]) if path.exists() else 0
 
 
 def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sampler:
@@ -399,29 +367,12 @@ def run_config(cfg: TrainConfig, env_config: Any, env_name: str) -> dict[str, An
     return {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env_name}
 
 
-def holds_same_run(out: Path, cfg: TrainConfig, env_config: Any, env_name: str) -> bool:
-    """Whether the run folder ``out`` is new (missing or empty) or holds a run with these settings;
-    only ``epochs`` may differ, to extend or finish a run."""
-    path = Path(out) / "config.json"
-    if not path.exists():  # a folder of other files is not a run to mix this one into
-        return not Path(out).is_dir() or not any(Path(out).iterdir())
-    saved = json.loads(path.read_text())
-    # settings added to the code since the run started held their defaults then
-    defaults = {"train": TrainConfig(),
-                "env": type(env_config)() if dataclasses.is_dataclass(env_config) else None}
-    for part, default in defaults.items():
-        if default is not None and isinstance(saved.get(part), dict):
-            saved[part] = {**_as_json(to_dict(default)), **saved[part]}
-    mine = _as_json(run_config(cfg, env_config, env_name))
-    return _without_epochs(saved) == _without_epochs(mine)
-
-
-def _as_json(value: Any) -> Any:
-    return json.loads(json.dumps(value, default=str))
-
-
-def _without_epochs(run_config: dict) -> dict:
-    return {**run_config, "train": {k: v for k, v in run_config["train"].items() if k != "epochs"}}
+def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str,
+                     param: str = "--out") -> None:
+    """Refuse (UsageError naming ``param`` and the first differing setting) a folder ``out`` that
+    is neither new nor a run with these settings; only ``epochs`` may differ."""
+    check_same_run(Path(out), run_config(cfg, env_config, env_name),
+                   run_config(TrainConfig(), _default_like(env_config), env_name), param)
 
 
 # --- command line --------------------------------------------------------------------------------

@@ -1,0 +1,261 @@
+"""The run folder's promises (repro.learn.run_folder): checkpoints that cannot run code, exact
+resume whichever write a kill interrupts (injected, not raced), one writer per folder, one-line
+refusals of damaged or foreign folders, and the same bytes for the same run."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import torch
+
+import repro.learn.run_folder as run_folder
+import repro.learn.trainer as trainer
+from repro.cli import main
+from repro.core.io import atomic_path
+from repro.envs import toy
+from repro.experiments.sweep import TrainJob, run_sweep
+from repro.learn.run_folder import CHECKPOINT, LOCK, PROGRESS, writer_lock
+from repro.learn.trainer import TIMING_COLUMNS, load_trained_run, train_config
+
+TRAIN = ["train", "--env", "toy", "--batch-episodes", "6", "--seed", "3", "--horizon", "10"]
+
+
+def train(out: Path, epochs: int = 3, *extra: str) -> int:
+    return main([*TRAIN, "--epochs", str(epochs), "--out", str(out), *extra])
+
+
+def files(folder: Path) -> dict[str, bytes]:
+    """Every file of a run folder but the measured times: progress.csv without its timing columns,
+    and no provenance sidecar (it records wall time)."""
+    out = {p.name: p.read_bytes() for p in folder.iterdir()
+           if p.is_file() and p.name not in (PROGRESS, "progress.provenance.json")}
+    if (folder / PROGRESS).exists():
+        out[PROGRESS] = pd.read_csv(folder / PROGRESS).drop(columns=TIMING_COLUMNS).to_csv()
+    return out
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory) -> Path:
+    """An uninterrupted 3-epoch run."""
+    out = tmp_path_factory.mktemp("whole") / "run"
+    assert train(out) == 0
+    return out
+
+
+# --- safe checkpoints ----------------------------------------------------------------------------
+
+class Payload:
+    """Unpickling this creates the file ``marker``: what a crafted checkpoint could do."""
+
+    def __init__(self, marker: Path):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def test_a_crafted_checkpoint_is_refused_and_never_runs(tmp_path, whole, capsys):
+    marker = tmp_path / "pwned"
+    run = tmp_path / "run"
+    run.mkdir()
+    for p in whole.iterdir():
+        (run / p.name).write_bytes(p.read_bytes())
+    torch.save({"format": 2, "epoch": 1, "x": Payload(marker)}, run / CHECKPOINT)
+    before = {p.name: p.read_bytes() for p in run.iterdir()}
+    capsys.readouterr()
+    assert train(run, 4) == 2  # train's resume
+    assert main(["bench-bus", "--scale", "smoke", "--checkpoint", str(run / CHECKPOINT),
+                 "--results-dir", str(tmp_path / "res")]) == 2
+    with pytest.raises(trainer.UsageError):
+        load_trained_run(run / CHECKPOINT, "toy")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all(CHECKPOINT in line for line in err)
+    assert not marker.exists()
+    assert {p.name: p.read_bytes() for p in run.iterdir()} == before
+    assert not (tmp_path / "res").exists()
+
+
+def test_identical_runs_write_identical_checkpoints(tmp_path, whole):
+    assert train(tmp_path / "again") == 0
+    assert (tmp_path / "again" / CHECKPOINT).read_bytes() == (whole / CHECKPOINT).read_bytes()
+
+
+# --- exact resume at every kill point ------------------------------------------------------------
+
+class Killed(BaseException):
+    """Stands for kill -9: not an Exception, so nothing on the way catches it."""
+
+
+WRITERS = [(run_folder, "write_json"), (run_folder, "write_text"), (run_folder, "write_bytes"),
+           (run_folder, "append_csv"), (trainer, "write_json")]
+"""Every function through which a training run writes its folder (monkeypatched by name)."""
+
+
+def kill_at(monkeypatch, when: int, how: str) -> None:
+    """Make the ``when``-th write of the run (counted over every writer) die: before it starts,
+    half-way (an atomic write leaves its temporary file, an append half a row), or after it."""
+    count = [0]
+
+    def wrap(write):
+        def killer(dest, data, *args):
+            count[0] += 1
+            if count[0] - 1 != when:
+                return write(dest, data, *args)
+            if how == "torn":
+                dest = Path(dest)
+                if write.__name__ == "append_csv":
+                    text = data.to_csv(header=not dest.exists(), index=False)
+                    with dest.open("a") as f:
+                        f.write(text[:len(text) // 2])
+                else:
+                    fd, _ = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp" + dest.suffix,
+                                             dir=dest.parent)
+                    os.write(fd, b"half")
+                    os.close(fd)
+            elif how == "after":
+                write(dest, data, *args)
+            raise Killed
+        return killer
+
+    for module, name in WRITERS:
+        monkeypatch.setattr(module, name, wrap(getattr(module, name)))
+
+
+WRITES = 1 + 2 * 3 + 1
+"""config.json, then a row and a checkpoint per epoch, then the provenance sidecar."""
+
+
+@pytest.mark.parametrize("how", ["before", "torn", "after"])
+@pytest.mark.parametrize("when", range(WRITES))
+def test_a_run_killed_at_any_write_resumes_to_the_uninterrupted_files(tmp_path, whole,
+                                                                       monkeypatch, when, how):
+    run = tmp_path / "run"
+    with monkeypatch.context() as m:
+        kill_at(m, when, how)
+        with pytest.raises(Killed):
+            train(run)
+    assert train(run) == 0
+    assert files(run) == files(whole)
+
+
+def test_a_progress_table_without_a_checkpoint_starts_again(tmp_path, whole):
+    """The window between the first row and the first checkpoint: the row goes."""
+    run = tmp_path / "run"
+    assert train(run, 1) == 0
+    (run / CHECKPOINT).unlink()
+    assert train(run) == 0
+    assert files(run) == files(whole)
+
+
+@pytest.mark.parametrize("when", range(0, 2 * WRITES, 3))
+def test_a_sweep_killed_at_any_write_resumes_to_the_uninterrupted_runs(tmp_path, monkeypatch,
+                                                                        when):
+    jobs = [TrainJob(f"seed{s}", train_config("quick", "toy", epochs=3, batch_episodes=6, seed=s),
+                     toy.ToyConfig()) for s in (0, 1)]
+    run_sweep(jobs, tmp_path / "whole", n_jobs=1)
+    with monkeypatch.context() as m:
+        kill_at(m, when, "torn")
+        with pytest.raises(Killed):
+            run_sweep(jobs, tmp_path / "killed", n_jobs=1)
+    run_sweep(jobs, tmp_path / "killed", n_jobs=1)
+    for job in jobs:
+        assert files(tmp_path / "killed" / job.name) == files(tmp_path / "whole" / job.name)
+
+
+# --- one writer ----------------------------------------------------------------------------------
+
+def test_a_second_writer_is_refused_naming_the_holder(tmp_path, whole, capsys):
+    run = tmp_path / "run"
+    assert train(run, 2) == 0
+    before = files(run)
+    capsys.readouterr()
+    with writer_lock(run):
+        assert train(run) == 2
+        assert f"pid {os.getpid()}" in (run / LOCK).read_text()
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and f"pid {os.getpid()}" in err and LOCK in err
+    assert files(run) == before
+    assert train(run) == 0 and files(run) == files(whole)
+
+
+def test_a_lock_left_by_a_killed_process_is_taken_over(tmp_path, whole):
+    run = tmp_path / "run"
+    code = ("import os, signal, sys; from pathlib import Path; "
+            "from repro.learn.run_folder import writer_lock\n"
+            "with writer_lock(Path(sys.argv[1])): os.kill(os.getpid(), signal.SIGKILL)")
+    res = subprocess.run([sys.executable, "-c", code, str(run)], cwd=Path(__file__).parents[1])
+    assert res.returncode == -9 and (run / LOCK).exists()
+    assert train(run) == 0
+    assert files(run) == files(whole)
+
+
+# --- damaged or foreign folders ------------------------------------------------------------------
+
+def _truncate(p: Path) -> None:
+    p.write_bytes(p.read_bytes()[:len(p.read_bytes()) // 2])
+
+
+DAMAGE = {
+    "truncated checkpoint": (CHECKPOINT, _truncate),
+    "random checkpoint": (CHECKPOINT, lambda p: p.write_bytes(os.urandom(3000))),
+    "empty checkpoint": (CHECKPOINT, lambda p: p.write_bytes(b"")),
+    "checkpoint is a folder": (CHECKPOINT, lambda p: (p.unlink(), p.mkdir())),
+    "truncated config": ("config.json", _truncate),
+}
+
+
+@pytest.mark.parametrize("damage", DAMAGE)
+def test_a_damaged_run_folder_is_one_line_and_nothing_changes(tmp_path, capsys, damage):
+    run = tmp_path / "run"
+    assert train(run, 2) == 0
+    name, spoil = DAMAGE[damage]
+    spoil(run / name)
+    before = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
+    capsys.readouterr()
+    assert train(run) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--out" in err and name in err
+    assert "delete" in err or "repair" in err
+    assert {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()} == before
+
+
+def test_a_checkpoint_of_another_run_is_refused_naming_both_values(tmp_path, capsys):
+    assert train(tmp_path / "seed3", 2) == 0
+    other = tmp_path / "seed4"
+    assert main([*TRAIN[:-4], "--horizon", "10", "--seed", "4", "--epochs", "1",
+                 "--out", str(other)]) == 0
+    (other / CHECKPOINT).write_bytes((tmp_path / "seed3" / CHECKPOINT).read_bytes())
+    capsys.readouterr()
+    assert main([*TRAIN[:-4], "--horizon", "10", "--seed", "4", "--epochs", "3",
+                 "--out", str(other)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "train.seed: 3 there, 4 here" in err
+
+
+def test_fewer_epochs_leave_config_json_alone(tmp_path, whole):
+    run = tmp_path / "run"
+    assert train(run) == 0
+    config = (run / "config.json").read_bytes()
+    assert train(run, 1) == 0
+    assert (run / "config.json").read_bytes() == config
+
+
+def test_a_corrupt_config_in_a_sweep_is_one_line(tmp_path):
+    jobs = [TrainJob("a", train_config("quick", "toy", epochs=1, batch_episodes=6),
+                     toy.ToyConfig())]
+    run_sweep(jobs, tmp_path)
+    _truncate(tmp_path / "a" / "config.json")
+    with pytest.raises(trainer.UsageError, match="--runs-dir.*config.json"):
+        run_sweep(jobs, tmp_path)
+
+
+def test_atomic_path_leaves_nothing_on_failure(tmp_path):
+    with pytest.raises(RuntimeError), atomic_path(tmp_path / "x.csv"):
+        raise RuntimeError
+    assert list(tmp_path.iterdir()) == []
