@@ -55,7 +55,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
-claims: $(STAMP) ## render paper_claims.md from results/
+claims: $(STAMP) ## render paper_claims.md from results/<largest complete scale>/
 	$(REPRO) claims
 
 table-race: $(STAMP) ## race-condition table and figure (C10)

@@ -9,9 +9,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from pathlib import Path
 
 from repro.core.config import DEFAULT_SCALE, SCALES
-from repro.core.errors import UsageError
+from repro.core.errors import UsageError, require
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
@@ -58,10 +59,25 @@ def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0,
     if seed is not None:
         parser.add_argument("--seed", type=int, default=seed,
                             help="root seed of every random stream (an integer >= 0)")
-    parser.add_argument("--results-dir", default="results", help="folder for CSVs and sidecars")
+    parser.add_argument("--results-dir",
+                        help="folder for CSVs and sidecars (default results/<scale>)")
     if figures:
-        parser.add_argument("--figures-dir", default="figures",
-                            help="folder for PNG and PDF figures")
+        parser.add_argument("--figures-dir", help="folder for PNG and PDF figures "
+                            "(default figures/<scale>)")
+
+
+def scale_folder(kind: str, scale: str) -> Path:
+    """Where the results (``kind`` "results") or figures of ``scale`` go by default: each scale
+    has its own folder, so that a smaller scale never overwrites a larger one's files."""
+    require(scale in SCALES, "--scale", "one of " + ", ".join(SCALES), scale)
+    return Path(kind) / scale
+
+
+def _default_folders(args: argparse.Namespace) -> None:
+    """Drivers (the commands with a ``--scale``) write into their scale's folders by default."""
+    for kind in ("results", "figures"):
+        if hasattr(args, "scale") and getattr(args, f"{kind}_dir", "") is None:
+            setattr(args, f"{kind}_dir", str(scale_folder(kind, args.scale)))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -88,6 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         # every seed becomes a numpy SeedSequence, which takes no negative entropy
         if getattr(args, "seed", None) is not None and args.seed < 0:
             raise UsageError("--seed", "an integer >= 0", args.seed)
+        _default_folders(args)
         return int(module.run(args) or 0)
     except UsageError as err:
         print(f"repro {name}: error: {err}", file=sys.stderr)

@@ -69,7 +69,7 @@ def test_every_claim_has_a_verdict_from_the_committed_results():
     """Incomplete files read "not yet run"; the committed ones must all be read, so a check whose
     own bug raises is not hidden behind that verdict."""
     for claim in registry():
-        v = claim.evaluate(ROOT / "results")
+        v = claim.evaluate(ROOT / "results" / "paper")
         assert v.verdict != NOT_RUN, (claim.id, v.detail)
 
 
@@ -77,7 +77,7 @@ def test_every_claim_has_a_verdict_from_the_committed_results():
 def test_claims_never_pass_with_incomplete_results(tmp_path, content):
     """Stale or hand-edited result files (empty, or without the columns a check reads) give
     "not yet run" with the reason, and the table still renders."""
-    for csv in (ROOT / "results").glob("*.csv"):
+    for csv in (ROOT / "results" / "paper").glob("*.csv"):
         (tmp_path / csv.name).write_text(content)
     text = render(tmp_path)
     assert "**PASS**" not in text
@@ -154,3 +154,52 @@ def test_git_commit_is_dirty_for_code_changes_not_for_outputs(tmp_path):
     assert git_commit(tmp_path) == clean
     (tmp_path / "code.py").write_text("x = 2\n")
     assert git_commit(tmp_path) == clean + "+dirty"
+
+
+# --- each scale has its own folders --------------------------------------------------------------
+
+def driver_commands() -> list[str]:
+    """Every command that writes results by default."""
+    from repro.cli import COMMANDS
+    return [n for n in COMMANDS
+            if "--results-dir" in _parser(n).format_help() and n not in ("claims", "bus-eval")]
+
+
+def _parser(name: str):
+    import argparse
+    import importlib
+
+    from repro.cli import COMMANDS
+    p = argparse.ArgumentParser()
+    importlib.import_module(COMMANDS[name][0]).add_arguments(p)
+    return p
+
+
+@pytest.mark.parametrize("scale", ["smoke", "quick"])
+def test_a_smaller_scale_never_writes_the_paper_folders(scale, monkeypatch):
+    """Every driver's default folders are results/<scale> and figures/<scale>, so that `make
+    reproduce` (quick) and the tests (smoke) leave the committed paper-scale files alone."""
+    from repro.cli import _default_folders
+
+    commands = driver_commands()
+    assert {"race", "fig-transfer", "fig-bus-lambda", "bench-learn"} <= set(commands)
+    for name in commands:
+        args = _parser(name).parse_args(["--scale", scale])
+        _default_folders(args)
+        assert args.results_dir == f"results/{scale}", name
+        assert getattr(args, "figures_dir", f"figures/{scale}") == f"figures/{scale}", name
+
+
+def test_claims_read_the_largest_complete_scale(tmp_path):
+    from repro.claims import default_results
+
+    assert default_results(tmp_path) == tmp_path / "paper"  # nothing yet: where results will be
+    (tmp_path / "smoke").mkdir()
+    assert default_results(tmp_path) == tmp_path / "smoke"  # the only one there
+    (tmp_path / "quick").mkdir()
+    for csv in (ROOT / "results" / "paper").glob("*"):
+        (tmp_path / "quick" / csv.name).write_bytes(csv.read_bytes())
+    (tmp_path / "paper").mkdir()  # begun, not complete
+    (tmp_path / "paper" / "table_race.csv").write_text("x\n")
+    assert default_results(tmp_path) == tmp_path / "quick"
+    assert default_results(ROOT / "results") == ROOT / "results" / "paper"

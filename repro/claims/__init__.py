@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from repro.core.config import SCALES
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, sidecar_path, write_text
 
@@ -108,13 +109,23 @@ def render(results: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def default_results(root: Path = Path("results")) -> Path:
+    """The folder ``claims`` reads unless told: the largest scale whose results give every claim a
+    verdict, else the largest scale that has results at all (paper, then quick, then smoke)."""
+    folders = [root / s for s in reversed(SCALES) if (root / s).is_dir()]
+    complete = (f for f in folders if all(c.evaluate(f).verdict != NOT_RUN for c in registry()))
+    return next(complete, folders[0] if folders else root / SCALES[-1])
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--results-dir", default="results", help="folder the checks read")
+    p.add_argument("--results-dir", help="folder the checks read (default: results/<scale> of the "
+                   "largest scale whose results are complete)")
     p.add_argument("--out", default="paper_claims.md", help="the rendered table")
 
 
 def run(args: argparse.Namespace) -> int:
-    results, out = Path(args.results_dir), Path(args.out)
+    results = Path(args.results_dir) if args.results_dir is not None else default_results()
+    out = Path(args.out)
     # a mistyped folder would otherwise render a table of "not yet run"
     require(results.is_dir(), "--results-dir", "an existing folder of result files", str(results))
     require(not out.is_dir(), "--out", "a file, not a folder", str(out))

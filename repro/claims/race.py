@@ -41,9 +41,9 @@ NOTES = """
 ### Why beta is about 2.2 over N = 2..20 and tends to 2 (beyond the paper)
 
 The probability of no race is N! e_N(p_1, p_2, ...), with p_b the probability of the b-th dT bin
-(`results/race_exact.csv`, computed without sampling). Its leading term is
+(`results/<scale>/race_exact.csv`, computed without sampling). Its leading term is
 1 - N(N-1)/2 * sum_b p_b^2, so for large N the safe dT falls as N^-2; over N = 2..20 the
 higher-order terms still count and the fitted exponent is larger. The exact fits over two ranges
-are in `results/race_beta_ranges.csv`, and the local exponent against N is the right panel of
-`figures/race_dt_vs_n.png`.
+are in `results/<scale>/race_beta_ranges.csv`, and the local exponent against N is the right
+panel of `figures/<scale>/race_dt_vs_n.png`.
 """

@@ -63,7 +63,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="thresholds in minutes (default: results/bus_thresholds.csv)")
     p.add_argument("--mlp-run", help="training run folder of the mlp policy "
                    "(default: the best run in results/bus_lambda_summary.csv)")
-    p.add_argument("--results-dir", default="results", help="where bus_thresholds.csv is read")
+    p.add_argument("--results-dir", default="results/paper",
+                   help="where bus_thresholds.csv and bus_lambda_summary.csv are read")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 

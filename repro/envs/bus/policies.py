@@ -96,7 +96,8 @@ def best_run(results_dir: str | Path) -> Path:
 
 
 def make_policy(name: str, *, thresholds: np.ndarray | None = None,
-                results_dir: str | Path = "results", mlp_run: str | Path | None = None) -> Policy:
+                results_dir: str | Path = "results/paper",
+                mlp_run: str | Path | None = None) -> Policy:
     """The policy called ``name``; thresholds default to the optimised ones in ``results_dir``, the
     trained MLP to the best run of the lambda sweep recorded there."""
     require(name in POLICIES, "--policy", "one of " + ", ".join(POLICIES), name)
