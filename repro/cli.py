@@ -7,6 +7,7 @@ Only the module of the command being run is imported, so the CLI starts quickly.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import sys
 from pathlib import Path
@@ -41,6 +42,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench-learn": ("repro.learn.bench", "seconds per training epoch: simulation vs update"),
 }
 """command -> (module, one-line description)."""
+
+
+DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM)
+"""Failures to write that are the machine's, not the suite's: reported in one line (exit 1)."""
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -109,6 +114,12 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as err:
         print(f"repro {name}: error: {err}", file=sys.stderr)
         return 2
+    except OSError as err:
+        # a full or read-only disk, or a folder without permission: the system's reason, one line
+        if err.errno not in DISK_ERRORS:
+            raise
+        print(f"repro {name}: error: {err.strerror}: {err.filename}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"repro {name}: interrupted; the same command resumes a training run or sweep from "
               "its last checkpoint", file=sys.stderr)

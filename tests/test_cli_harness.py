@@ -1,11 +1,14 @@
 """The harness promises: one-line errors with exit 2 and nothing written, determinism, claims."""
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from repro.claims import NOT_RUN, registry, render
+from repro.cli import main
 from tests.conftest import ROOT, tree_snapshot
 
 SMALL = ("--scale", "smoke", "--n-sets", "400", "--n-max", "5", "--distribution", "exponential")
@@ -203,3 +206,82 @@ def test_claims_read_the_largest_complete_scale(tmp_path):
     (tmp_path / "paper" / "table_race.csv").write_text("x\n")
     assert default_results(tmp_path) == tmp_path / "quick"
     assert default_results(ROOT / "results") == ROOT / "results" / "paper"
+
+
+# --- what a hostile user tries -------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv, param", [
+    (["race", "--scale", "smoke", "--results-dir", ""], "--results-dir"),
+    (["race", "--scale", "smoke", "--figures-dir", ""], "--figures-dir"),
+    (["train", "--env", "toy", "--scale", "smoke", "--out", ""], "--out"),
+    (["claims", "--results-dir", str(ROOT / "results" / "paper"), "--out", ""], "--out"),
+    (["race", "--scale", "smoke", "--results-dir", "x" * 300], "--results-dir"),
+    (["train", "--env", "toy", "--scale", "smoke", "--out", "runs/" + "y" * 256], "--out"),
+    (["claims", "--results-dir", str(ROOT / "results" / "paper"), "--out",
+      "z" * 300 + "/claims.md"], "--out"),
+    (["race", "--scale", "smoke", "--n-sets", "1000000000000"], "--n-sets"),
+])
+def test_meaningless_paths_and_sizes_are_one_line(tmp_path, monkeypatch, capsys, argv, param):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and param in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_full_disk_is_one_line(tmp_path, monkeypatch, capsys):
+    import errno
+    import os
+
+    def full(src, dst):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(dst))
+
+    monkeypatch.setattr(os, "replace", full)
+    assert main(["race", "--scale", "smoke", "--results-dir", str(tmp_path / "r"),
+                 "--figures-dir", str(tmp_path / "f")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "No space left on device" in err
+    assert not any(p.is_file() for p in tmp_path.rglob("*"))
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc (Linux)")
+def test_sweep_workers_die_with_their_driver(tmp_path):
+    """kill -9 of a driver with two joblib workers takes its workers with it."""
+    import os
+    import signal
+    import time
+
+    code = ("import sys; from pathlib import Path; from repro.envs import toy\n"
+            "from repro.experiments.sweep import TrainJob, run_sweep\n"
+            "from repro.learn.trainer import train_config\n"
+            "jobs = [TrainJob(f's{s}', train_config('quick', 'toy', epochs=100000, "
+            "batch_episodes=50, seed=s), toy.ToyConfig()) for s in (0, 1)]\n"
+            "run_sweep(jobs, Path(sys.argv[1]), n_jobs=2)\n")
+    driver = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], cwd=ROOT)
+
+    def children() -> list[int]:
+        out = []
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                fields = stat.read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == driver.pid:
+                out.append(int(stat.parent.name))
+        return out
+
+    deadline = time.time() + 120
+    while len(list(tmp_path.glob("*/progress.csv"))) < 2 and time.time() < deadline:
+        time.sleep(0.5)
+    workers = children()
+    assert workers and len(list(tmp_path.glob("*/progress.csv"))) == 2
+    driver.send_signal(signal.SIGKILL)
+    driver.wait()
+    deadline = time.time() + 30
+    while time.time() < deadline and any(Path(f"/proc/{w}").exists() for w in workers):
+        time.sleep(0.2)
+    alive = [w for w in workers if Path(f"/proc/{w}").exists()
+             and Path(f"/proc/{w}/stat").read_text().split()[2] != "Z"]
+    for w in alive:
+        os.kill(w, signal.SIGKILL)
+    assert alive == []

@@ -18,7 +18,7 @@ from typing import Callable
 
 from repro.core.config import SCALES
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, sidecar_path, write_text
+from repro.core.io import check_names, check_writable_dir, sidecar_path, write_text
 
 NOT_RUN = "not yet run"
 VERDICTS = ("PASS", "FAIL", "PARTIAL", NOT_RUN)
@@ -125,7 +125,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     results = Path(args.results_dir) if args.results_dir is not None else default_results()
-    out = Path(args.out)
+    require(args.out.strip() != "", "--out", "a file name", args.out)
+    out = check_names(args.out, "--out")
     # a mistyped folder would otherwise render a table of "not yet run"
     require(results.is_dir(), "--results-dir", "an existing folder of result files", str(results))
     require(not out.is_dir(), "--out", "a file, not a folder", str(out))

@@ -21,7 +21,10 @@ from typing import Any, Iterator
 
 import pandas as pd
 
-from repro.core.errors import UsageError
+from repro.core.errors import UsageError, require
+
+NAME_MAX = 255
+"""The longest file or folder name (bytes) Linux and macOS file systems take."""
 
 FLOAT_FORMAT = "%.10g"
 """Ten significant digits: well above every quantity's precision, and stable across platforms."""
@@ -38,7 +41,8 @@ def check_writable_dir(path: str | Path, param: str) -> Path:
     Permission bits say nothing for root or for special file systems, so the nearest existing
     ancestor is probed by creating and removing a temporary folder in it; nothing is left behind.
     """
-    p = Path(path)
+    require(str(path).strip() != "", param, "a writable folder (not an empty path)", str(path))
+    p = check_names(path, param)
     probe = p
     while not probe.exists() and probe.parent != probe:
         probe = probe.parent
@@ -49,6 +53,14 @@ def check_writable_dir(path: str | Path, param: str) -> Path:
     except OSError:
         raise UsageError(param, "a writable folder", str(path)) from None
     return p
+
+
+def check_names(path: str | Path, param: str) -> Path:
+    """``path``, unless one of its names is longer than a file system takes (UsageError)."""
+    long = next((part for part in Path(path).parts if len(part.encode()) > NAME_MAX), None)
+    require(long is None, param, f"a path whose names have at most {NAME_MAX} bytes",
+            f"{long[:20]}... ({len(long.encode())} bytes)" if long else None)
+    return Path(path)
 
 
 def _umask() -> int:

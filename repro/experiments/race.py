@@ -68,6 +68,10 @@ DISTRIBUTIONS = {
 }
 
 
+MAX_EVENT_TIMES = 200_000_000
+"""Largest n_sets x n_max: 1.6 GB of event times (the paper's study needs 200,000)."""
+
+
 @dataclass(frozen=True)
 class RaceConfig:
     """Settings of the race-condition study; the defaults are the paper's (the study is cheap)."""
@@ -97,6 +101,10 @@ class RaceConfig:
         require(self.n_sets >= 1, "--n-sets", "an integer >= 1", self.n_sets)
         require(self.n_min >= 2, "--n-min", "an integer >= 2", self.n_min)
         require(self.n_max >= self.n_min + 1, "--n-max", "an integer > --n-min", self.n_max)
+        # the event times of one N are held at once: 8 bytes each, a few copies while sorting
+        require(self.n_sets * self.n_max <= MAX_EVENT_TIMES, "--n-sets",
+                f"at most {MAX_EVENT_TIMES:,} / --n-max (the event times of one N, 8 bytes each, "
+                "are held in memory)", self.n_sets)
         require(0.0 < self.delta < 1.0, "--delta", "in (0, 1)", self.delta)
         for d in self.distributions:
             require(d in DISTRIBUTIONS, "--distribution", "one of " + ", ".join(DISTRIBUTIONS), d)

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from repro.core.errors import UsageError
+from repro.core.workers import die_with_parent
 from repro.learn.run_folder import is_finished
 from repro.learn.trainer import Trainer, check_run_folder, env_package
 
@@ -47,6 +48,7 @@ def is_done(root: Path, job: TrainJob) -> bool:
 def run_job(job: TrainJob, root: Path) -> str:
     """Train (or resume) one job; runs in a worker process."""
     os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
+    die_with_parent()
     env = env_package(job.train.env).make_env(job.env_config)
     Trainer(job.train, env, run_dir(root, job), env_config=job.env_config).train()
     return job.name

@@ -417,7 +417,8 @@ def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainCon
 
 def run(args: argparse.Namespace) -> int:
     cfg, env, env_cfg = make_from_args(args)
-    out = check_writable_dir(args.out or f"runs/{cfg.env}/seed{cfg.seed}", "--out")
+    out = check_writable_dir(f"runs/{cfg.env}/seed{cfg.seed}" if args.out is None else args.out,
+                             "--out")
     frame = Trainer(cfg, env, out, env_cfg).train()
     last = frame.iloc[-1]
     extra = (f" (the run already had more than --epochs {cfg.epochs}: nothing trained)"
