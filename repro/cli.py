@@ -10,10 +10,9 @@ import argparse
 import errno
 import importlib
 import sys
-from pathlib import Path
 
-from repro.core.config import DEFAULT_SCALE, SCALES
-from repro.core.errors import UsageError, require
+from repro.core.errors import UsageError
+from repro.experiments.options import default_folders
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
@@ -38,8 +37,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "wildfire-behaviour": ("repro.experiments.wildfire_behaviour",
                            "frequencies of a long ED-trained policy vs the flowchart (C6, C7)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
-    "train": ("repro.learn.trainer", "train a shared policy with PS-TRPO and M-GAE"),
-    "bench-learn": ("repro.learn.bench", "seconds per training epoch: simulation vs update"),
+    "train": ("repro.experiments.train", "train a shared policy with PS-TRPO and M-GAE"),
+    "bench-learn": ("repro.experiments.bench_learn",
+                    "seconds per training epoch: simulation vs update"),
 }
 """command -> (module, one-line description)."""
 
@@ -54,35 +54,6 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         print(f"{self.prog}: error: {message}", file=sys.stderr)
         raise SystemExit(2)
-
-
-def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0,
-               figures: bool = True) -> None:
-    """Options every driver takes: scale, seed (``None``: the driver has no randomness) and where
-    results and figures (for drivers that draw some) go."""
-    parser.add_argument("--scale", default=DEFAULT_SCALE, help=f"one of {', '.join(SCALES)}")
-    if seed is not None:
-        parser.add_argument("--seed", type=int, default=seed,
-                            help="root seed of every random stream (an integer >= 0)")
-    parser.add_argument("--results-dir",
-                        help="folder for CSVs and sidecars (default results/<scale>)")
-    if figures:
-        parser.add_argument("--figures-dir", help="folder for PNG and PDF figures "
-                            "(default figures/<scale>)")
-
-
-def scale_folder(kind: str, scale: str) -> Path:
-    """Where the results (``kind`` "results") or figures of ``scale`` go by default: each scale
-    has its own folder, so that a smaller scale never overwrites a larger one's files."""
-    require(scale in SCALES, "--scale", "one of " + ", ".join(SCALES), scale)
-    return Path(kind) / scale
-
-
-def _default_folders(args: argparse.Namespace) -> None:
-    """Drivers (the commands with a ``--scale``) write into their scale's folders by default."""
-    for kind in ("results", "figures"):
-        if hasattr(args, "scale") and getattr(args, f"{kind}_dir", "") is None:
-            setattr(args, f"{kind}_dir", str(scale_folder(kind, args.scale)))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -109,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         # every seed becomes a numpy SeedSequence, which takes no negative entropy
         if getattr(args, "seed", None) is not None and args.seed < 0:
             raise UsageError("--seed", "an integer >= 0", args.seed)
-        _default_folders(args)
+        default_folders(args)
         return int(module.run(args) or 0)
     except UsageError as err:
         print(f"repro {name}: error: {err}", file=sys.stderr)

@@ -182,13 +182,13 @@ def _parser(name: str):
 def test_a_smaller_scale_never_writes_the_paper_folders(scale, monkeypatch):
     """Every driver's default folders are results/<scale> and figures/<scale>, so that `make
     reproduce` (quick) and the tests (smoke) leave the committed paper-scale files alone."""
-    from repro.cli import _default_folders
+    from repro.experiments.options import default_folders
 
     commands = driver_commands()
     assert {"race", "fig-transfer", "fig-bus-lambda", "bench-learn"} <= set(commands)
     for name in commands:
         args = _parser(name).parse_args(["--scale", scale])
-        _default_folders(args)
+        default_folders(args)
         assert args.results_dir == f"results/{scale}", name
         assert getattr(args, "figures_dir", f"figures/{scale}") == f"figures/{scale}", name
 
@@ -253,7 +253,7 @@ def test_sweep_workers_die_with_their_driver(tmp_path):
 
     code = ("import sys; from pathlib import Path; from repro.envs import toy\n"
             "from repro.experiments.sweep import TrainJob, run_sweep\n"
-            "from repro.learn.trainer import train_config\n"
+            "from repro.learn.config import train_config\n"
             "jobs = [TrainJob(f's{s}', train_config('quick', 'toy', epochs=100000, "
             "batch_episodes=50, seed=s), toy.ToyConfig()) for s in (0, 1)]\n"
             "run_sweep(jobs, Path(sys.argv[1]), n_jobs=2)\n")

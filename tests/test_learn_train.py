@@ -17,8 +17,10 @@ import torch
 from repro.cli import main
 from repro.envs import toy
 from repro.learn.policy import Sampler
-from repro.learn.trainer import (CHECKPOINT, TIMING_COLUMNS, Trainer, load_checkpoint,
-                                 policy_from_checkpoint, train_config)
+from repro.learn.config import train_config
+from repro.learn.run_folder import CHECKPOINT, load_checkpoint
+from repro.learn.trained_policy import policy_from_checkpoint
+from repro.learn.trainer import TIMING_COLUMNS, Trainer
 
 ROOT = Path(__file__).resolve().parents[1]
 

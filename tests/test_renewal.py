@@ -8,7 +8,7 @@ import pytest
 from repro.core.errors import UsageError
 from repro.envs.renewal import (StreamDraws, draw_inter_event_times, simulate_events,
                                 simulate_steps)
-from repro.experiments.race import DISTRIBUTIONS
+from repro.envs.renewal.distributions import DISTRIBUTIONS
 
 
 def draws_of(*agents: list[float]) -> StreamDraws:

@@ -16,12 +16,15 @@ import torch
 
 import repro.learn.run_folder as run_folder
 import repro.learn.trainer as trainer
+from repro.core.errors import UsageError
 from repro.cli import main
 from repro.core.io import atomic_path
 from repro.envs import toy
 from repro.experiments.sweep import TrainJob, run_sweep
 from repro.learn.run_folder import CHECKPOINT, LOCK, PROGRESS, writer_lock
-from repro.learn.trainer import TIMING_COLUMNS, load_trained_run, train_config
+from repro.learn.config import train_config
+from repro.learn.trained_policy import load_trained_run
+from repro.learn.trainer import TIMING_COLUMNS
 
 TRAIN = ["train", "--env", "toy", "--batch-episodes", "6", "--seed", "3", "--horizon", "10"]
 
@@ -72,7 +75,7 @@ def test_a_crafted_checkpoint_is_refused_and_never_runs(tmp_path, whole, capsys)
     assert train(run, 4) == 2  # train's resume
     assert main(["bench-bus", "--scale", "smoke", "--checkpoint", str(run / CHECKPOINT),
                  "--results-dir", str(tmp_path / "res")]) == 2
-    with pytest.raises(trainer.UsageError):
+    with pytest.raises(UsageError):
         load_trained_run(run / CHECKPOINT, "toy")
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(CHECKPOINT in line for line in err)
@@ -251,7 +254,7 @@ def test_a_corrupt_config_in_a_sweep_is_one_line(tmp_path):
                      toy.ToyConfig())]
     run_sweep(jobs, tmp_path)
     _truncate(tmp_path / "a" / "config.json")
-    with pytest.raises(trainer.UsageError, match="--runs-dir.*config.json"):
+    with pytest.raises(UsageError, match="--runs-dir.*config.json"):
         run_sweep(jobs, tmp_path)
 
 

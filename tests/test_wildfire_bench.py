@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from repro.envs.wildfire import WildfireConfig
-from repro.learn.trainer import load_trained_run
+from repro.learn.trained_policy import load_trained_run
 from repro.experiments.bench_wildfire import WildfireBenchConfig, measure
 
 

@@ -5,7 +5,7 @@ kernel, and the next allocation of that size takes a page fault on first touch o
 A training epoch allocates and frees many arrays of a few MiB (a 32-unit layer over 30,000
 decisions is 3.8 MiB); on the 2-core VMs this suite is developed on, a fault costs about 5 us, so a
 3.8 MiB temporary cost about 5 ms to allocate and the forward pass of the policy took 23 ms of CPU
-instead of 6 (repro.learn.bench measures the epoch). Raising the mmap and trim thresholds makes
+instead of 6 (`bench-learn` measures the epoch). Raising the mmap and trim thresholds makes
 malloc reuse freed blocks instead: the process keeps its peak heap rather than returning it, and a
 training process's peak is that of its largest epoch.
 

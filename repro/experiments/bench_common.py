@@ -43,13 +43,15 @@ import numpy as np
 import pandas as pd
 import torch
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.config import for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
-from repro.learn.trainer import ENV_DEFAULTS, TrainConfig, load_trained_run, policy_from_state
+from repro.envs import env_package, train_defaults
+from repro.learn.config import TrainConfig
+from repro.learn.trained_policy import load_trained_run, policy_from_state
 
 C = TypeVar("C")
 
@@ -79,7 +81,7 @@ class BenchConfig:
 def scales(env: str) -> dict[str, dict[str, int]]:
     """The ``SCALES`` of ``env``'s benchmark config, from its training batch (the reference's
     batches take seconds at the quick scale)."""
-    batch = ENV_DEFAULTS[env]["batch_episodes"]
+    batch = train_defaults(env_package(env))["batch_episodes"]
     return {
         "smoke": dict(fast_episodes=batch // 10, reference_episodes=2, repeats=1),
         "quick": dict(fast_episodes=batch, reference_episodes=batch // 20, repeats=5),

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.config import for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -41,7 +41,7 @@ from repro.envs.bus import BusConfig, make_env
 from repro.envs.bus.policies import ThresholdPolicy, no_holding, read_thresholds
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_dir, run_sweep)
-from repro.learn.trainer import train_config
+from repro.learn.config import train_config
 
 SWEEPS = ("lambda", "batch")
 

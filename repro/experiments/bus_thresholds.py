@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import differential_evolution
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.config import for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result

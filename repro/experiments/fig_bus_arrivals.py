@@ -15,7 +15,7 @@ from typing import Callable
 
 import pandas as pd
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.envs.bus import BusConfig

@@ -27,45 +27,14 @@ from typing import ClassVar
 
 import numpy as np
 import pandas as pd
-from scipy import optimize, special
+from scipy import optimize
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.config import for_scale
 from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.progress import progress
-
-
-@dataclass(frozen=True)
-class Distribution:
-    """An event-time distribution. All three of the paper's are gamma laws, which gives fast exact
-    CDFs (regularized incomplete gamma functions) for the sampling-free computation."""
-
-    name: str
-    parameters: str
-    shape: float
-    scale: float
-
-    def sample(self, rng: np.random.Generator, size: tuple[int, int]) -> np.ndarray:
-        return rng.gamma(self.shape, self.scale, size=size)
-
-    def cdf_sf(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        x = t / self.scale
-        return special.gammainc(self.shape, x), special.gammaincc(self.shape, x)
-
-    @property
-    def mean(self) -> float:
-        return self.shape * self.scale
-
-    def isf(self, q: float) -> float:
-        return float(special.gammainccinv(self.shape, q) * self.scale)
-
-
-DISTRIBUTIONS = {
-    "exponential": Distribution("Exponential", "lambda=1", shape=1.0, scale=1.0),
-    "chi2": Distribution("Chi-Squared", "k=5", shape=2.5, scale=2.0),
-    "gamma": Distribution("Gamma", "k=5, theta=1", shape=5.0, scale=1.0),
-}
+from repro.envs.renewal.distributions import DISTRIBUTIONS, Distribution
 
 
 MAX_EVENT_TIMES = 200_000_000

@@ -31,7 +31,7 @@ from typing import Callable, ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.config import for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -39,7 +39,8 @@ from repro.core.progress import progress
 from repro.core.rollout import episode_streams
 from repro.envs.renewal import (Outcome, StreamDraws, draw_inter_event_times, simulate_events,
                                 simulate_steps)
-from repro.experiments.race import DISTRIBUTIONS, exact_safe_dts, fit_power_law
+from repro.envs.renewal.distributions import DISTRIBUTIONS
+from repro.experiments.race import exact_safe_dts, fit_power_law
 
 SIMULATORS = ("event_driven", "rounding_fixed_step", "time_stepped")
 WORK_MEASURES = {

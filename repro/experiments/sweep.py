@@ -20,7 +20,8 @@ from typing import Any
 from repro.core.errors import UsageError
 from repro.core.workers import die_with_parent
 from repro.learn.run_folder import is_finished
-from repro.learn.trainer import Trainer, check_run_folder, env_package
+from repro.envs import env_package
+from repro.learn.trainer import Trainer, check_run_folder
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ class TrainJob:
     name: str
     """Unique within the sweep; the run's folder name."""
     train: Any
-    """The run's ``repro.learn.trainer.TrainConfig`` (carries env name, epochs and seed)."""
+    """The run's ``repro.learn.config.TrainConfig`` (carries env name, epochs and seed)."""
     env_config: Any
     """The environment package's config dataclass (e.g. ``WildfireConfig``)."""
 

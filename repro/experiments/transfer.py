@@ -33,7 +33,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.config import for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -132,7 +132,7 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     """(simulator label, job) for every simulator and training seed seed .. seed + seeds - 1.
 
     Replicate r uses the same training seed on every simulator (common initial policies)."""
-    from repro.learn.trainer import train_config
+    from repro.learn.config import train_config
 
     jobs = []
     for label, env in cfg.simulators().items():
@@ -146,7 +146,8 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
 def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
                       folders: list[Path], seed: int) -> pd.DataFrame:
     """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths)."""
-    from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
+    from repro.learn.run_folder import CHECKPOINT
+    from repro.learn.trained_policy import policy_from_checkpoint
 
     env = make_env(cfg.test_simulator())
     env_seed = int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])

@@ -47,7 +47,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.config import for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
@@ -161,7 +161,7 @@ def frequencies(rollout: Rollout, env: WildfireConfig) -> dict[str, float]:
 
 
 def make_jobs(cfg: BehaviourConfig, scale: str, seed: int) -> list[TrainJob]:
-    from repro.learn.trainer import train_config
+    from repro.learn.config import train_config
 
     return [TrainJob(f"ed-seed{s}", train_config(scale, "wildfire", seed=s, epochs=cfg.epochs,
                                                  batch_episodes=cfg.batch_episodes),
@@ -173,7 +173,8 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
             seed: int) -> tuple[pd.DataFrame, pd.DataFrame]:
     """One row per trained policy: its C6 frequencies, its ADR and the flowchart's on the same
     episodes; and one row of the flowchart's own frequencies on those episodes."""
-    from repro.learn.trainer import CHECKPOINT, policy_from_checkpoint
+    from repro.learn.run_folder import CHECKPOINT
+    from repro.learn.trained_policy import policy_from_checkpoint
 
     env_cfg = WildfireConfig(max_decisions=cfg.max_decisions)
     env = make_env(env_cfg)

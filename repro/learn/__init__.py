@@ -5,7 +5,9 @@ from repro.learn.baseline import LinearFeatureBaseline, MLPBaseline
 from repro.learn.m_gae import m_gae, m_gae_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
-from repro.learn.trainer import TrainConfig, Trainer, policy_from_checkpoint, train_config
+from repro.learn.config import TrainConfig, train_config
+from repro.learn.trained_policy import policy_from_checkpoint
+from repro.learn.trainer import Trainer
 from repro.learn.trpo import (TRPOStats, conjugate_gradient, fisher_vector_product, line_search,
                               trpo_step)
 

@@ -1,4 +1,4 @@
-"""PS-TRPO with M-GAE: the training loop and the ``train`` command (SPEC section 4).
+"""PS-TRPO with M-GAE: the training loop (SPEC section 4).
 
 One epoch = sample ``batch_episodes`` whole episodes with the current shared policy, compute M-GAE
 advantages with the current baseline, take one TRPO step, update the observation normaliser, then
@@ -18,141 +18,35 @@ from (seed, e). Timing columns are the only run-to-run differences in the output
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import importlib
 import math
 import time
-from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import torch
 
-from repro.core.config import SCALES, to_dict
-from repro.core.errors import UsageError, require
-from repro.core.io import check_writable_dir, provenance, write_json
+from repro.core.config import to_dict
+from repro.core.errors import require
+from repro.core.io import provenance, write_json
 from repro.core.memory import keep_freed_memory
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
-from repro.learn.baseline import BASELINES, make_baseline
+from repro.learn.baseline import make_baseline
+from repro.learn.config import TrainConfig
 from repro.learn.m_gae import m_gae_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
                                 blas_on_one_thread)
 from repro.learn.run_folder import (CHECKPOINT, PROVENANCE, append_row, check_same_run,
-                                    load_checkpoint, restore, resume_state, save_checkpoint,
+                                    restore, resume_state, save_checkpoint,
                                     writer_lock)
 from repro.learn.trpo import normalize, trpo_step
 
-ENVS = ("toy", "wildfire", "bus")
-"""Environment packages ``repro.envs.<name>`` that ``--env`` accepts (imported lazily)."""
-
-ENV_DEFAULTS: dict[str, dict[str, Any]] = {
-    "toy": dict(lam=1.0, batch_episodes=50, epochs=40),
-    "wildfire": dict(lam=1.0, batch_episodes=600, epochs=300),  # paper: 600-1200 eps, 300 epochs
-    "bus": dict(lam=2.0, batch_episodes=540, epochs=300),  # paper: lambda 2.0, 540 episodes
-}
-"""Per-environment defaults (the paper's settings), applied under the scale and the command line."""
-
 # Independent child streams of the run seed.
 _TORCH_STREAM, _SAMPLER_STREAM, _ENV_STREAM, _FVP_STREAM = 0, 1, 2, 3
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """Hyperparameters of one PS-TRPO + M-GAE run."""
-
-    env: str = "toy"
-    """Environment package under repro.envs."""
-    epochs: int = 40
-    """Policy updates; each samples a fresh batch."""
-    batch_episodes: int = 50
-    """Whole episodes simulated per epoch (the paper counts batches in episodes)."""
-    lam: float = 1.0
-    """M-GAE lambda: advantages discount deltas by exp(-gamma lam dt) per macro-action."""
-    max_kl: float = 0.01
-    """TRPO max step: bound on the mean KL between consecutive policies."""
-    hidden: tuple[int, ...] = (32, 32)
-    """Hidden layer sizes of the policy MLP (tanh)."""
-    baseline: str = "linear"
-    """Value baseline: "linear" (rllab's linear feature baseline, as the released implementation)
-    or "mlp" (see repro.learn.baseline)."""
-    baseline_hidden: tuple[int, ...] = (32, 32)
-    """Hidden layer sizes of the "mlp" baseline (tanh)."""
-    baseline_iters: int = 20
-    """Full-batch L-BFGS iterations fitting the "mlp" baseline each epoch."""
-    cg_iters: int = 10
-    """Conjugate-gradient iterations for the natural-gradient direction (rllab: 10)."""
-    cg_damping: float = 1e-5
-    """Multiple of the identity added to the Fisher matrix (rllab's reg_coeff)."""
-    backtrack_ratio: float = 0.8
-    """Line-search shrink factor (rllab: 0.8)."""
-    max_backtracks: int = 15
-    """Line-search tries before the step is rejected (rllab: 15)."""
-    fvp_subsample: float = 0.2
-    """Fraction of the batch's decisions (drawn without replacement, afresh each epoch) on which
-    the Fisher-vector products are computed; 1 = all (exact). rllab's ``subsample_factor``; OpenAI
-    Baselines' TRPO uses every 5th decision. The Fisher matrix of a few thousand decisions is as
-    good as that of the whole batch, and the products are most of a TRPO step's cost: on 25,000
-    decisions (the paper's wildfire batch) 0.2 cut a step from 0.26 s to 0.07 s on a 2-core machine,
-    with the autograd products that came before repro.learn.network."""
-    normalize_obs: bool = True
-    """Running mean/std observation normalisation (frozen within a batch)."""
-    seed: int = 0
-    """Root of every random stream of the run."""
-
-    SCALES: ClassVar[dict[str, dict[str, Any]]] = {
-        "smoke": dict(epochs=2, batch_episodes=8),
-        "quick": {},
-        "paper": {},
-    }
-
-    def validate(self) -> None:
-        require(self.env in ENVS, "--env", "one of " + ", ".join(ENVS), self.env)
-        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
-                self.batch_episodes)
-        require(self.lam >= 0 and math.isfinite(self.lam), "--lam", "a number >= 0", self.lam)
-        require(self.max_kl > 0 and math.isfinite(self.max_kl), "--max-kl", "a number > 0",
-                self.max_kl)
-        require(len(self.hidden) >= 1 and min(self.hidden) >= 1, "--hidden",
-                "one or more positive layer sizes", list(self.hidden))
-        require(self.baseline in BASELINES, "--baseline", "one of " + ", ".join(BASELINES),
-                self.baseline)
-        require(self.baseline_iters >= 1, "baseline_iters", "an integer >= 1", self.baseline_iters)
-        require(self.cg_iters >= 1, "cg_iters", "an integer >= 1", self.cg_iters)
-        require(self.cg_damping >= 0, "cg_damping", ">= 0", self.cg_damping)
-        require(0 < self.backtrack_ratio < 1, "backtrack_ratio", "in (0, 1)", self.backtrack_ratio)
-        require(0 < self.fvp_subsample <= 1, "--fvp-subsample", "in (0, 1]", self.fvp_subsample)
-        require(self.max_backtracks >= 1, "max_backtracks", "an integer >= 1", self.max_backtracks)
-
-
-def train_config(scale: str, env: str, **overrides: Any) -> TrainConfig:
-    """The config at ``scale`` for ``env``: env defaults, then the scale, then explicit overrides
-    (``None`` means not given)."""
-    require(scale in SCALES, "--scale", "one of " + ", ".join(SCALES), scale)
-    require(env in ENVS, "--env", "one of " + ", ".join(ENVS), env)
-    fields = {**ENV_DEFAULTS[env], **TrainConfig.SCALES[scale], "env": env}
-    fields.update({k: v for k, v in overrides.items() if v is not None})
-    cfg = TrainConfig(**fields)
-    cfg.validate()
-    return cfg
-
-
-def env_package(name: str) -> ModuleType:
-    """``repro.envs.<name>``, imported only when asked for, so training works with whichever
-    environment packages exist."""
-    require(name in ENVS, "--env", "one of " + ", ".join(ENVS), name)
-    try:
-        return importlib.import_module(f"repro.envs.{name}")
-    except ModuleNotFoundError as err:
-        if err.name not in (f"repro.envs.{name}", "repro.envs"):
-            raise
-        raise UsageError("--env", "an installed environment package", name) from None
 
 
 def _stream(seed: int, *key: int) -> np.random.SeedSequence:
@@ -329,34 +223,6 @@ the pieces one by one."""
 TIMING_COLUMNS = [c for c in PROGRESS_COLUMNS if c.startswith("seconds")]
 
 
-def load_trained_run(path: str | Path, env_name: str,
-                     param: str = "--checkpoint") -> dict[str, Any]:
-    """The checkpoint at ``path`` of a training run on ``env_name``; a UsageError naming ``param``
-    if it is none (missing, not a checkpoint, or a run on another environment)."""
-    allowed = f"the {CHECKPOINT} of a {env_name} training run"
-    require(Path(path).is_file(), param, allowed, str(path))
-    state = load_checkpoint(path, param, allowed)
-    require(state.get("run_config", {}).get("env_name") == env_name, param, allowed, str(path))
-    return state
-
-
-def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sampler:
-    """The trained policy of a run folder's checkpoint, ready to hand to an engine."""
-    return policy_from_state(load_checkpoint(path), rng)
-
-
-def policy_from_state(state: dict[str, Any], rng: np.random.Generator) -> Sampler:
-    """The trained policy of a loaded checkpoint (:func:`load_checkpoint`)."""
-    cfg = state["run_config"]["train"]
-    obs_dim = len(state["normalizer"]["mean"])
-    n_actions = state["policy"][next(reversed(state["policy"]))].shape[0]
-    policy = CategoricalPolicy(obs_dim, n_actions, cfg["hidden"])
-    policy.load_state_dict(state["policy"])
-    normalizer = ObsNormalizer(obs_dim)
-    normalizer.load_state_dict(state["normalizer"])
-    return Sampler(policy, normalizer, rng)
-
-
 def config_dict(cfg: Any) -> Any:
     """A dataclass config as a dict (other configs unchanged), for config.json and sidecars."""
     return to_dict(cfg) if dataclasses.is_dataclass(cfg) else cfg
@@ -375,54 +241,3 @@ def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str
                    run_config(TrainConfig(), _default_like(env_config), env_name), param)
 
 
-# --- command line --------------------------------------------------------------------------------
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--env", required=True, help="environment: " + ", ".join(ENVS))
-    p.add_argument("--scale", default="quick", help="one of " + ", ".join(SCALES))
-    p.add_argument("--seed", type=int, default=0, help="root seed of every random stream")
-    p.add_argument("--out", help="run folder (default runs/<env>/seed<seed>); rerun to resume")
-    p.add_argument("--epochs", type=int, help="policy updates")
-    p.add_argument("--batch-episodes", type=int, help="episodes per epoch")
-    p.add_argument("--lam", type=float, help="M-GAE lambda (wildfire 1.0, bus 2.0)")
-    p.add_argument("--max-kl", type=float, help="TRPO max step (0.01)")
-    p.add_argument("--hidden", type=int, nargs="+", help="policy hidden sizes (32 32)")
-    p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
-    p.add_argument("--fvp-subsample", type=float,
-                   help="fraction of decisions for Fisher-vector products (1 = all)")
-    p.add_argument("--no-obs-norm", action="store_true",
-                   help="switch off observation normalisation")
-
-
-def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
-    """Add the chosen environment's own options (``--env`` decides which)."""
-    pre = argparse.ArgumentParser(add_help=False)
-    pre.add_argument("--env")
-    name = pre.parse_known_args(argv)[0].env
-    if name is not None:
-        env_package(name).add_env_arguments(p)
-
-
-def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainConfig, BatchEnv, Any]:
-    """Train config, environment and environment config from parsed ``train``-style options."""
-    pkg = env_package(args.env)
-    cfg = train_config(args.scale, args.env, seed=args.seed, epochs=args.epochs,
-                       batch_episodes=args.batch_episodes, lam=args.lam, max_kl=args.max_kl,
-                       hidden=tuple(args.hidden) if args.hidden else None, baseline=args.baseline,
-                       fvp_subsample=args.fvp_subsample,
-                       normalize_obs=False if args.no_obs_norm else None, **overrides)
-    env_cfg = pkg.config_from_args(args)
-    return cfg, pkg.make_env(env_cfg), env_cfg
-
-
-def run(args: argparse.Namespace) -> int:
-    cfg, env, env_cfg = make_from_args(args)
-    out = check_writable_dir(f"runs/{cfg.env}/seed{cfg.seed}" if args.out is None else args.out,
-                             "--out")
-    frame = Trainer(cfg, env, out, env_cfg).train()
-    last = frame.iloc[-1]
-    extra = (f" (the run already had more than --epochs {cfg.epochs}: nothing trained)"
-             if len(frame) > cfg.epochs else "")
-    print(f"{cfg.env}: {len(frame)} epochs{extra}, average return {last.average_return:.6g}, "
-          f"average discounted return {last.average_discounted_return:.6g} -> {out}")
-    return 0

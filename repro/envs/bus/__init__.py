@@ -12,6 +12,9 @@ from repro.envs.bus.engine import BusEnv
 from repro.envs.bus.params import BusConfig
 from repro.envs.bus.reference import ReferenceBusEnv
 
+TRAIN_DEFAULTS = dict(lam=2.0, batch_episodes=540, epochs=300)
+"""The paper's training settings: lambda 2, 540 episodes per epoch."""
+
 
 def add_env_arguments(parser: argparse.ArgumentParser) -> None:
     """The bus environment's one command-line option, its discount rate; every other parameter is

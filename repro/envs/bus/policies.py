@@ -54,7 +54,8 @@ class GreedyPolicy:
     """
 
     def __init__(self, run: str | Path):
-        from repro.learn.trainer import CHECKPOINT, load_trained_run, policy_from_state
+        from repro.learn.run_folder import CHECKPOINT
+        from repro.learn.trained_policy import load_trained_run, policy_from_state
 
         state = load_trained_run(Path(run) / CHECKPOINT, "bus", "--mlp-run")
         # the generator is never drawn from: greedy actions need no randomness

@@ -35,7 +35,7 @@ from repro.core.errors import require
 from repro.core.rollout import children
 
 if TYPE_CHECKING:
-    from repro.experiments.race import Distribution
+    from repro.envs.renewal.distributions import Distribution
 
 TIE_SCHEDULED = 0
 """Same-instant events in the order they were scheduled (SimPy's order)."""

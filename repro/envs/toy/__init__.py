@@ -31,6 +31,9 @@ import numpy as np
 from repro.core.errors import require
 from repro.core.rollout import DecisionBatch, Policy, Rollout, episode_streams
 
+TRAIN_DEFAULTS = dict(lam=1.0, batch_episodes=50, epochs=40)
+"""Training settings for the toy (small: it is learnt in seconds)."""
+
 N_CONTEXTS = 2
 N_ACTIONS = 3
 DURATION = np.array([[1, 2, 1], [1, 4, 1]])

@@ -14,6 +14,9 @@ from repro.core.errors import require
 from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episodes,
                                         fire_positions)
 
+TRAIN_DEFAULTS = dict(lam=1.0, batch_episodes=600, epochs=300)
+"""The paper's training settings: lambda 1, 600-1200 episodes per epoch, 300 epochs."""
+
 
 def add_env_arguments(parser: argparse.ArgumentParser) -> None:
     """The simulator options: ED or FS-dT, T_health, the discount rate, the quirk switches, the

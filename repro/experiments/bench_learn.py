@@ -21,11 +21,14 @@ import numpy as np
 import pandas as pd
 import torch
 
-from repro.cli import add_common
+from repro.experiments.options import add_common
 from repro.core.config import for_scale, to_dict
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
+from repro.envs import BUILT_IN, env_package
+from repro.experiments import train
 from repro.learn import trainer
+from repro.learn.config import train_config
 from repro.learn.m_gae import m_gae_paths
 from repro.learn.network import TanhMLP, log_softmax
 from repro.learn.policy import DTYPE, Sampler, blas_on_one_thread
@@ -134,23 +137,24 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
-    p.add_argument("--env", default="toy", help="environment: " + ", ".join(trainer.ENVS))
+    p.add_argument("--env", default="toy", help="environment: " + ", ".join(BUILT_IN)
+                   + ", or an importable module that provides the environment contract")
     p.add_argument("--episodes", type=int, help="episodes per epoch (1000)")
     p.add_argument("--epochs", type=int, help="epochs timed (3)")
     p.add_argument("--repeats", type=int, help="calls of each piece, median reported (15)")
 
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
-    trainer.extend_arguments(p, argv if "--env" in argv else [*argv, "--env", "toy"])
+    train.extend_arguments(p, argv if "--env" in argv else [*argv, "--env", "toy"])
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(BenchConfig, args.scale, episodes=args.episodes, epochs=args.epochs,
                     repeats=args.repeats)
     cfg.validate()
-    pkg = trainer.env_package(args.env)
-    train_cfg = trainer.train_config("quick", args.env, seed=args.seed, epochs=cfg.epochs,
-                                     batch_episodes=cfg.episodes)
+    pkg = env_package(args.env)
+    train_cfg = train_config("quick", args.env, seed=args.seed, epochs=cfg.epochs,
+                             batch_episodes=cfg.episodes)
     env_cfg = pkg.config_from_args(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
     t0 = time.perf_counter()

@@ -1,0 +1,66 @@
+"""``train``: one PS-TRPO + M-GAE run into a run folder; the same command resumes it."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from repro.core.config import SCALES
+from repro.core.io import check_writable_dir
+from repro.core.rollout import BatchEnv
+from repro.envs import BUILT_IN, env_package
+from repro.learn.baseline import BASELINES
+from repro.learn.config import TrainConfig, train_config
+from repro.learn.trainer import Trainer
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--env", required=True, help="environment: " + ", ".join(BUILT_IN)
+                   + ", or an importable module that provides the environment contract")
+    p.add_argument("--scale", default="quick", help="one of " + ", ".join(SCALES))
+    p.add_argument("--seed", type=int, default=0, help="root seed of every random stream")
+    p.add_argument("--out", help="run folder (default runs/<env>/seed<seed>); rerun to resume")
+    p.add_argument("--epochs", type=int, help="policy updates")
+    p.add_argument("--batch-episodes", type=int, help="episodes per epoch")
+    p.add_argument("--lam", type=float, help="M-GAE lambda (wildfire 1.0, bus 2.0)")
+    p.add_argument("--max-kl", type=float, help="TRPO max step (0.01)")
+    p.add_argument("--hidden", type=int, nargs="+", help="policy hidden sizes (32 32)")
+    p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
+    p.add_argument("--fvp-subsample", type=float,
+                   help="fraction of decisions for Fisher-vector products (1 = all)")
+    p.add_argument("--no-obs-norm", action="store_true",
+                   help="switch off observation normalisation")
+
+
+def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
+    """Add the chosen environment's own options (``--env`` decides which)."""
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--env")
+    name = pre.parse_known_args(argv)[0].env
+    if name is not None:
+        env_package(name).add_env_arguments(p)
+
+
+def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainConfig, BatchEnv, Any]:
+    """Train config, environment and environment config from parsed ``train``-style options."""
+    pkg = env_package(args.env)
+    cfg = train_config(args.scale, args.env, seed=args.seed, epochs=args.epochs,
+                       batch_episodes=args.batch_episodes, lam=args.lam, max_kl=args.max_kl,
+                       hidden=tuple(args.hidden) if args.hidden else None, baseline=args.baseline,
+                       fvp_subsample=args.fvp_subsample,
+                       normalize_obs=False if args.no_obs_norm else None, **overrides)
+    env_cfg = pkg.config_from_args(args)
+    return cfg, pkg.make_env(env_cfg), env_cfg
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg, env, env_cfg = make_from_args(args)
+    out = check_writable_dir(f"runs/{cfg.env}/seed{cfg.seed}" if args.out is None else args.out,
+                             "--out")
+    frame = Trainer(cfg, env, out, env_cfg).train()
+    last = frame.iloc[-1]
+    extra = (f" (the run already had more than --epochs {cfg.epochs}: nothing trained)"
+             if len(frame) > cfg.epochs else "")
+    print(f"{cfg.env}: {len(frame)} epochs{extra}, average return {last.average_return:.6g}, "
+          f"average discounted return {last.average_discounted_return:.6g} -> {out}")
+    return 0
