@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -14,6 +17,7 @@ from repro.experiments.sweep import run_sweep
 from repro.experiments.transfer import PAPER, TransferConfig, make_jobs, evaluate_policies
 from repro.experiments.wildfire_behaviour import frequencies
 from repro.experiments.wildfire_eval import evaluate
+from repro.learn.trainer import TIMING_COLUMNS
 from tests.conftest import tree_snapshot
 
 
@@ -48,6 +52,12 @@ def test_frequencies_recover_the_flowchart_probabilities():
     assert f["closest_cluster"] >= f["fly_rank_1"] + f["fly_rank_2"] + f["fly_rank_3"] - 0.02
 
 
+try:
+    from distributed.diagnostics.plugin import WorkerPlugin
+except ImportError:  # the Dask tests skip themselves
+    WorkerPlugin = object
+
+
 def _jobs(labels):
     cfg = TransferConfig(seeds=1, epochs=2, batch_episodes=4, test_episodes=10)
     return cfg, [(lab, job) for lab, job in make_jobs(cfg, "smoke", 0) if lab in labels]
@@ -71,6 +81,49 @@ def test_sweep_on_a_local_dask_cluster_matches_joblib_and_skips_finished_runs(tm
             for f in (on_dask, on_joblib))
     pd.testing.assert_frame_equal(a, b)
     assert list(a.simulator) == ["ED", "FS-10"] and (a.epochs == 2).all()
+
+
+class WorkOnItsOwnDisk(WorkerPlugin):
+    """A Dask worker plugin: the worker's working folder is one the client never sees, so a
+    relative --runs-dir names different folders on the two sides, as on machines without a shared
+    disk."""
+
+    def __init__(self, folder: str):
+        self.folder = folder
+
+    def setup(self, worker):
+        import os
+
+        os.makedirs(self.folder, exist_ok=True)
+        os.chdir(self.folder)
+
+
+def test_a_dask_sweep_needs_no_shared_disk(tmp_path, monkeypatch):
+    """Worker processes whose disk differs from the client's: the run folders, interrupted or
+    new, end up on the client's disk, as a joblib sweep writes them."""
+    distributed = pytest.importorskip("dask.distributed")
+    _, labelled = _jobs(("ED", "FS-1"))
+    jobs = [job for _, job in labelled]
+    monkeypatch.chdir(tmp_path)
+    run_sweep(jobs, Path("joblib"), n_jobs=1)
+    begun = dataclasses.replace(jobs[0], train=dataclasses.replace(jobs[0].train, epochs=1))
+    run_sweep([begun], Path("dask"), n_jobs=1)  # one run begun on the client's disk...
+    progress = Path("dask") / begun.name / "progress.csv"
+    progress.write_text(progress.read_text() + "1,torn")  # ...and stopped in a write
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  protocol="tcp://", host="127.0.0.1",
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        client.register_plugin(WorkOnItsOwnDisk(str(tmp_path / "worker-disk")))
+        run_sweep(jobs, Path("dask"), scheduler=cluster.scheduler_address)
+    assert not (tmp_path / "worker-disk" / "dask").exists()
+    for job in jobs:
+        for name in ("config.json", "checkpoint.pt"):
+            assert ((Path("dask") / job.name / name).read_bytes()
+                    == (Path("joblib") / job.name / name).read_bytes()), (job.name, name)
+        a, b = (pd.read_csv(Path(root) / job.name / "progress.csv").drop(columns=TIMING_COLUMNS)
+                for root in ("dask", "joblib"))
+        pd.testing.assert_frame_equal(a, b)
 
 
 def _main(argv: list[str]) -> int:

@@ -7,19 +7,29 @@ finished runs and resumes interrupted ones exactly where they stopped. A folder 
 with other settings is refused before anything runs (use another ``--runs-dir``). Each job carries
 its own seed in its TrainConfig, so the results do not depend on the scheduler or on the order in
 which workers pick up jobs.
+
+On a Dask cluster the run folders stay on the client's disk: the client locks a job's folder,
+sends its files (none for a new run) with the job, the worker trains in a private temporary folder
+and sends the files back, and the client writes them into place. No shared file system is needed.
+The price: a job's epochs reach the client's disk when the job ends, so a client stopped while a
+job runs loses that job's work since its last finished call (the folder itself stays consistent).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import tempfile
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from repro.core.errors import UsageError
+from repro.core.io import write_bytes
 from repro.core.workers import die_with_parent
-from repro.learn.run_folder import is_finished
+from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, is_finished,
+                                    writer_lock)
 from repro.envs import env_package
 from repro.learn.trainer import Trainer, check_run_folder
 
@@ -47,12 +57,57 @@ def is_done(root: Path, job: TrainJob) -> bool:
 
 
 def run_job(job: TrainJob, root: Path) -> str:
-    """Train (or resume) one job; runs in a worker process."""
+    """Train (or resume) one job in its folder under ``root``; runs in a joblib worker process."""
     os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
     die_with_parent()
     env = env_package(job.train.env).make_env(job.env_config)
     Trainer(job.train, env, run_dir(root, job), env_config=job.env_config).train()
     return job.name
+
+
+def run_shipped_job(job: TrainJob, files: dict[str, bytes]) -> dict[str, bytes]:
+    """Train (or resume) one job on a Dask worker, on nothing but what it was sent: its run
+    folder's ``files``. Returns the folder's files after training."""
+    os.environ.setdefault("REPRO_QUIET", "1")
+    with tempfile.TemporaryDirectory(prefix="repro-run-") as tmp:
+        folder = Path(tmp) / job.name
+        folder.mkdir()
+        for name, data in files.items():
+            (folder / name).write_bytes(data)
+        env = env_package(job.train.env).make_env(job.env_config)
+        Trainer(job.train, env, folder, env_config=job.env_config).train()
+        return folder_files(folder)
+
+
+def folder_files(folder: Path) -> dict[str, bytes]:
+    """The files of a run folder, in the order a resumed run needs them written (the progress rows
+    before the checkpoint, the provenance sidecar, which marks a finished call, last)."""
+    order = {PROGRESS: 0, CONFIG: 1, CHECKPOINT: 2, PROVENANCE: 4}
+    paths = sorted((p for p in folder.iterdir() if p.is_file() and p.name != LOCK),
+                   key=lambda p: (order.get(p.name, 3), p.name))
+    return {p.name: p.read_bytes() for p in paths}
+
+
+def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
+    from dask.distributed import Client, as_completed
+
+    try:
+        client = Client(scheduler, timeout=30)
+    except (OSError, ValueError, TypeError):  # a malformed address, or no scheduler there
+        raise UsageError("--scheduler", "the address of a running Dask scheduler",
+                         scheduler) from None
+    with client, ExitStack() as locks:
+        futures = {}
+        for job in pending:
+            folder = run_dir(root, job)
+            locks.enter_context(writer_lock(folder, "--runs-dir"))
+            futures[client.submit(run_shipped_job, job, folder_files(folder), pure=False)] = folder
+        for future in as_completed(futures):
+            folder, files = futures[future], future.result()
+            for stale in set(folder_files(folder)) - set(files):  # e.g. a killed write's leftovers
+                (folder / stale).unlink()
+            for name, data in files.items():
+                write_bytes(folder / name, data)
 
 
 def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
@@ -67,15 +122,7 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
         check_run_folder(run_dir(root, j), j.train, j.env_config, j.train.env, "--runs-dir")
     pending = [j for j in jobs if not is_done(root, j)]
     if pending and scheduler:
-        from dask.distributed import Client
-
-        try:
-            client = Client(scheduler, timeout=30)
-        except (OSError, ValueError, TypeError):  # a malformed address, or no scheduler there
-            raise UsageError("--scheduler", "the address of a running Dask scheduler",
-                             scheduler) from None
-        with client:
-            client.gather(client.map(run_job, pending, root=Path(root), pure=False))
+        _run_on_dask(pending, Path(root), scheduler)
     elif pending:
         from joblib import Parallel, delayed
 
