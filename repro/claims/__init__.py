@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -21,7 +22,17 @@ from repro.core.errors import require
 from repro.core.io import check_names, check_writable_dir, sidecar_path, write_text
 
 NOT_RUN = "not yet run"
-VERDICTS = ("PASS", "FAIL", "PARTIAL", NOT_RUN)
+AMBIGUOUS = "AMBIGUOUS"
+VERDICTS = ("PASS", "PARTIAL", "FAIL", AMBIGUOUS, NOT_RUN)
+LEGEND = {
+    "PASS": "reproduces within the stated tolerance",
+    "PARTIAL": "part of the claim reproduces (the detail says which part)",
+    "FAIL": "does not reproduce",
+    AMBIGUOUS: "the paper's definition admits readings with different verdicts (the detail gives "
+               "each)",
+    NOT_RUN: "its result files are missing or incomplete",
+}
+"""What each verdict means."""
 TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
           "repro.claims.wildfire")
 
@@ -50,6 +61,8 @@ class Claim:
     """The command that regenerates the result files the check reads."""
     check: Callable[[Path], Verdict] | None = None
     """None until the experiment that checks the claim exists."""
+    where: str = ""
+    """Where the paper makes the claim (figure, table or section number)."""
 
     def evaluate(self, results: Path) -> Verdict:
         if self.check is None:
@@ -85,28 +98,43 @@ def _cell(s: str) -> str:
 
 
 def render(results: Path) -> str:
+    """paper_claims.md: a tally, one short row per claim, then each claim's detail."""
     rows = [(c, c.evaluate(results)) for c in registry()]
+    counts = {k: sum(v.verdict == k for _, v in rows) for k in VERDICTS}
+    scales = sorted({v.scale for _, v in rows if v.scale})
+    tally = ", ".join(f"{n} {k}" for k, n in counts.items() if n)
     lines = [
         "# Paper claims: the paper's numbers beside ours",
         "",
-        f"Rendered by `make claims` (`python -m repro claims`) from the CSVs under `{results}/`;",
-        "do not edit by hand. A claim whose results are missing reads \"not yet run\". The scale",
-        "column says which scale (SPEC section 6: smoke, quick, paper) produced the numbers.",
+        f"**{len(rows)} claims: {tally}** (results in `{results}/`, "
+        f"{' and '.join(scales) or 'no'} scale).",
         "",
-        "| id | claim | paper | ours | tolerance | verdict | scale | regenerate |",
-        "|----|-------|-------|------|-----------|---------|-------|------------|",
+        "Rendered by `make claims` (`python -m repro claims`) from the result CSVs; do not edit by "
+        "hand. The verdicts:",
+        "",
+        *(f"- **{k}**: {m}." for k, m in LEGEND.items()),
+        "",
+        "| id | claim | paper | ours | verdict |",
+        "|----|-------|-------|------|---------|",
     ]
     for c, v in rows:
+        where = f" ({c.where})" if c.where else ""
         lines.append("| " + " | ".join(_cell(x) for x in (
-            c.id, c.text, c.paper, v.ours, c.tolerance, f"**{v.verdict}**", v.scale or "-",
-            f"`{c.command}`")) + " |")
-    lines += ["", "## Details", ""]
+            c.id, c.text, c.paper + where, v.ours, f"**{v.verdict}**")) + " |")
+    lines += ["", "## Details"]
     for c, v in rows:
-        lines.append(f"- **{c.id}** ({v.verdict}): {v.detail or '-'}")
+        lines += ["", f"### {c.id}: {v.verdict}" + (f" ({v.scale} scale)" if v.scale else ""), ""]
+        lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}", WIDTH,
+                               break_on_hyphens=False)
+        lines.append(f"Regenerate: `{c.command}`.")
     notes = [getattr(importlib.import_module(m), "NOTES", "") for m in TOPICS]
     for note in filter(None, notes):
         lines += ["", note.strip()]
     return "\n".join(lines) + "\n"
+
+
+WIDTH = 100
+"""Line width of the details."""
 
 
 def default_results(root: Path = Path("results")) -> Path:

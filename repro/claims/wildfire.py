@@ -172,18 +172,18 @@ def _corrected_line(results: Path, judge, means: bool) -> str:
 
 
 CLAIMS = [
-    Claim("C6", "A long ED-trained policy holds at a fire with other interest 27% of the time, "
-          "without 84%; picks closest/2nd/3rd fire 15/15/68%; closest cluster 98%",
+    Claim("C6", "Long ED training: hold shared 27%, alone 84%; fly 1st/2nd/3rd 15/15/68%; "
+          "closest cluster 98%",
           "27%, 84%, 15/15/68%, 98%", "each within 10 percentage points (mean over policies)",
-          "make wildfire-behaviour", check_c6),
-    Claim("C7", "The flowchart policy encoding C6 does 28% worse than the learned policy (ADR)",
+          "make wildfire-behaviour", check_c6, where="Sec. 5.2, Fig. 6"),
+    Claim("C7", "The flowchart of C6 does 28% worse than the learned policy (ADR)",
           "28% worse", "PASS: 18-38% worse; PARTIAL: worse for every policy",
-          "make wildfire-behaviour", check_c7),
-    Claim("C8", "Policies trained on FS with dT <= 1 s transfer to ED as well as ED-trained ones; "
-          "dT = 3.16 and 10 s degrade",
+          "make wildfire-behaviour", check_c7, where="Sec. 5.2"),
+    Claim("C8", "Trained on FS with dT <= 1 s transfers to ED; dT = 3.16, 10 s degrade",
           "ED 2.780, FS-0.1 2.771, FS-0.316 2.745, FS-1 2.789, FS-3.16 2.212, FS-10 1.841",
           "95% CIs of FS-0.1/0.316/1 overlap ED's; those of FS-3.16/10 lie below ED's",
-          "make fig-transfer", check_c8),
-    Claim("C9", "FS-1 trained with T_health = 2.9999 degrades on ED", "1.937 vs 2.789",
-          "95% CI of FS-1(2.9999) entirely below FS-1(3.0)'s", "make fig-transfer", check_c9),
+          "make fig-transfer", check_c8, where="Fig. 7"),
+    Claim("C9", "FS-1 with T_health = 2.9999 degrades on ED", "1.937 vs 2.789",
+          "95% CI of FS-1(2.9999) entirely below FS-1(3.0)'s", "make fig-transfer", check_c9,
+          where="Fig. 7"),
 ]
