@@ -25,3 +25,12 @@ def tree_snapshot(*dirs: Path) -> dict[str, bytes]:
 @pytest.fixture
 def cli():
     return run_cli
+
+
+def write_result_csv(frame, path: Path, scale: str = "paper") -> None:
+    """A hand-made result CSV with the provenance sidecar every result has (claims read a CSV
+    without one as missing)."""
+    from repro.core.io import sidecar_path
+
+    frame.to_csv(path, index=False)
+    sidecar_path(path).write_text(f'{{"scale": "{scale}"}}')

@@ -12,6 +12,7 @@ import pytest
 from repro.claims import VERDICTS
 from repro.claims.bus import check_c1, check_c2, check_c3, check_c5
 from repro.cli import main
+from tests.conftest import write_result_csv
 
 
 @pytest.fixture(scope="module")
@@ -80,7 +81,7 @@ def _write_summary(res, sweep: str, settings: dict[float, list[float]], threshol
                          ci_low=min(finals), ci_high=max(finals), **{key: setting}))
         rows += [dict(policy="mlp-run", runs=1, final_iqm=v, ci_low=v, ci_high=v, **{key: setting})
                  for v in finals]
-    pd.DataFrame(rows).to_csv(res / f"bus_{sweep}_summary.csv", index=False)
+    write_result_csv(pd.DataFrame(rows), res / f"bus_{sweep}_summary.csv")
 
 
 @pytest.mark.parametrize("mlp, thresholds, verdict", [

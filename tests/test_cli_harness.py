@@ -9,7 +9,7 @@ import pytest
 
 from repro.claims import NOT_RUN, registry, render
 from repro.cli import main
-from tests.conftest import ROOT, tree_snapshot
+from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
 SMALL = ("--scale", "smoke", "--n-sets", "400", "--n-max", "5", "--distribution", "exponential")
 
@@ -95,10 +95,10 @@ def test_c10_check_can_pass_and_fail(tmp_path):
     rows = [dict(distribution=d, parameters="", beta=b, beta_se=0.03, alpha=1.0, n_sets=10000,
                  delta=0.1, n_min=2, n_max=20)
             for d, b in (("Exponential", 2.21), ("Chi-Squared", 2.2), ("Gamma", 2.22))]
-    pd.DataFrame(rows).to_csv(tmp_path / "table_race.csv", index=False)
+    write_result_csv(pd.DataFrame(rows), tmp_path / "table_race.csv")
     assert c10.evaluate(tmp_path).verdict == "PASS"
     rows[1]["beta"] = 2.6
-    pd.DataFrame(rows).to_csv(tmp_path / "table_race.csv", index=False)
+    write_result_csv(pd.DataFrame(rows), tmp_path / "table_race.csv")
     assert c10.evaluate(tmp_path).verdict == "FAIL"
 
 
@@ -285,3 +285,27 @@ def test_sweep_workers_die_with_their_driver(tmp_path):
     for w in alive:
         os.kill(w, signal.SIGKILL)
     assert alive == []
+
+
+def test_a_result_interrupted_before_its_sidecar_reads_not_yet_run(tmp_path, monkeypatch):
+    """write_result replaces a result's pair so that an interrupted write leaves a CSV without a
+    sidecar (never a sidecar of another run), which claims takes for missing; rerunning heals."""
+    import repro.core.io as io
+
+    argv = ["race", *SMALL, "--results-dir", str(tmp_path), "--figures-dir", str(tmp_path)]
+    assert main(argv) == 0
+    c10 = next(c for c in registry() if c.id == "C10")
+    sidecar = "table_race.provenance.json"
+    assert sidecar not in c10.evaluate(tmp_path).detail  # (one distribution: "no row" for two)
+
+    def killed(dest, obj):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(io, "write_json", killed)
+    assert main(argv) == 130
+    monkeypatch.undo()
+    table = tmp_path / "table_race.csv"
+    assert table.exists() and not io.sidecar_path(table).exists()
+    v = c10.evaluate(tmp_path)
+    assert v.verdict == NOT_RUN and sidecar in v.detail
+    assert main(argv) == 0 and sidecar not in c10.evaluate(tmp_path).detail

@@ -10,6 +10,7 @@ import pytest
 
 from repro.claims import Claim, registry
 from repro.cli import main
+from tests.conftest import write_result_csv
 
 SMALL = ["--scale", "smoke", "--n-agents", "2", "3", "5", "8", "--duration", "10", "--seed", "5"]
 
@@ -66,7 +67,7 @@ def test_claim_c11_reads_the_fit(results, tmp_path):
     assert "wall_seconds" in verdict.detail and "agent_visits" in verdict.detail
     fit = pd.read_csv(results / "scaling_fit.csv")
     fit.loc[fit.measure == "steps", "exponent"] = 1.5  # what a wrong claim would look like
-    fit.to_csv(tmp_path / "scaling_fit.csv", index=False)
+    write_result_csv(fit, tmp_path / "scaling_fit.csv")
     assert c11.evaluate(tmp_path).verdict == "FAIL"
     assert isinstance(c11, Claim) and c11.evaluate(tmp_path / "none").verdict == "not yet run"
 

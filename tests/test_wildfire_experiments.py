@@ -18,7 +18,7 @@ from repro.experiments.transfer import PAPER, TransferConfig, make_jobs, evaluat
 from repro.experiments.wildfire_behaviour import frequencies
 from repro.experiments.wildfire_eval import evaluate
 from repro.learn.trainer import TIMING_COLUMNS
-from tests.conftest import tree_snapshot
+from tests.conftest import tree_snapshot, write_result_csv
 
 
 def test_simulators_are_the_papers():
@@ -224,9 +224,9 @@ def test_c8_c9_verdicts_follow_the_intervals():
 ])
 def test_c7_verdict_follows_the_adr_ratio(tmp_path, learned, flowchart, verdict):
     learned = np.array(learned)
-    pd.DataFrame(dict(adr_learned=learned, adr_flowchart=flowchart,
-                      flowchart_worse=1.0 - flowchart / learned)).to_csv(
-        tmp_path / "wildfire_behaviour.csv", index=False)
+    write_result_csv(pd.DataFrame(dict(adr_learned=learned, adr_flowchart=flowchart,
+                                       flowchart_worse=1.0 - flowchart / learned)),
+                     tmp_path / "wildfire_behaviour.csv")
     assert claims.check_c7(tmp_path).verdict == verdict
 
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import textwrap
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +18,7 @@ from typing import Callable
 
 from repro.core.config import SCALES
 from repro.core.errors import require
-from repro.core.io import check_names, check_writable_dir, sidecar_path, write_text
+from repro.core.io import check_names, check_writable_dir, read_provenance, write_text
 
 NOT_RUN = "not yet run"
 AMBIGUOUS = "AMBIGUOUS"
@@ -81,9 +80,9 @@ class Claim:
 
 
 def scale_of(result: Path) -> str:
-    """The scale recorded in a result's provenance sidecar ('unknown' without one)."""
-    side = sidecar_path(result)
-    return json.loads(side.read_text()).get("scale", "unknown") if side.exists() else "unknown"
+    """The scale recorded in a result's provenance sidecar. A result without its sidecar (its write
+    was interrupted) counts as missing: FileNotFoundError, which reads "not yet run"."""
+    return read_provenance(result).get("scale", "unknown")
 
 
 def registry() -> list[Claim]:

@@ -196,7 +196,20 @@ def sidecar_path(result: str | Path) -> Path:
 
 
 def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any]) -> Path:
-    """Write a result CSV and its provenance sidecar, both atomically."""
+    """Write a result CSV and its provenance sidecar, both atomically. The old sidecar goes first,
+    so that a sidecar never describes a CSV it was not written with: an interrupted write leaves a
+    CSV without a sidecar, which readers take for a missing result (:func:`read_result`)."""
+    sidecar_path(dest).unlink(missing_ok=True)
     write_csv(dest, frame)
     write_json(sidecar_path(dest), prov)
     return Path(dest)
+
+
+def read_provenance(result: str | Path) -> dict[str, Any]:
+    """The provenance sidecar of a result; FileNotFoundError (naming the sidecar) if the result or
+    its sidecar is missing: a CSV whose write was interrupted has none and counts as missing."""
+    result, side = Path(result), sidecar_path(result)
+    for path in (result, side):
+        if not path.exists():
+            raise FileNotFoundError(2, "missing", str(path))
+    return json.loads(side.read_text())
