@@ -49,7 +49,8 @@ from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
-from repro.learn.trainer import ENV_DEFAULTS, TrainConfig, load_trained_run, policy_from_state
+from repro.learn.trainer import (ENV_DEFAULTS, TrainConfig, load_trained_run, policy_from_state,
+                                 saved_defaults)
 
 C = TypeVar("C")
 
@@ -128,7 +129,7 @@ def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int)
 def trained_env_config(state: dict[str, Any], config: type[C]) -> C:
     """The environment settings of a checkpoint's run as ``config`` (settings newer than the run
     keep their defaults, as when it resumes)."""
-    saved = state["run_config"]["env"] or {}
+    saved = {**saved_defaults(config), **(state["run_config"]["env"] or {})}
     return config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
 
 

@@ -394,6 +394,13 @@ def config_dict(cfg: Any) -> Any:
     return to_dict(cfg) if dataclasses.is_dataclass(cfg) else cfg
 
 
+def saved_defaults(config_type: type) -> dict[str, Any]:
+    """What a run recorded before a setting existed held for it: its default, unless the config
+    class names another value in ``BEFORE_ADDED`` (e.g. a switch whose default changed when it
+    was added)."""
+    return {**to_dict(config_type()), **getattr(config_type, "BEFORE_ADDED", {})}
+
+
 def run_config(cfg: TrainConfig, env_config: Any, env_name: str) -> dict[str, Any]:
     """What a run folder's config.json holds: the settings that determine the run."""
     return {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env_name}
@@ -406,12 +413,14 @@ def holds_same_run(out: Path, cfg: TrainConfig, env_config: Any, env_name: str) 
     if not path.exists():  # a folder of other files is not a run to mix this one into
         return not Path(out).is_dir() or not any(Path(out).iterdir())
     saved = json.loads(path.read_text())
-    # settings added to the code since the run started held their defaults then
-    defaults = {"train": TrainConfig(),
-                "env": type(env_config)() if dataclasses.is_dataclass(env_config) else None}
+    # settings added to the code since the run started held their defaults then (or the values
+    # a config names as those they had before they were added)
+    defaults = {"train": to_dict(TrainConfig()),
+                "env": saved_defaults(type(env_config)) if dataclasses.is_dataclass(env_config)
+                else None}
     for part, default in defaults.items():
         if default is not None and isinstance(saved.get(part), dict):
-            saved[part] = {**_as_json(to_dict(default)), **saved[part]}
+            saved[part] = {**_as_json(default), **saved[part]}
     mine = _as_json(run_config(cfg, env_config, env_name))
     return _without_epochs(saved) == _without_epochs(mine)
 
