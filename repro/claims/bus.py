@@ -16,7 +16,7 @@ from repro.claims import Claim, Verdict, scale_of
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_MIN_TAIL, REGULARITY_SHARE,
-                                    load_variance_per_stop, time_to_regularity)
+                                    load_variance_per_record, time_to_regularity)
 
 PAPER_LAMBDA = 2.0
 """The paper's bus lambda: C1 compares the MLP trained with it."""
@@ -83,59 +83,60 @@ def check_c3(results: Path) -> Verdict:
                    "monotone rise and separated CIs of the smallest and largest batch",
                    scale_of(path))
 
-# SPEC 5.4 / paper fig:bbnoholdload: the leader's 4th-cycle loads at arrival at Stops 1..10.
-PAPER_LEADER_LOADS = [64, 60, 75, 75, 75, 75, 75, 75, 75, 50]
+def load_distances(loads: pd.DataFrame) -> dict[str, float]:
+    """Per policy of bus_load.csv, the L1 distance per point between our loads and the paper
+    panel it is compared with (buses 1-5, records 40..50; NaN if a point is missing)."""
+    paper = loads[loads.source == "paper"]
+    ours = loads[loads.source == "ours"]
+    both = paper.merge(ours, on=["policy", "bus", "record"], how="left", suffixes=("_p", "_o"))
+    return {p: float((g.load_p - g.load_o).abs().mean()) if g.load_o.notna().all() else np.nan
+            for p, g in both.groupby("policy", sort=False)}
 
 
 def check_c4(results: Path) -> Verdict:
-    """No Holding rows of bus_load.csv: the leader's loads exactly the paper's, followers all 0."""
+    """No Holding rows of bus_load.csv: ours equal the paper's at every point of its panel."""
     path = results / "bus_load.csv"
-    table = pd.read_csv(path)
-    nohold = table[table.policy == "nohold"]
-    leader = nohold[nohold["rank"] == 0].sort_values("stop").load.tolist()
-    followers = nohold[nohold["rank"] > 0].load
-    ok = leader == PAPER_LEADER_LOADS and len(followers) > 0 and bool((followers == 0).all())
-    ours = f"leader {', '.join(map(str, leader))}; followers max {followers.max()}"
+    dist = load_distances(pd.read_csv(path))
+    ok = dist.get("nohold", np.nan) == 0.0
+    ours = "; ".join(f"{p}: L1 per point {d:.2f}" for p, d in dist.items())
     return Verdict(ours, "PASS" if ok else "FAIL",
-                   "exact comparison of the No Holding 4th-cycle loads at arrival (Stops 1..10; "
-                   "leader = first bus at Stop 1 in that cycle) with the paper's load figure",
-                   scale_of(path))
+                   "No Holding: our loads at arrival at the paper's records (buses 1-5, records "
+                   "40-50 of a 6 h episode) against the 55 points of its load figure; PASS = all "
+                   "equal (L1 distance per point 0)", scale_of(path))
+
 
 def check_c5(results: Path) -> Verdict:
-    """Time to regularity (MLP sooner than thresholds) and the 4th-cycle load variance across buses
-    (mean over stops; MLP lower), from the figure drivers' tables."""
+    """Time to regularity on the 6 h episode of the paper's pictures (MLP sooner than the
+    thresholds) and the load variance across buses at the paper's records (MLP lower)."""
     cfg = BusConfig()
     path = results / "bus_arrivals.csv"
     arrivals = pd.read_csv(path)
     loads = pd.read_csv(results / "bus_load.csv")
-    episodes = {p: arrivals[arrivals.policy == p] for p in ("mlp", "thresholds")}
+    loads = loads[loads.source == "ours"]
+    # the paper's thresholds are the authors'; ours stand in where their panel was not drawn
+    thr = "authors" if "authors" in set(arrivals.policy) else "thresholds"
+    pols = ("mlp", thr)
+    episodes = {p: arrivals[arrivals.policy == p] for p in pols}
     t_reg = {p: time_to_regularity(a, cfg.headway) for p, a in episodes.items()}
-    # the definition needs REGULARITY_MIN_TAIL arrivals after the time it reports
-    latest = {p: float(a.time_min.iloc[-REGULARITY_MIN_TAIL]) for p, a in episodes.items()}
-    last_hour = {p: float((np.abs(a.h_min - cfg.headway) <= REGULARITY_BAND_MIN)[
-        a.time_min >= cfg.horizon / 60 - 60].mean()) for p, a in episodes.items()}
-    var = {p: float(load_variance_per_stop(loads[loads.policy == p]).mean())
-           for p in ("mlp", "thresholds")}
+    var = {p: float(load_variance_per_record(loads[loads.policy == p]).mean()) for p in pols}
     # never reached counts as later than any time reached
     sooner = bool(np.isfinite(t_reg["mlp"])
-                  and (np.isnan(t_reg["thresholds"]) or t_reg["mlp"] < t_reg["thresholds"]))
-    lower = var["mlp"] < var["thresholds"]
+                  and (np.isnan(t_reg[thr]) or t_reg["mlp"] < t_reg[thr]))
+    lower = var["mlp"] < var[thr]
     reg = {p: "never" if np.isnan(t) else f"{t:.0f} min" for p, t in t_reg.items()}
-    ours = (f"regular after: MLP {reg['mlp']}, thresholds {reg['thresholds']}; load variance "
-            f"across buses: MLP {var['mlp']:.0f}, thresholds {var['thresholds']:.0f} pax^2")
+    ours = (f"regular after: MLP {reg['mlp']}, {thr} thresholds {reg[thr]}; load variance "
+            f"across buses: MLP {var['mlp']:.0f}, {thr} thresholds {var[thr]:.0f} pax^2")
     paper = PAPER_REGULARITY_MIN
     return Verdict(ours, _verdict(sooner and lower, sooner or lower),
                    f"paper: {paper['mlp']:.0f} vs {paper['thresholds']:.0f} min, "
-                   "MLP lower variance. "
-                   f"Regular = from then on at least {REGULARITY_SHARE:.0%} of the headways within "
-                   f"H +- {REGULARITY_BAND_MIN:g} min, with at least one fleet cycle of arrivals "
-                   "left (never within the 3 h episode = not reached); one episode per policy, the "
-                   "MLP acting greedily; variance over buses per stop in cycle 4, mean over stops. "
-                   "PASS needs both parts. The latest time this can report is "
-                   f"{latest['mlp']:.0f} min (MLP), {latest['thresholds']:.0f} min (thresholds), "
-                   "so under this definition the paper's ~200 min for thresholds cannot appear "
-                   "within a 3 h episode (SPEC 5.1). Headways within the band in the last hour: "
-                   f"MLP {last_hour['mlp']:.0%}, thresholds {last_hour['thresholds']:.0%}",
+                   "MLP lower variance. One 6 h episode per policy (the paper's pictures), the "
+                   "MLP acting greedily. Regular = from then on at least "
+                   f"{REGULARITY_SHARE:.0%} of the headways (to the bus ahead) within "
+                   f"H +- {REGULARITY_BAND_MIN:g} min, with at least "
+                   f"{REGULARITY_MIN_TAIL} arrivals (a fleet cycle) left: the paper judged "
+                   "uniformity by eye from its arrival figure, and a share with a tail keeps one "
+                   "stray arrival or a short lucky stretch from deciding. Variance over the six "
+                   "buses per record 40-50, mean over records. PASS needs both parts",
                    scale_of(path))
 
 
@@ -151,7 +152,7 @@ CLAIMS = [
           "return after E epochs rises with batch size",
           "monotone in batch size", "make fig-bus-batch", check_c3),
     Claim("C4", "No Holding bunches the fleet: the leader saturates at L_max, the others run empty",
-          "leader 4th-cycle loads 50, 64, 60, 75, ... and followers 0", "exact",
+          "leader loads 50, 64, 60, 75, ... and followers 0 (records 40-50)", "exact",
           "make fig-bus-load", check_c4),
     Claim("C5", "MLP reaches uniform arrivals in ~100 min, thresholds in ~200 min; MLP has lower "
           "load variance across buses", "~100 min vs ~200 min", "MLP faster and lower variance",
