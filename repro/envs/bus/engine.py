@@ -19,8 +19,8 @@ GRANT                 ``Request.succeed``: the bus gets the stop -> arrival (hea
                       the observation, at once at its start and without B5, else two steps on
 SERVED (B5)           the end of the service process: its waiting condition triggers
 WAITED (B5)           the condition: the bus observes
-DECISION              the driver's ``decision.succeed(action)``: without B5 alight, board, dwell
-                      + hold; under B5 the latency timeout
+DECISION              the driver's ``decision.succeed(action)``: alight, board, dwell + hold;
+                      under B5 folded into the delivery, which schedules the latency timeout
 LATENCY (B5)          the latency timeout, then (folded in) the service process starts: alight,
                       board, dwell
 DWELL                 the timeout of dwell + hold (B5: of the dwell): departure, release the stop,
@@ -39,7 +39,9 @@ Rounds: an episode runs until it is *blocked*, i.e. some bus waits for a decisio
 lies strictly later (all same-instant events are processed first, as they need no decision). The
 policy then answers every pending decision of the whole batch in one call (rows ordered by episode,
 then by the order in which the buses arrived), and each answer is scheduled as a DECISION event in
-row order. Events at t >= horizon are never processed.
+row order. Events at t >= horizon are never processed. Steps SimPy takes at the current instant
+when nothing else is scheduled at it (B5: SERVED and WAITED, a zero dwell's or hold's timeout) are
+taken at once, without the event: the order is the same, and they are most of No Holding's events.
 
 Reward convention (SPEC 5.2, 5.5 and section 3): every arrival at stop k with headway h gives every
 agent r = -nu_k (h - H)^2 (B1: in pax/s and seconds, 0 if h <= 0 or at a bus's first two visits),
@@ -215,7 +217,7 @@ def _arrive(p, s, log, b, t):
     s.ret += r
     for j in range(s.buffer.shape[0]):
         s.buffer[j] += np.exp(-p.gamma * (t - s.anchor[j])) * r
-    if p.b5 and s.n_dec[b] > 0:
+    if p.b5 and s.n_dec[b] > 0 and not _alone_at(s, t):
         _schedule(s, t, SERVED, b)
     else:
         _observe(p, s, log, b, t)
@@ -290,9 +292,29 @@ def _serve(p, s, b, t):
     s.load[b] = load - u + bd
     dwell = max(p.t_a * u, p.t_b * bd)
     if p.b5:
-        _schedule(s, t + dwell, DWELL, b)
+        if dwell == 0.0 and _alone_at(s, t):
+            _hold(p, s, b, t)
+        else:
+            _schedule(s, t + dwell, DWELL, b)
     else:
         _schedule(s, t + (dwell + s.action[b] * p.t_hold), DWELL, b)
+
+
+@jit
+def _alone_at(s, t):
+    """No event is scheduled at t (the current time): an event scheduled now at t would be the
+    next one processed, so it may be processed at once (same order, fewer steps)."""
+    return s.n_ev == 0 or s.ev_time[s.n_ev - 1] > t
+
+
+@jit
+def _hold(p, s, b, t):
+    """B5: the dwell's timeout is over; the hold's timeout (HOLD), or leave at once if it is 0."""
+    hold = s.action[b] * p.t_hold
+    if hold == 0.0 and _alone_at(s, t):
+        _depart(p, s, b, t)
+    else:
+        _schedule(s, t + hold, HOLD, b)
 
 
 @jit
@@ -344,15 +366,10 @@ def _run_episode(p, s, log):
             _schedule(s, t, WAITED, arg)
         elif kind == WAITED:
             _observe(p, s, log, arg, t)
-        elif kind == DECISION:
-            if p.b5:
-                _schedule(s, t + p.latency, LATENCY, arg)
-            else:
-                _serve(p, s, arg, t)
-        elif kind == LATENCY:
+        elif kind == DECISION or kind == LATENCY:
             _serve(p, s, arg, t)
         elif kind == DWELL and p.b5:
-            _schedule(s, t + s.action[arg] * p.t_hold, HOLD, arg)
+            _hold(p, s, arg, t)
         else:  # DWELL without B5, HOLD: depart
             _depart(p, s, arg, t)
 
@@ -379,7 +396,12 @@ def _advance(actions, params, states, logs, obs, ids):
             b = s.pending[q]
             s.action[b] = actions[row]
             row += 1
-            _schedule(s, s.now, DECISION, b)
+            # B5: the DECISION events would be the instant's last, each scheduling its latency
+            # timeout and nothing else; so the timeouts are scheduled at once, in the same order
+            if p.b5:
+                _schedule(s, s.now + p.latency, LATENCY, b)
+            else:
+                _schedule(s, s.now, DECISION, b)
         s.n_pending = 0
         _run_episode(p, s, logs[e])
         for q in range(s.n_pending):
