@@ -56,6 +56,9 @@ def test_load_figure_reproduces_the_paper(smoke):
     assert dist["nohold"] == 0.0 and dist["authors"] == 0.0
     ours = table[(table.source == "ours") & (table.policy == "authors")]
     assert sorted(ours.bus.unique()) == [1, 2, 3, 4, 5, 6]  # Bus 6 too, for --all-buses
+    off = pd.read_csv(res / "bus_load_switches.csv").set_index(["policy", "off"]).l1_per_point
+    assert off["authors", "none"] == 0.0 and off["authors", "b3_boarding"] > 1.0
+    assert off["authors", "all"] > 1.0 and (off["nohold"] == 0.0).all()
 
 
 def test_load_figure_fails_on_the_corrected_semantics(tmp_path):

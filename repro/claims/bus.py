@@ -16,7 +16,8 @@ from repro.claims import Claim, Verdict, scale_of
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_MIN_TAIL, REGULARITY_SHARE,
-                                    load_variance_per_record, time_to_regularity)
+                                    l1_per_point, load_variance_per_record,
+                                    time_to_regularity)
 
 PAPER_LAMBDA = 2.0
 """The paper's bus lambda: C1 compares the MLP trained with it."""
@@ -86,11 +87,7 @@ def check_c3(results: Path) -> Verdict:
 def load_distances(loads: pd.DataFrame) -> dict[str, float]:
     """Per policy of bus_load.csv, the L1 distance per point between our loads and the paper
     panel it is compared with (buses 1-5, records 40..50; NaN if a point is missing)."""
-    paper = loads[loads.source == "paper"]
-    ours = loads[loads.source == "ours"]
-    both = paper.merge(ours, on=["policy", "bus", "record"], how="left", suffixes=("_p", "_o"))
-    return {p: float((g.load_p - g.load_o).abs().mean()) if g.load_o.notna().all() else np.nan
-            for p, g in both.groupby("policy", sort=False)}
+    return {p: l1_per_point(g) for p, g in loads.groupby("policy", sort=False)}
 
 
 def check_c4(results: Path) -> Verdict:

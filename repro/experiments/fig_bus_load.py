@@ -5,24 +5,47 @@ ours (buses 1-5; ``--all-buses`` adds Bus 6, which the paper did not draw).
 
 Writes results/bus_load.csv (source: paper or ours, policy, bus, record, stop, load; the paper's
 rows of a policy are the panel it is compared with: the thresholds panel for both thresholds
-policies) and figures/bus_load.
+policies) and figures/bus_load; and results/bus_load_switches.csv: for No Holding and the
+authors' thresholds (fixed policies, so the corridor alone decides), the L1 distance per point to
+the paper's panel with each of B1-B5 turned off alone (``off``: none, a switch, or all).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import time
+from pathlib import Path
 
 import pandas as pd
 
-from repro.core.io import save_figure
-from repro.envs.bus import BusConfig
-from repro.envs.bus.metrics import record_loads
+from repro.core.io import provenance, save_figure, write_result
+from repro.envs.bus import BusConfig, config_from_args
+from repro.envs.bus.metrics import l1_per_point, record_loads
+from repro.envs.bus.params import SWITCHES
+from repro.envs.bus.policies import make_policy
+from repro.experiments.bus_eval import picture_arrivals
 from repro.envs.bus.paper_data import PAPER_RECORDS, PAPER_STOPS, paper_loads
 from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, TITLES, add_policy_arguments,
                                                 run_policy_figure)
 
 LOAD_CSV = "bus_load.csv"
+SWITCHES_CSV = "bus_load_switches.csv"
 COLUMNS = ["source", "policy", "bus", "record", "stop", "load"]
+FIXED = ("nohold", "authors")
+"""The policies whose panel depends on the corridor alone."""
+
+
+def switch_distances(cfg: BusConfig, policies: list[str]) -> pd.DataFrame:
+    """Rows policy, off, l1_per_point: ``cfg``, then each switch off alone, then all off."""
+    variants = {"none": cfg, **{name: dataclasses.replace(cfg, **{name: False})
+                                for name in SWITCHES}, "all": BusConfig.corrected()}
+    rows = []
+    for name in policies:
+        for off, c in variants.items():
+            arrivals = picture_arrivals(make_policy(name, c), c).assign(policy=name)
+            rows.append(dict(policy=name, off=off, l1_per_point=l1_per_point(loads(arrivals))))
+    return pd.DataFrame(rows)
 
 
 def loads(arrivals: pd.DataFrame) -> pd.DataFrame:
@@ -65,5 +88,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return run_policy_figure(args, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
-                             plot_table=plot)
+    rc = run_policy_figure(args, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
+                           plot_table=plot)
+    fixed = [p for p in args.policies if p in FIXED]
+    if fixed:
+        t0 = time.perf_counter()
+        cfg = config_from_args(args)
+        table = switch_distances(cfg, fixed)
+        prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
+                          wall_seconds=time.perf_counter() - t0)
+        write_result(Path(args.results_dir) / SWITCHES_CSV, table, prov)
+    return rc

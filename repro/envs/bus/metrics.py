@@ -42,6 +42,14 @@ def record_loads(arrivals: pd.DataFrame, records=PAPER_RECORDS) -> pd.DataFrame:
         drop=True)
 
 
+def l1_per_point(table: pd.DataFrame) -> float:
+    """Mean |ours - paper| over the paper's points, from one policy's rows of bus_load.csv
+    (columns source, bus, record, load); NaN if one of our points is missing."""
+    paper, ours = table[table.source == "paper"], table[table.source == "ours"]
+    both = paper.merge(ours, on=["bus", "record"], how="left", suffixes=("_p", "_o"))
+    return float((both.load_p - both.load_o).abs().mean(skipna=False))
+
+
 def time_to_regularity(arrivals: pd.DataFrame, headway_min: float,
                        band_min: float = REGULARITY_BAND_MIN, share: float = REGULARITY_SHARE,
                        min_tail: int = REGULARITY_MIN_TAIL) -> float:
