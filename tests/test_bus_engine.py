@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from repro.core.errors import UsageError
 from repro.envs.bus import BusConfig, make_env, make_reference_env
 from repro.envs.bus.engine import drive
-from repro.envs.bus.metrics import arrival_table, record_loads, time_to_regularity
+from repro.envs.bus.metrics import (arrival_table, record_loads, time_to_regularity,
+                                    time_to_uniform)
 from repro.envs.bus.params import SWITCHES
 from repro.envs.bus.policies import ThresholdPolicy, no_holding
 
@@ -164,6 +165,19 @@ def test_time_to_regularity():
     assert time_to_regularity(df.assign(h_min=6.0), 6.0, min_tail=1) == 0.0
     # a regular tail shorter than min_tail does not count
     assert np.isnan(time_to_regularity(df, 6.0, share=1.0, min_tail=3))
+
+
+def test_time_to_uniform():
+    """The first 30-min window with 90% of its known headways within H +- 1 min."""
+    import pandas as pd
+    t = np.arange(0.0, 120.0, 3.0)  # 10 arrivals per window
+    h = np.where(t < 60, 2.0, 6.5)
+    h[t == 63] = 9.0  # one stray headway of ten: 90% still within the band
+    h[t == 90] = np.nan  # unknown (B2): not counted
+    df = pd.DataFrame({"time_min": t, "h_min": h})
+    assert time_to_uniform(df, 6.0) == 60.0
+    assert time_to_uniform(df, 6.0, share=0.95) == 90.0
+    assert np.isnan(time_to_uniform(df.assign(h_min=2.0), 6.0))
 
 
 def test_drive_stops_when_all_done():

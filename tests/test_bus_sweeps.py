@@ -40,6 +40,9 @@ def test_outputs(sweeps):
     every = {"nohold", "authors", "mlp", "thresholds"}
     assert set(pd.read_csv(res / "bus_arrivals.csv").policy) == every
     assert set(pd.read_csv(res / "bus_load.csv").policy) == every
+    mlp_runs = pd.read_csv(res / "bus_load_mlp_runs.csv")
+    assert sorted(mlp_runs["lambda"]) == [0.5, 1.0, 2.0, 4.0] and (mlp_runs.seed == 0).all()
+    assert (mlp_runs.l1_per_point > 0).all()  # a smoke-trained MLP is not the paper's
 
 
 def test_orderings_a_short_run_shows(sweeps):

@@ -102,7 +102,9 @@ def render(results: Path) -> str:
     lines += ["", "## Details", ""]
     for c, v in rows:
         lines.append(f"- **{c.id}** ({v.verdict}): {v.detail or '-'}")
+    # a topic's NOTES: text, or a function of the results folder that returns it
     notes = [getattr(importlib.import_module(m), "NOTES", "") for m in TOPICS]
+    notes = [n(results) if callable(n) else n for n in notes]
     for note in filter(None, notes):
         lines += ["", note.strip()]
     return "\n".join(lines) + "\n"

@@ -21,7 +21,7 @@ from repro.core.errors import require
 from repro.core.rollout import Policy
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, arrival_table, record_loads,
-                                    time_to_regularity)
+                                    time_to_regularity, time_to_uniform)
 from repro.envs.bus.policies import POLICIES, make_policy
 
 PICTURE_HORIZON = 6 * 3600.0
@@ -59,7 +59,8 @@ def evaluate(policy: Policy, cfg: BusConfig, n_episodes: int = 1) -> tuple[dict,
         "episodes": n_episodes,
         "loads_records_40_50": [loads[loads.bus == b].load.tolist()
                                 for b in range(1, cfg.n_buses + 1)],
-        # null in JSON when regularity is never reached
+        # null in JSON when never reached
+        "time_to_uniform_min": _finite_or_none(time_to_uniform(first, cfg.headway)),
         "time_to_regularity_min": _finite_or_none(time_to_regularity(first, cfg.headway)),
         "regularity_band_min": REGULARITY_BAND_MIN,
     }

@@ -7,7 +7,10 @@ Writes results/bus_load.csv (source: paper or ours, policy, bus, record, stop, l
 rows of a policy are the panel it is compared with: the thresholds panel for both thresholds
 policies) and figures/bus_load; and results/bus_load_switches.csv: for No Holding and the
 authors' thresholds (fixed policies, so the corridor alone decides), the L1 distance per point to
-the paper's panel with each of B1-B5 turned off alone (``off``: none, a switch, or all).
+the paper's panel with each of B1-B5 turned off alone (``off``: none, a switch, or all); and,
+with the MLP panel taken from the lambda sweep, results/bus_load_mlp_runs.csv: every trained run
+of that sweep (lambda, seed, final return), acting greedily, with its L1 distance per point to the
+paper's MLP panel.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from repro.core.io import provenance, save_figure, write_result
 from repro.envs.bus import BusConfig, config_from_args
 from repro.envs.bus.metrics import l1_per_point, record_loads
 from repro.envs.bus.params import SWITCHES
-from repro.envs.bus.policies import make_policy
+from repro.envs.bus.policies import LAMBDA_SUMMARY_CSV, GreedyPolicy, make_policy
 from repro.experiments.bus_eval import picture_arrivals
 from repro.envs.bus.paper_data import PAPER_RECORDS, PAPER_STOPS, paper_loads
 from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, TITLES, add_policy_arguments,
@@ -31,6 +34,7 @@ from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, TITLES, add_policy_
 
 LOAD_CSV = "bus_load.csv"
 SWITCHES_CSV = "bus_load_switches.csv"
+MLP_RUNS_CSV = "bus_load_mlp_runs.csv"
 COLUMNS = ["source", "policy", "bus", "record", "stop", "load"]
 FIXED = ("nohold", "authors")
 """The policies whose panel depends on the corridor alone."""
@@ -87,6 +91,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_policy_arguments(p)
 
 
+def mlp_run_distances(cfg: BusConfig, results: Path) -> pd.DataFrame:
+    """Rows lambda, seed, final_return, run, l1_per_point: each run of the lambda sweep."""
+    runs = pd.read_csv(results / LAMBDA_SUMMARY_CSV)
+    rows = []
+    for lam, ret, run in runs[runs.policy == "mlp-run"][["lambda", "final_iqm", "run"]].values:
+        arrivals = picture_arrivals(GreedyPolicy(run, cfg), cfg).assign(policy="mlp")
+        rows.append({"lambda": lam, "seed": int(Path(run).name.split("seed")[-1]),
+                     "final_return": ret, "run": run,
+                     "l1_per_point": l1_per_point(loads(arrivals))})
+    return pd.DataFrame(rows)
+
+
 def run(args: argparse.Namespace) -> int:
     rc = run_policy_figure(args, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
                            plot_table=plot)
@@ -98,4 +114,11 @@ def run(args: argparse.Namespace) -> int:
         prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
                           wall_seconds=time.perf_counter() - t0)
         write_result(Path(args.results_dir) / SWITCHES_CSV, table, prov)
+    if "mlp" in args.policies and args.mlp_run is None:
+        t0 = time.perf_counter()
+        cfg = config_from_args(args)
+        table = mlp_run_distances(cfg, Path(args.results_dir))
+        prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
+                          wall_seconds=time.perf_counter() - t0)
+        write_result(Path(args.results_dir) / MLP_RUNS_CSV, table, prov)
     return rc

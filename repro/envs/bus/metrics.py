@@ -50,6 +50,25 @@ def l1_per_point(table: pd.DataFrame) -> float:
     return float((both.load_p - both.load_o).abs().mean(skipna=False))
 
 
+UNIFORM_WINDOW_MIN = 30.0
+"""Width (minutes) of the windows in which :func:`time_to_uniform` counts headways."""
+
+
+def time_to_uniform(arrivals: pd.DataFrame, headway_min: float,
+                    band_min: float = REGULARITY_BAND_MIN, share: float = REGULARITY_SHARE,
+                    window_min: float = UNIFORM_WINDOW_MIN) -> float:
+    """Minutes from the episode start until the arrivals first look uniform (one episode's
+    table): the start of the first window (0, 30, 60, ... min) in which at least ``share`` of the
+    known headways lie within H +- band; NaN if there is none. The paper says when each policy
+    "achieves" uniformity, judged from its arrival figure: a first time, which later stray
+    windows do not undo (:func:`time_to_regularity` asks for it to last)."""
+    known = arrivals[arrivals.h_min.notna()]
+    ok = (np.abs(known.h_min - headway_min) <= band_min).groupby(
+        (known.time_min // window_min).astype(int)).mean()
+    hit = ok.index[ok.to_numpy() >= share]
+    return float(hit[0] * window_min) if len(hit) else float("nan")
+
+
 def time_to_regularity(arrivals: pd.DataFrame, headway_min: float,
                        band_min: float = REGULARITY_BAND_MIN, share: float = REGULARITY_SHARE,
                        min_tail: int = REGULARITY_MIN_TAIL) -> float:
