@@ -45,6 +45,34 @@ def test_outputs(sweeps):
     assert (mlp_runs.l1_per_point > 0).all()  # a smoke-trained MLP is not the paper's
 
 
+def test_mlp_run_of_other_switches_is_refused(sweeps, capsys, tmp_path):
+    """The sweep trained the released semantics: a corrected figure cannot show its MLP."""
+    res, _, _ = sweeps
+    before = sorted(p.name for p in res.iterdir())
+    assert main(["fig-bus-load", "--results-dir", str(res), "--figures-dir", str(tmp_path),
+                 "--policies", "mlp", "--corrected"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--mlp-run: must be a run trained with this command's switches" \
+        in err[0] and "b1_reward" in err[0]
+    assert sorted(p.name for p in res.iterdir()) == before and not any(tmp_path.iterdir())
+
+
+def test_runs_from_before_the_switches_count_as_corrected(tmp_path):
+    """A run folder whose config.json predates B1-B5 holds a corrected run, not a released one."""
+    import json
+
+    from repro.core.config import to_dict
+    from repro.envs.bus import BusConfig
+    from repro.learn.trainer import TrainConfig, holds_same_run, run_config
+    saved = run_config(TrainConfig(), BusConfig.corrected(), "bus")
+    for name in ("b1_reward", "b2_headway", "b3_boarding", "b4_round_half_even", "b5_timing"):
+        del saved["env"][name]
+    (tmp_path / "config.json").write_text(json.dumps(saved, default=str))
+    assert holds_same_run(tmp_path, TrainConfig(), BusConfig.corrected(), "bus")
+    assert not holds_same_run(tmp_path, TrainConfig(), BusConfig(), "bus")
+    assert to_dict(BusConfig())["b1_reward"] is True
+
+
 def test_orderings_a_short_run_shows(sweeps):
     """Optimized Thresholds above No Holding; the trained policy above No Holding and above where
     it started (a random policy already edges No Holding, so that alone would prove nothing)."""
