@@ -96,6 +96,7 @@ class _Episode:
     def _close_macro_action(self, b: int, t: float) -> None:
         if self.actions[b]:
             self.rewards[b].append(self.buffer[b])
+            # an action not started by the horizon (B5) lasts 0 s, as the released code records
             self.durations[b].append(t - self.anchor[b] if self.started[b] else 0.0)
             self.buffer[b] = 0.0
 
@@ -146,7 +147,7 @@ class _Episode:
         self.request[b] = self.stops[0].request()
         yield self.request[b]
         self._arrive(b)
-        self._observe(b)
+        self._observe(b)  # its start at Stop 1: the bus's own process gets the stop, under B5 too
         while True:
             decision = env.event()
             self.pending.append((b, decision))
