@@ -90,7 +90,8 @@ INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL, HOLD, SERVED, WAITED, LATENCY = r
 """Event kinds (see the table above)."""
 
 D_ACTION, D_REWARD, D_DURATION, D_TIME = range(OBS_DIM, OBS_DIM + 4)
-"""Fields of a ``dec`` row after the observation [stop, h, load, sojourn]; D_TIME is its start."""
+"""Fields of a ``dec`` row after the observation [stop, h (s), load, sojourn]; D_TIME is the
+observation's time."""
 EPISODE, AGENT, INDEX = range(3)
 """Rows of the pending decisions' ``ids`` buffer."""
 
@@ -141,9 +142,10 @@ def episode_dtype(cfg: BusConfig) -> np.dtype:
 
 def log_dtype(cfg: BusConfig) -> np.dtype:
     """One episode's records: each bus's closed macro-actions, one 64-byte float row each (the
-    integers in it are small, hence exact): observation, D_ACTION, D_REWARD, D_DURATION and D_TIME,
-    the time of the arrival that started it; and the bus of each arrival, in processing order.
-    Every arrival starts a macro-action, so this is the whole arrival record (see ``arrivals``)."""
+    integers in it are small, hence exact): observation (h in seconds), D_ACTION, D_REWARD,
+    D_DURATION and D_TIME, the time of the stop visit that started it; and the bus of each
+    observation, in processing order. Every stop visit starts a macro-action, so this is the whole
+    visit record (see ``arrivals``)."""
     n, m = cfg.n_buses, cfg.max_arrivals_per_bus
     return np.dtype([("dec", np.float64, (n, m, OBS_DIM + 4)), ("order", np.int32, n * m)],
                     align=True)
