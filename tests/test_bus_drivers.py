@@ -6,10 +6,11 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pandas as pd
 import pytest
 
-from repro.claims.bus import check_c4
+from repro.claims.bus import check_c4, load_distances
 from repro.cli import main
 
 
@@ -25,18 +26,47 @@ def smoke(tmp_path_factory):
     for cmd in ("fig-bus-load", "fig-bus-arrivals"):
         # the trained-MLP panel is tested with the training sweeps (tests/test_bus_sweeps.py)
         assert main([cmd, *common, "--figures-dir", str(fig), "--policies", "nohold",
-                     "thresholds"]) == 0
+                     "authors", "thresholds"]) == 0
     return res, fig
 
 
 def test_outputs_and_c4(smoke):
     res, fig = smoke
-    t = pd.read_csv(res / "bus_thresholds.csv").iloc[0]
+    table = pd.read_csv(res / "bus_thresholds.csv").set_index("source")
+    t = table.loc["ours"]
     assert t.T1 > t.T2 > t.T3 and t.evaluations > 0
+    np.testing.assert_allclose(table.loc["authors", ["T1", "T2", "T3"]].to_numpy(float),
+                               [532.79107018, 340.28721132, 262.62855417], rtol=1e-9)
     assert (res / "bus_thresholds.provenance.json").exists()
     assert (fig / "bus_load.png").exists() and (fig / "bus_arrivals.pdf").exists()
-    assert set(pd.read_csv(res / "bus_arrivals.csv").policy) == {"nohold", "thresholds"}
+    assert set(pd.read_csv(res / "bus_arrivals.csv").policy) == {"nohold", "authors",
+                                                                 "thresholds"}
     assert check_c4(res).verdict == "PASS"
+
+
+def test_load_figure_reproduces_the_paper(smoke):
+    """With No Holding and with the authors' thresholds our loads equal the paper's at all 55
+    points of each panel (SPEC 5.5); the file holds both sources side by side."""
+    res, _ = smoke
+    table = pd.read_csv(res / "bus_load.csv")
+    assert list(table.columns) == ["source", "policy", "bus", "record", "stop", "load"]
+    paper = table[table.source == "paper"]
+    assert len(paper[paper.policy == "authors"]) == 55
+    dist = load_distances(table)
+    assert dist["nohold"] == 0.0 and dist["authors"] == 0.0
+    ours = table[(table.source == "ours") & (table.policy == "authors")]
+    assert sorted(ours.bus.unique()) == [1, 2, 3, 4, 5, 6]  # Bus 6 too, for --all-buses
+    off = pd.read_csv(res / "bus_load_switches.csv").set_index(["policy", "off"]).l1_per_point
+    assert off["authors", "none"] == 0.0 and off["authors", "b3_boarding"] > 1.0
+    assert off["authors", "all"] > 1.0 and (off["nohold"] == 0.0).all()
+
+
+def test_load_figure_fails_on_the_corrected_semantics(tmp_path):
+    """The comparison can fail: the paper's prose (--corrected) does not draw its thresholds
+    panel."""
+    assert main(["fig-bus-load", "--results-dir", str(tmp_path), "--figures-dir", str(tmp_path),
+                 "--policies", "authors", "--corrected"]) == 0
+    assert load_distances(pd.read_csv(tmp_path / "bus_load.csv"))["authors"] > 1.0
 
 
 def test_thresholds_deterministic(smoke, tmp_path):
@@ -50,16 +80,16 @@ def test_eval_json(smoke, capsys):
     res, _ = smoke
     assert main(["bus-eval", "--policy", "nohold", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["loads_cycle4"][0] == [64, 60, 75, 75, 75, 75, 75, 75, 75, 50]
+    assert out["loads_records_40_50"][0] == [50, 64, 60, 75, 75, 75, 75, 75, 75, 75, 50]
     assert {"return", "discounted_return", "time_to_regularity_min"} <= set(out)
     assert main(["bus-eval", "--policy", "thresholds", "--results-dir", str(res), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["return"] > out["return"]
 
 
 @pytest.mark.parametrize("args, param", [
-    (["bus-eval", "--policy", "thresholds", "--thresholds", "3", "5", "1"], "--thresholds"),
+    (["bus-eval", "--policy", "thresholds", "--thresholds", "300", "-5", "100"], "--thresholds"),
     (["bus-eval", "--policy", "mystery"], "--policy"),
-    (["fig-bus-load", "--policies", "nohold", "thresholds", "--thresholds", "6", "6", "1"],
+    (["fig-bus-load", "--policies", "nohold", "thresholds", "--thresholds", "6", "inf", "1"],
      "--thresholds"),
     (["fig-bus-load", "--policies", "nohold", "mystery"], "--policies"),
     (["fig-bus-arrivals", "--policies", "mystery"], "--policies"),

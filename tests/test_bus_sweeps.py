@@ -38,8 +38,43 @@ def test_outputs(sweeps):
     for stem in ("bus_lambda", "bus_batch"):
         assert (fig / f"{stem}.png").exists() and (fig / f"{stem}.pdf").exists()
         assert (res / f"{stem}_summary.provenance.json").exists()
-    assert set(pd.read_csv(res / "bus_arrivals.csv").policy) == {"nohold", "mlp", "thresholds"}
-    assert set(pd.read_csv(res / "bus_load.csv").policy) == {"nohold", "mlp", "thresholds"}
+    every = {"nohold", "authors", "mlp", "thresholds"}
+    assert set(pd.read_csv(res / "bus_arrivals.csv").policy) == every
+    assert set(pd.read_csv(res / "bus_load.csv").policy) == every
+    mlp_runs = pd.read_csv(res / "bus_load_mlp_runs.csv")
+    assert sorted(mlp_runs["lambda"]) == [0.5, 1.0, 2.0, 4.0] and (mlp_runs.seed == 0).all()
+    assert (mlp_runs.l1_per_point > 0).all()  # a smoke-trained MLP is not the paper's
+
+
+def test_mlp_run_of_other_switches_is_refused(sweeps, capsys, tmp_path):
+    """The sweep trained the released semantics: a corrected figure cannot show its MLP."""
+    res, _, _ = sweeps
+    before = sorted(p.name for p in res.iterdir())
+    assert main(["fig-bus-load", "--results-dir", str(res), "--figures-dir", str(tmp_path),
+                 "--policies", "mlp", "--corrected"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--mlp-run: must be a run trained with this command's switches" \
+        in err[0] and "b1_reward" in err[0]
+    assert sorted(p.name for p in res.iterdir()) == before and not any(tmp_path.iterdir())
+
+
+def test_runs_from_before_the_switches_count_as_corrected(tmp_path):
+    """A run folder whose config.json predates B1-B5 holds a corrected run, not a released one."""
+    import json
+
+    from repro.core.config import to_dict
+    from repro.core.errors import UsageError
+    from repro.envs.bus import BusConfig
+    from repro.learn.config import TrainConfig
+    from repro.learn.trainer import check_run_folder, run_config
+    saved = run_config(TrainConfig(), BusConfig.corrected(), "bus")
+    for name in ("b1_reward", "b2_headway", "b3_boarding", "b4_round_half_even", "b5_timing"):
+        del saved["env"][name]
+    (tmp_path / "config.json").write_text(json.dumps(saved, default=str))
+    check_run_folder(tmp_path, TrainConfig(), BusConfig.corrected(), "bus")
+    with pytest.raises(UsageError, match="env.b1_reward: False there, True here"):
+        check_run_folder(tmp_path, TrainConfig(), BusConfig(), "bus")
+    assert to_dict(BusConfig())["b1_reward"] is True
 
 
 def test_orderings_a_short_run_shows(sweeps):

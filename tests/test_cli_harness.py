@@ -1,5 +1,6 @@
 """The harness promises: one-line errors with exit 2 and nothing written, determinism, claims."""
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -199,9 +200,7 @@ def test_claims_read_the_largest_complete_scale(tmp_path):
     assert default_results(tmp_path) == tmp_path / "paper"  # nothing yet: where results will be
     (tmp_path / "smoke").mkdir()
     assert default_results(tmp_path) == tmp_path / "smoke"  # the only one there
-    (tmp_path / "quick").mkdir()
-    for csv in (ROOT / "results" / "paper").glob("*"):
-        (tmp_path / "quick" / csv.name).write_bytes(csv.read_bytes())
+    shutil.copytree(ROOT / "results" / "paper", tmp_path / "quick")
     (tmp_path / "paper").mkdir()  # begun, not complete
     (tmp_path / "paper" / "table_race.csv").write_text("x\n")
     assert default_results(tmp_path) == tmp_path / "quick"

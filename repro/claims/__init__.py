@@ -126,7 +126,9 @@ def render(results: Path) -> str:
         lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}", WIDTH,
                                break_on_hyphens=False)
         lines.append(f"Regenerate: `{c.command}`.")
+    # a topic's NOTES: text, or a function of the results folder that returns it
     notes = [getattr(importlib.import_module(m), "NOTES", "") for m in TOPICS]
+    notes = [n(results) if callable(n) else n for n in notes]
     for note in filter(None, notes):
         lines += ["", note.strip()]
     return "\n".join(lines) + "\n"

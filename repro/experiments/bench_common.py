@@ -52,6 +52,7 @@ from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_o
 from repro.envs import env_package, train_defaults
 from repro.learn.config import TrainConfig
 from repro.learn.trained_policy import load_trained_run, policy_from_state
+from repro.learn.trainer import saved_defaults
 
 C = TypeVar("C")
 
@@ -130,7 +131,7 @@ def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int)
 def trained_env_config(state: dict[str, Any], config: type[C]) -> C:
     """The environment settings of a checkpoint's run as ``config`` (settings newer than the run
     keep their defaults, as when it resumes)."""
-    saved = state["run_config"]["env"] or {}
+    saved = {**saved_defaults(config), **(state["run_config"]["env"] or {})}
     return config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
 
 

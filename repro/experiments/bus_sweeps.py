@@ -37,7 +37,7 @@ from repro.core.config import for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm
-from repro.envs.bus import BusConfig, make_env
+from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.policies import ThresholdPolicy, no_holding, read_thresholds
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_dir, run_sweep)
@@ -93,8 +93,7 @@ class BusSweepConfig:
         return [(self.batch_lambda, b) for b in self.batches]
 
 
-def jobs(cfg: BusSweepConfig, sweep: str, seed: int) -> list[TrainJob]:
-    bus = BusConfig()
+def jobs(cfg: BusSweepConfig, sweep: str, seed: int, bus: BusConfig) -> list[TrainJob]:
     out = []
     for lam, batch in cfg.settings(sweep):
         for s in range(seed, seed + cfg.seeds):
@@ -123,10 +122,11 @@ def final_returns(cfg: BusSweepConfig, table: pd.DataFrame) -> pd.DataFrame:
             .rename("final_return").reset_index())
 
 
-def baseline_returns(results: Path) -> dict[str, float]:
+def baseline_returns(results: Path, bus: BusConfig) -> dict[str, float]:
     """Average return of No Holding and of the Optimized Thresholds in ``results``."""
-    thresholds = ThresholdPolicy(read_thresholds(results, "--results-dir"))
-    env = make_env(BusConfig())
+    thresholds = ThresholdPolicy(read_thresholds(results, "--results-dir"),
+                                 headway_in_minutes=not bus.b2_headway)
+    env = make_env(bus)
     return {name: float(env.rollout(policy, 1).episode_return[0])
             for name, policy in (("nohold", no_holding), ("thresholds", thresholds))}
 
@@ -186,6 +186,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seeds", type=int, help="runs per setting")
     p.add_argument("--epochs", type=int, help="policy updates per run")
     p.add_argument("--final-epochs", type=int, help="epochs averaged into a run's final return")
+    add_switch_arguments(p)
 
 
 def run_named(sweep: str, args: argparse.Namespace) -> int:
@@ -195,10 +196,13 @@ def run_named(sweep: str, args: argparse.Namespace) -> int:
     check_sweep_arguments(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
-    root = check_writable_dir(Path(args.runs_dir) / "bus", "--runs-dir")
+    bus = config_from_args(args)
+    # runs from before the switches existed, in runs/bus, ran the corrected semantics
+    folder = "bus" if bus.semantics == "corrected" else f"bus-{bus.semantics}"
+    root = check_writable_dir(Path(args.runs_dir) / folder, "--runs-dir")
     t0 = time.perf_counter()
-    baselines = baseline_returns(results)  # fails (needs table-thresholds) before any training
-    job_list = jobs(cfg, sweep, args.seed)
+    baselines = baseline_returns(results, bus)  # needs table-thresholds: fails before training
+    job_list = jobs(cfg, sweep, args.seed, bus)
     run_sweep(job_list, root, n_jobs=args.n_jobs, scheduler=args.scheduler)
     table = curves(cfg, job_list, root)
     finals = final_returns(cfg, table)

@@ -1,9 +1,10 @@
-"""Arrival times of the six buses at the ten stops, one panel per policy (paper Fig.
-bbarrival_times).
+"""Arrival times of the buses at the ten stops, one panel per policy (paper Fig.
+bbarrival_times): a 6 h episode, buses 1-5 as the paper drew them (``--all-buses``: all six).
 
-Writes results/bus_arrivals.csv (every arrival of one episode per policy) and figures/bus_arrivals.
-The trained MLP panel is the lambda sweep's best run (highest final return; ``--mlp-run`` names
-another), acting greedily. A new policy is one more name in ``POLICIES`` / ``make_policy``.
+Writes results/bus_arrivals.csv (every served stop visit of one 6 h episode per policy, all
+buses) and figures/bus_arrivals. Panels: No Holding, the authors' thresholds, ours, the trained
+MLP, which is the lambda sweep's best run (highest final return; ``--mlp-run`` names another),
+acting greedily. A new policy is one more name in ``POLICIES`` / ``make_policy``.
 """
 
 from __future__ import annotations
@@ -18,12 +19,14 @@ import pandas as pd
 from repro.experiments.options import add_common
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
-from repro.envs.bus import BusConfig
+from repro.envs.bus import add_switch_arguments, config_from_args
 from repro.envs.bus.policies import POLICIES, best_run
-from repro.experiments.bus_eval import evaluate, policy_from_args
+from repro.experiments.bus_eval import picture_arrivals, policy_from_args
 
 TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",
-          "thresholds": "Optimized Thresholds"}
+          "authors": "Authors' Thresholds", "thresholds": "Optimized Thresholds (ours)"}
+PAPER_BUSES = 5
+"""The paper's bus figures draw buses 1-5 of 6 (plotdata.jl)."""
 
 
 def add_policy_arguments(p: argparse.ArgumentParser) -> None:
@@ -32,9 +35,12 @@ def add_policy_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policies", nargs="+", default=list(POLICIES),
                    help="panels, in order: " + ", ".join(POLICIES))
     p.add_argument("--thresholds", type=float, nargs=3, metavar=("T1", "T2", "T3"),
-                   help="thresholds in minutes (default: results/bus_thresholds.csv)")
+                   help="our thresholds in seconds (default: results/bus_thresholds.csv)")
     p.add_argument("--mlp-run", help="training run folder of the mlp panel, acting greedily "
                    "(default: the lambda sweep's best run, from results/bus_lambda_summary.csv)")
+    p.add_argument("--all-buses", action="store_true",
+                   help="draw all six buses (the paper drew buses 1-5)")
+    add_switch_arguments(p)
 
 
 def mlp_source(args: argparse.Namespace) -> str | None:
@@ -47,17 +53,17 @@ def mlp_source(args: argparse.Namespace) -> str | None:
 def collect(args: argparse.Namespace) -> pd.DataFrame:
     """One episode per policy (all are deterministic): its arrival table, tagged with the policy.
     Every policy is built before any is run, so bad input fails before any work."""
-    cfg = BusConfig()
-    policies = {name: policy_from_args(name, args) for name in args.policies}
+    cfg = config_from_args(args)
+    policies = {name: policy_from_args(name, args, cfg) for name in args.policies}
     frames = []
     for name, policy in policies.items():
-        _, arrivals = evaluate(policy, cfg)
+        arrivals = picture_arrivals(policy, cfg)
         frames.append(arrivals.drop(columns="episode").assign(policy=name))
     cols = ["policy"] + [c for c in frames[0].columns if c != "policy"]
     return pd.concat(frames, ignore_index=True)[cols]
 
 
-def plot(arrivals: pd.DataFrame, stem) -> None:
+def plot(arrivals: pd.DataFrame, stem, all_buses: bool = False) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -67,7 +73,7 @@ def plot(arrivals: pd.DataFrame, stem) -> None:
     fig, axes = plt.subplots(1, len(names), figsize=(5 * len(names), 3.6), sharey=True,
                              squeeze=False)
     for ax, name in zip(axes[0], names):
-        sel = arrivals[arrivals.policy == name]
+        sel = arrivals[(arrivals.policy == name) & (all_buses | (arrivals.bus <= PAPER_BUSES))]
         for bus, grp in sel.groupby("bus"):
             ax.plot(grp.time_min, grp.stop, "o", ms=2.5, label=f"Bus {bus}")
         ax.set_title(TITLES.get(name, name))
@@ -84,7 +90,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
                       table_of: Callable[[pd.DataFrame], pd.DataFrame],
-                      plot_table: Callable[[pd.DataFrame, Path], None]) -> int:
+                      plot_table: Callable[[pd.DataFrame, Path, bool], None]) -> int:
     """Shared body of the per-policy bus figures: simulate each policy's episode, derive the
     figure's table from the arrival records, write it with provenance, and draw it."""
     for name in args.policies:
@@ -93,12 +99,12 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
     table = table_of(collect(args))
-    prov = provenance(BusConfig(), command=command, scale=args.scale, seed=None,
+    prov = provenance(config_from_args(args), command=command, scale=args.scale, seed=None,
                       wall_seconds=time.perf_counter() - t0,
                       extra={"policies": args.policies, "mlp_run": mlp_source(args)})
     write_result(results / csv_name, table, prov)
     stem = figures / Path(csv_name).stem
-    plot_table(table, stem)
+    plot_table(table, stem, args.all_buses)
     print(f"wrote {results / csv_name} and {stem}.png/.pdf")
     return 0
 

@@ -1,30 +1,66 @@
-"""Load at arrival of every bus at every stop in its 4th cycle, one panel per policy (paper Fig.
-bbload; claim C4). Writes results/bus_load.csv (policy, bus, stop, load, rank: 0 = the bus first at
-Stop 1 in that cycle) and figures/bus_load."""
+"""Load at arrival of the buses at the records the paper's load figure shows (Fig. bbload; C4,
+C5): a 6 h episode, each bus's stop-visit records 40..50 (Stop 10 of its 4th cycle, Stops 1-10 of
+its 5th; plotdata.jl), one panel per policy, the paper's five series as black markers beside
+ours (buses 1-5; ``--all-buses`` adds Bus 6, which the paper did not draw).
+
+Writes results/bus_load.csv (source: paper or ours, policy, bus, record, stop, load; the paper's
+rows of a policy are the panel it is compared with: the thresholds panel for both thresholds
+policies) and figures/bus_load; and results/bus_load_switches.csv: for No Holding and the
+authors' thresholds (fixed policies, so the corridor alone decides), the L1 distance per point to
+the paper's panel with each of B1-B5 turned off alone (``off``: none, a switch, or all); and,
+with the MLP panel taken from the lambda sweep, results/bus_load_mlp_runs.csv: every trained run
+of that sweep (lambda, seed, final return), acting greedily, with its L1 distance per point to the
+paper's MLP panel.
+"""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import time
+from pathlib import Path
 
 import pandas as pd
 
-from repro.core.io import save_figure
-from repro.envs.bus import BusConfig
-from repro.envs.bus.metrics import cycle_loads
-from repro.experiments.bus_eval import CYCLE
-from repro.experiments.fig_bus_arrivals import TITLES, add_policy_arguments, run_policy_figure
+from repro.core.io import provenance, save_figure, write_result
+from repro.envs.bus import BusConfig, config_from_args
+from repro.envs.bus.metrics import l1_per_point, record_loads
+from repro.envs.bus.params import SWITCHES
+from repro.envs.bus.policies import LAMBDA_SUMMARY_CSV, GreedyPolicy, make_policy
+from repro.experiments.bus_eval import picture_arrivals
+from repro.envs.bus.paper_data import PAPER_RECORDS, PAPER_STOPS, paper_loads
+from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, TITLES, add_policy_arguments,
+                                                run_policy_figure)
 
 LOAD_CSV = "bus_load.csv"
+SWITCHES_CSV = "bus_load_switches.csv"
+MLP_RUNS_CSV = "bus_load_mlp_runs.csv"
+COLUMNS = ["source", "policy", "bus", "record", "stop", "load"]
+FIXED = ("nohold", "authors")
+"""The policies whose panel depends on the corridor alone."""
+
+
+def switch_distances(cfg: BusConfig, policies: list[str]) -> pd.DataFrame:
+    """Rows policy, off, l1_per_point: ``cfg``, then each switch off alone, then all off."""
+    variants = {"none": cfg, **{name: dataclasses.replace(cfg, **{name: False})
+                                for name in SWITCHES}, "all": BusConfig.corrected()}
+    rows = []
+    for name in policies:
+        for off, c in variants.items():
+            arrivals = picture_arrivals(make_policy(name, c), c).assign(policy=name)
+            rows.append(dict(policy=name, off=off, l1_per_point=l1_per_point(loads(arrivals))))
+    return pd.DataFrame(rows)
 
 
 def loads(arrivals: pd.DataFrame) -> pd.DataFrame:
-    frames = [cycle_loads(grp, CYCLE).assign(policy=name)
-              for name, grp in arrivals.groupby("policy", sort=False)]
-    out = pd.concat(frames, ignore_index=True)
-    return out[["policy", "bus", "stop", "load", "rank"]].assign(cycle=CYCLE)
+    frames = []
+    for name, grp in arrivals.groupby("policy", sort=False):
+        frames.append(paper_loads(name).assign(source="paper", policy=name))
+        frames.append(record_loads(grp).assign(source="ours", policy=name))
+    return pd.concat(frames, ignore_index=True)[COLUMNS]
 
 
-def plot(table: pd.DataFrame, stem) -> None:
+def plot(table: pd.DataFrame, stem, all_buses: bool = False) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -33,14 +69,18 @@ def plot(table: pd.DataFrame, stem) -> None:
     names = list(dict.fromkeys(table.policy))
     fig, axes = plt.subplots(1, len(names), figsize=(4.5 * len(names), 3.6), sharey=True,
                              squeeze=False)
-    l_max = BusConfig().l_max
     for ax, name in zip(axes[0], names):
-        for bus, grp in table[table.policy == name].groupby("bus"):
-            ax.plot(grp.stop, grp.load, "o-", ms=3, lw=0.8, label=f"Bus {bus}")
-        ax.axhline(l_max, color="k", lw=0.8, ls="--")
-        ax.set_title(f"{TITLES.get(name, name)} (cycle {CYCLE})")
-        ax.set_xlabel("Stop")
-        ax.set_xticks(range(1, BusConfig().n_stops + 1))
+        sel = table[table.policy == name]
+        for bus, grp in sel[sel.source == "ours"].groupby("bus"):
+            if all_buses or bus <= PAPER_BUSES:
+                ax.plot(grp.record, grp.load, ".-", ms=4, lw=0.8, label=f"Bus {bus}")
+        paper = sel[sel.source == "paper"]
+        ax.plot(paper.record, paper.load, "o", mfc="none", mec="k", ms=7, lw=0,
+                label="paper (buses 1-5)")
+        ax.axhline(BusConfig().l_max, color="k", lw=0.8, ls="--")
+        ax.set_title(TITLES.get(name, name))
+        ax.set_xlabel("Stop (records 40-50: Stop 10 of cycle 4, cycle 5)")
+        ax.set_xticks(PAPER_RECORDS, [str(k) for k in PAPER_STOPS])
         ax.grid(True, alpha=0.3)
     axes[0][0].set_ylabel("Load at arrival [pax]")
     axes[0][-1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
@@ -51,6 +91,34 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_policy_arguments(p)
 
 
+def mlp_run_distances(cfg: BusConfig, results: Path) -> pd.DataFrame:
+    """Rows lambda, seed, final_return, run, l1_per_point: each run of the lambda sweep."""
+    runs = pd.read_csv(results / LAMBDA_SUMMARY_CSV)
+    rows = []
+    for lam, ret, run in runs[runs.policy == "mlp-run"][["lambda", "final_iqm", "run"]].values:
+        arrivals = picture_arrivals(GreedyPolicy(run, cfg), cfg).assign(policy="mlp")
+        rows.append({"lambda": lam, "seed": int(Path(run).name.split("seed")[-1]),
+                     "final_return": ret, "run": run,
+                     "l1_per_point": l1_per_point(loads(arrivals))})
+    return pd.DataFrame(rows)
+
+
 def run(args: argparse.Namespace) -> int:
-    return run_policy_figure(args, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
-                             plot_table=plot)
+    rc = run_policy_figure(args, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
+                           plot_table=plot)
+    fixed = [p for p in args.policies if p in FIXED]
+    if fixed:
+        t0 = time.perf_counter()
+        cfg = config_from_args(args)
+        table = switch_distances(cfg, fixed)
+        prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
+                          wall_seconds=time.perf_counter() - t0)
+        write_result(Path(args.results_dir) / SWITCHES_CSV, table, prov)
+    if "mlp" in args.policies and args.mlp_run is None:
+        t0 = time.perf_counter()
+        cfg = config_from_args(args)
+        table = mlp_run_distances(cfg, Path(args.results_dir))
+        prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
+                          wall_seconds=time.perf_counter() - t0)
+        write_result(Path(args.results_dir) / MLP_RUNS_CSV, table, prov)
+    return rc

@@ -203,9 +203,17 @@ class Trainer:
         return epochs
 
 
+def saved_defaults(config_type: type) -> dict[str, Any]:
+    """What a run recorded before a setting existed held for it: its default, unless the config
+    class names another value in ``BEFORE_ADDED`` (e.g. a switch whose default changed when it
+    was added)."""
+    return {**to_dict(config_type()), **getattr(config_type, "BEFORE_ADDED", {})}
+
+
 def _default_like(env_config: Any) -> Any:
-    """The default config of ``env_config``'s type (None for configs that are not dataclasses)."""
-    return type(env_config)() if dataclasses.is_dataclass(env_config) else None
+    """The settings a run recorded before they existed held (None for configs that are not
+    dataclasses)."""
+    return saved_defaults(type(env_config)) if dataclasses.is_dataclass(env_config) else None
 
 
 PROGRESS_COLUMNS = [

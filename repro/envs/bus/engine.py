@@ -5,17 +5,27 @@ a heap keyed by (time, priority, insertion id) and processes the smallest key fi
 schedules exactly the events SimPy schedules, in the same order, and keeps them in a small array per
 episode sorted by that key, the next event last (at most 2 N events are ever scheduled, so shifting
 a few entries on insertion beats a heap). Neither the priority nor the id need be stored: the only
-URGENT events are the buses' initialisations, which are also inserted first, so ordering by (time,
-insertion id) is the same order; and a new event has the largest id so far, so it goes just before
-(in processing order: just after) every event of time <= its own.
+URGENT events are the buses' initialisations, which are also inserted first, and (B5) the start of
+a service process, which SimPy processes right after the event that started it, so it is folded
+into that event; ordering by (time, insertion id) is therefore the same order; and a new event has
+the largest id so far, so it goes just before (in processing order: just after) every event of
+time <= its own.
 
 ====================  ==========================================================================
 event                 SimPy counterpart, and what processing it does
 ====================  ==========================================================================
 INIT (urgent)         ``env.process``: the bus requests Stop 1
-GRANT                 ``Request.succeed``: the bus gets the stop -> arrival (reward, observation)
-DECISION              the driver's ``decision.succeed(action)``: alight, board, dwell + hold
-DWELL                 the timeout of dwell + hold: departure, release the stop, travel
+GRANT                 ``Request.succeed``: the bus gets the stop -> arrival (headway, reward);
+                      the observation, at once at its start and without B5, else two steps on
+SERVED (B5)           the end of the service process: its waiting condition triggers
+WAITED (B5)           the condition: the bus observes
+DECISION              the driver's ``decision.succeed(action)``: alight, board, dwell + hold;
+                      under B5 folded into the delivery, which schedules the latency timeout
+LATENCY (B5)          the latency timeout, then (folded in) the service process starts: alight,
+                      board, dwell
+DWELL                 the timeout of dwell + hold (B5: of the dwell): departure, release the stop,
+                      travel (B5: the hold's timeout)
+HOLD (B5)             the hold's timeout: departure, release the stop, travel
 RELEASE               ``Release.succeed``: grant the stop to the head of its FIFO queue
 TRAVEL                the timeout of rt: request the next stop
 ====================  ==========================================================================
@@ -29,15 +39,19 @@ Rounds: an episode runs until it is *blocked*, i.e. some bus waits for a decisio
 lies strictly later (all same-instant events are processed first, as they need no decision). The
 policy then answers every pending decision of the whole batch in one call (rows ordered by episode,
 then by the order in which the buses arrived), and each answer is scheduled as a DECISION event in
-row order. Events at t >= horizon are never processed.
+row order. Events at t >= horizon are never processed. Steps SimPy takes at the current instant
+when nothing else is scheduled at it (B5: SERVED and WAITED, a zero dwell's or hold's timeout) are
+taken at once, without the event: the order is the same, and they are most of No Holding's events.
 
-Reward convention (SPEC 5.2 and section 3): every arrival at stop k with headway h gives every agent
-r = -nu_k (h - H)^2, added to the agent's reward buffer as exp(-gamma (t - T)) r, T the agent's
-discount anchor (0 at first, then the time of its latest decision). An agent's observation records
-and clears its buffer as the reward of its previous macro-action (none before its first decision,
-so rewards accrued while it queues for Stop 1 go into its first macro-action). The arrival's reward
-is accrued before the arriving bus observes. At the horizon each running macro-action is cut
-(duration horizon - start) and recorded with its buffer.
+Reward convention (SPEC 5.2, 5.5 and section 3): every arrival at stop k with headway h gives every
+agent r = -nu_k (h - H)^2 (B1: in pax/s and seconds, 0 if h <= 0 or at a bus's first two visits),
+added to the agent's reward buffer as exp(-gamma (t - T)) r, T the agent's discount anchor (0 at
+first, then the start of its latest action: its decision, or under B5 DECISION_LATENCY later). An
+agent's observation records and clears its buffer as the reward of its previous macro-action (none
+before its first decision, so rewards accrued while it queues for Stop 1 go into its first
+macro-action). The arrival's reward is accrued before the arriving bus observes. At the horizon
+each running macro-action is cut (duration horizon - start; 0 under B5 for an action that has not
+started, as the released code records it) and recorded with its buffer.
 
 Speed. A rollout of the training batch (540 episodes) takes a few hundred rounds, so both the
 per-round and the per-event costs matter. Per round, Python does O(1) work: the kernel reads the
@@ -49,10 +63,11 @@ update per call, which doubled the cost of an event. A round visits each episode
 the records are kept small (int32 fields): what is written for the rollout lives in a separate
 record per episode (``log_dtype``, 25 times the size) and is never read back by the kernel. Those
 writes miss the cache, so they are as few as can be: one 64-byte row per macro-action, written when
-it closes (its observation, action, reward, duration and start time), and the bus of each arrival;
-every arrival starts a macro-action, whose row holds the rest of the arrival's record
-(``arrivals`` recomputes U and B with the function that boarded them). A stop's FIFO queue is the
-waiting buses ordered by request ticket, a scan over N buses instead of a ring buffer per stop.
+it closes (its observation with h in seconds, action, reward, duration and observation time), and
+the bus of each observation; every stop visit starts a macro-action, whose row holds the rest of
+the visit's record (``arrivals`` recomputes U and B with the function that boarded them). A stop's
+FIFO queue is the waiting buses ordered by request ticket, a scan over N buses instead of a ring
+buffer per stop.
 """
 
 from __future__ import annotations
@@ -65,16 +80,18 @@ from numba import njit
 
 from repro.core.errors import UsageError, require
 from repro.core.rollout import DecisionBatch, Policy, Rollout
-from repro.envs.bus.params import BusConfig
+from repro.envs.bus.params import DECISION_LATENCY, BusConfig
 
 OBS_DIM = 4
-"""Observation: [stop index (0-based), headway h (min), load at arrival (pax), sojourn time (s)]."""
+"""Observation: [stop index (0-based), headway h (s, or -1 under B2; min without B2), load at
+arrival (pax), time since the bus's previous action started (s)]."""
 
-INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL = range(6)
+INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL, HOLD, SERVED, WAITED, LATENCY = range(10)
 """Event kinds (see the table above)."""
 
 D_ACTION, D_REWARD, D_DURATION, D_TIME = range(OBS_DIM, OBS_DIM + 4)
-"""Fields of a ``dec`` row after the observation [stop, h, load, sojourn]; D_TIME is its start."""
+"""Fields of a ``dec`` row after the observation [stop, h (s), load, sojourn]; D_TIME is the
+observation's time."""
 EPISODE, AGENT, INDEX = range(3)
 """Rows of the pending decisions' ``ids`` buffer."""
 
@@ -88,9 +105,14 @@ def params_record(cfg: BusConfig) -> np.ndarray:
         ("n_actions", np.int64), ("l_max", np.int64), ("rt", np.float64), ("t_a", np.float64),
         ("t_b", np.float64), ("headway", np.float64), ("t_hold", np.float64),
         ("gamma", np.float64), ("horizon", np.float64), ("alight", np.float64, k),
-        ("rate", np.float64, k)], align=True))
+        ("rate", np.float64, k), ("rate_s", np.float64, k), ("headway_s", np.float64),
+        ("latency", np.float64), ("b1", np.bool_), ("b2", np.bool_), ("b3", np.bool_),
+        ("b4", np.bool_), ("b5", np.bool_)], align=True))
+    rate = np.array(cfg.arrival_rate, float)
     rec[0] = (cfg.n_actions, cfg.l_max, cfg.travel_time, cfg.t_alight, cfg.t_board, cfg.headway,
-              cfg.t_hold, cfg.gamma, cfg.horizon, cfg.alight_fraction, cfg.arrival_rate)
+              cfg.t_hold, cfg.gamma, cfg.horizon, cfg.alight_fraction, rate, rate / 60.0,
+              60.0 * cfg.headway, DECISION_LATENCY, cfg.b1_reward, cfg.b2_headway,
+              cfg.b3_boarding, cfg.b4_round_half_even, cfg.b5_timing)
     return rec
 
 
@@ -106,20 +128,24 @@ def episode_dtype(cfg: BusConfig) -> np.dtype:
         # the event list: n_ev events in slots 0..n_ev-1, last to be processed first; time, kind,
         # bus or stop
         ("n_ev", i4), ("ev_time", f8, cap), ("ev_kind", i4, cap), ("ev_arg", i4, cap),
-        # buses: discount anchor T, reward buffer, the running macro-action's observation and
-        # action, stop, load, decisions so far, request ticket while queued (else -1)
+        # buses: discount anchor T (start of the running action), reward buffer, the running
+        # macro-action's observation (h in seconds) and action, its observation time, whether its
+        # action has started, the headway (s) of its latest arrival, stop, load, decisions (= stop
+        # visits) so far, request ticket while queued (else -1)
         ("anchor", f8, n), ("buffer", f8, n), ("obs", f8, (n, OBS_DIM)), ("action", i4, n),
-        ("stop", i4, n), ("load", i4, n), ("n_dec", i4, n), ("ticket", i4, n),
-        # stops: last departure time, 1 while a bus holds the stop
+        ("t_obs", f8, n), ("started", np.int8, n), ("h", f8, n), ("stop", i4, n), ("load", i4, n),
+        ("n_dec", i4, n), ("ticket", i4, n),
+        # stops: last departure time (-1: none yet), 1 while a bus holds the stop
         ("departed", f8, k), ("busy", np.int8, k),
     ], align=True)
 
 
 def log_dtype(cfg: BusConfig) -> np.dtype:
     """One episode's records: each bus's closed macro-actions, one 64-byte float row each (the
-    integers in it are small, hence exact): observation, D_ACTION, D_REWARD, D_DURATION and D_TIME,
-    the time of the arrival that started it; and the bus of each arrival, in processing order.
-    Every arrival starts a macro-action, so this is the whole arrival record (see ``arrivals``)."""
+    integers in it are small, hence exact): observation (h in seconds), D_ACTION, D_REWARD,
+    D_DURATION and D_TIME, the time of the stop visit that started it; and the bus of each
+    observation, in processing order. Every stop visit starts a macro-action, so this is the whole
+    visit record (see ``arrivals``)."""
     n, m = cfg.n_buses, cfg.max_arrivals_per_bus
     return np.dtype([("dec", np.float64, (n, m, OBS_DIM + 4)), ("order", np.int32, n * m)],
                     align=True)
@@ -158,25 +184,63 @@ def _grant_stop(s, k, t):
 
 
 @jit
+def _headway(p, s, b, t):
+    """h (s) of bus b getting its stop at t (-1: unknown, under B2). Buses cannot overtake (FIFO
+    stops, one travel time for all), so the latest departure from the stop is that of the bus
+    ahead, B2's reference, whenever that bus has left the stop in this lap."""
+    dep = s.departed[s.stop[b]]
+    if not p.b2:
+        return t - max(dep, 0.0)  # the episode start if nobody has left yet
+    if s.n_dec[b] == 0 or dep < 0.0:
+        return -1.0
+    return t - dep
+
+
+@jit
+def _reward(p, k, h, visit):
+    """The reward of an arrival at stop k with headway h (s) at the bus's visit-th stop visit."""
+    if not p.b1:
+        d = h / 60.0 - p.headway
+        return -p.rate[k] * (d * d)  # as the reference: the correctly rounded square
+    if h <= 0.0 or visit <= 2:
+        return 0.0
+    d = h - p.headway_s
+    return -p.rate_s[k] * (d * d)
+
+
+@jit
 def _arrive(p, s, log, b, t):
-    """Bus b gets its stop: reward every agent, record the arrival, observe, await a decision."""
+    """Bus b gets its stop: headway, reward every agent; observe now, or (B5, after the first visit)
+    two same-instant steps later, when the released bus's service process and its wait end."""
     k = s.stop[b]
-    h = (t - s.departed[k]) / 60.0
-    d = h - p.headway
-    r = -p.rate[k] * (d * d)  # as the reference: the correctly rounded square
+    h = _headway(p, s, b, t)
+    s.h[b] = h
+    r = _reward(p, k, h, s.n_dec[b] + 1)
     s.ret += r
     for j in range(s.buffer.shape[0]):
         s.buffer[j] += np.exp(-p.gamma * (t - s.anchor[j])) * r
+    if p.b5 and s.n_dec[b] > 0 and not _alone_at(s, t):
+        _schedule(s, t, SERVED, b)
+    else:
+        _observe(p, s, log, b, t)
+
+
+@jit
+def _observe(p, s, log, b, t):
+    """Bus b observes: close its previous macro-action, await a decision."""
     log.order[s.n_arr] = b
     s.n_arr += 1
     n = s.n_dec[b]
-    if n > 0:  # the observation closes the previous macro-action
+    if n > 0:
         _close(s, log, b, t)
-    s.obs[b, 0] = k
-    s.obs[b, 1] = h
+    s.obs[b, 0] = s.stop[b]
+    s.obs[b, 1] = s.h[b]
     s.obs[b, 2] = s.load[b]
     s.obs[b, 3] = t - s.anchor[b]
-    s.anchor[b] = t
+    s.t_obs[b] = t
+    if not p.b5:
+        s.anchor[b] = t
+    s.started[b] = 0
     s.n_dec[b] = n + 1
     s.pending[s.n_pending] = b
     s.n_pending += 1
@@ -191,33 +255,88 @@ def _close(s, log, b, t):
     row[D_ACTION] = s.action[b]
     row[D_REWARD] = s.buffer[b]
     row[D_DURATION] = t - s.anchor[b]
-    row[D_TIME] = s.anchor[b]
+    row[D_TIME] = s.t_obs[b]
     s.buffer[b] = 0.0
 
 
 @jit
-def _alight_board(p, k, load, h):
-    """Passengers alighting U and boarding B at stop k, given the load and headway h at arrival."""
-    u = np.int64(np.floor(p.alight[k] * load + 0.5))
-    return u, min(np.int64(np.floor(p.rate[k] * h + 0.5)), p.l_max - load + u)
+def _h_obs(p, h):
+    """The observed headway: seconds under B2, else minutes."""
+    return h if p.b2 else h / 60.0
 
 
 @jit
-def _board(p, s, b, t):
-    """The decision is in: alight, board, and dwell plus hold (a DWELL event)."""
+def _round(p, x):
+    return np.int64(np.rint(x) if p.b4 else np.floor(x + 0.5))
+
+
+@jit
+def _alight_board(p, k, load, h, visit, t):
+    """Passengers alighting U and boarding B at stop k, given the load and headway h (s) at the
+    bus's visit-th stop visit, its service starting at t."""
+    u = _round(p, p.alight[k] * load)
+    if p.b3:
+        bd = _round(p, p.rate_s[k] * (h if visit > 2 else t))
+    else:
+        bd = _round(p, p.rate[k] * (h / 60.0))
+    return u, min(bd, p.l_max - (load - u))
+
+
+@jit
+def _serve(p, s, b, t):
+    """The action starts: alight, board, and dwell plus hold (a DWELL event; under B5 the hold is
+    a timeout of its own after the dwell's)."""
+    if p.b5:
+        s.anchor[b] = t
+    s.started[b] = 1
     load = s.load[b]
-    u, bd = _alight_board(p, s.stop[b], load, s.obs[b, 1])
+    u, bd = _alight_board(p, s.stop[b], load, s.h[b], s.n_dec[b], t)
     s.load[b] = load - u + bd
-    _schedule(s, t + (max(p.t_a * u, p.t_b * bd) + s.action[b] * p.t_hold), DWELL, b)
+    dwell = max(p.t_a * u, p.t_b * bd)
+    if p.b5:
+        if dwell == 0.0 and _alone_at(s, t):
+            _hold(p, s, b, t)
+        else:
+            _schedule(s, t + dwell, DWELL, b)
+    else:
+        _schedule(s, t + (dwell + s.action[b] * p.t_hold), DWELL, b)
+
+
+@jit
+def _alone_at(s, t):
+    """No event is scheduled at t (the current time): an event scheduled now at t would be the
+    next one processed, so it may be processed at once (same order, fewer steps)."""
+    return s.n_ev == 0 or s.ev_time[s.n_ev - 1] > t
+
+
+@jit
+def _hold(p, s, b, t):
+    """B5: the dwell's timeout is over; the hold's timeout (HOLD), or leave at once if it is 0."""
+    hold = s.action[b] * p.t_hold
+    if hold == 0.0 and _alone_at(s, t):
+        _depart(p, s, b, t)
+    else:
+        _schedule(s, t + hold, HOLD, b)
+
+
+@jit
+def _depart(p, s, b, t):
+    """Leave the stop, free it, travel on."""
+    k = s.stop[b]
+    s.departed[k] = t
+    s.busy[k] = 0
+    _schedule(s, t, RELEASE, k)
+    _schedule(s, t + p.rt, TRAVEL, b)
 
 
 @jit
 def _end_episode(p, s, log):
-    """Cut every running macro-action at the horizon."""
+    """Cut every running macro-action at the horizon (one whose action has not started yet, under
+    B5, lasts 0 s, as in the released code)."""
     s.done = True
     for b in range(s.n_dec.shape[0]):
         if s.n_dec[b] > 0:
-            _close(s, log, b, p.horizon)
+            _close(s, log, b, p.horizon if s.started[b] else s.anchor[b])
 
 
 @jit
@@ -245,14 +364,16 @@ def _run_episode(p, s, log):
             _grant_stop(s, arg, t)
         elif kind == GRANT:
             _arrive(p, s, log, arg, t)
-        elif kind == DECISION:
-            _board(p, s, arg, t)
-        else:  # DWELL: depart, free the stop, travel on
-            k = s.stop[arg]
-            s.departed[k] = t
-            s.busy[k] = 0
-            _schedule(s, t, RELEASE, k)
-            _schedule(s, t + p.rt, TRAVEL, arg)
+        elif kind == SERVED:
+            _schedule(s, t, WAITED, arg)
+        elif kind == WAITED:
+            _observe(p, s, log, arg, t)
+        elif kind == DECISION or kind == LATENCY:
+            _serve(p, s, arg, t)
+        elif kind == DWELL and p.b5:
+            _hold(p, s, arg, t)
+        else:  # DWELL without B5, HOLD: depart
+            _depart(p, s, arg, t)
 
 
 @jit
@@ -277,13 +398,19 @@ def _advance(actions, params, states, logs, obs, ids):
             b = s.pending[q]
             s.action[b] = actions[row]
             row += 1
-            _schedule(s, s.now, DECISION, b)
+            # B5: the DECISION events would be the instant's last, each scheduling its latency
+            # timeout and nothing else; so the timeouts are scheduled at once, in the same order
+            if p.b5:
+                _schedule(s, s.now + p.latency, LATENCY, b)
+            else:
+                _schedule(s, s.now, DECISION, b)
         s.n_pending = 0
         _run_episode(p, s, logs[e])
         for q in range(s.n_pending):
             b = s.pending[q]
             for i in range(OBS_DIM):
                 obs[rows, i] = s.obs[b, i]
+            obs[rows, 1] = _h_obs(p, s.obs[b, 1])
             ids[EPISODE, rows] = e
             ids[AGENT, rows] = b
             ids[INDEX, rows] = s.n_dec[b] - 1
@@ -301,6 +428,7 @@ class BusBatch:
         self._params = params_record(cfg)
         st = self._states = np.zeros(e, episode_dtype(cfg))
         st["ticket"] = -1
+        st["departed"] = -1.0
         # SimPy starts one process per bus with an URGENT initialisation event, in bus order.
         st["n_ev"] = n
         st["ev_kind"][:, :n] = INIT
@@ -343,16 +471,16 @@ class BusBatch:
         return self._decisions
 
     def arrivals(self) -> dict[str, np.ndarray]:
-        """Every arrival of every episode, in processing order: episode, time (s), bus, stop
-        (0-based), h (min), load at arrival, alighting U and boarding B."""
+        """Every served stop visit of every episode (a bus's start at Stop 1 included), in the
+        order of the observations: episode, time (s) of the arrival, bus, stop (0-based), h (min;
+        NaN where B2 has none), load at arrival, alighting U and boarding B."""
         require(bool(self.done.all()), "arrivals", "taken after every episode has ended")
-        counts = self._states["n_arr"]
-        d = int(counts.sum())
+        d = int(self._states["n_arr"].sum())
         time, h = np.empty(d), np.empty(d)
         ints = np.empty((6, d), np.int64)
-        _arrivals(self._params, self._logs, counts, time, h, ints)
-        return dict(episode=ints[0], time=time, bus=ints[1], stop=ints[2], h=h, load=ints[3],
-                    alight=ints[4], board=ints[5])
+        d = _arrivals(self._params, self._states, self._logs, time, h, ints)
+        return dict(episode=ints[0, :d], time=time[:d], bus=ints[1, :d], stop=ints[2, :d],
+                    h=h[:d], load=ints[3, :d], alight=ints[4, :d], board=ints[5, :d])
 
     def to_rollout(self) -> Rollout:
         require(bool(self.done.all()), "rollout", "taken after every episode has ended")
@@ -362,7 +490,7 @@ class BusBatch:
         d = int(lengths.sum())
         obs, rewards, durations = np.empty((d, OBS_DIM)), np.empty(d), np.empty(d)
         actions = np.empty(d, np.int64)
-        _decisions(self._logs, n_dec, obs, actions, rewards, durations)
+        _decisions(self._params, self._logs, n_dec, obs, actions, rewards, durations)
         return Rollout(
             obs=obs, actions=actions, rewards=rewards, durations=durations,
             path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
@@ -400,9 +528,10 @@ def _gathered(obs: np.ndarray, ids: np.ndarray, rows: int) -> DecisionBatch:
 
 
 @jit
-def _decisions(logs, n_dec, obs, actions, rewards, durations):
+def _decisions(params, logs, n_dec, obs, actions, rewards, durations):
     """Every closed macro-action's row into the rollout's columns, path by path (a compiled loop:
     numpy's boolean-mask indexing took a quarter of a rollout)."""
+    p = params[0]
     o = 0
     for e in range(logs.shape[0]):
         dec = logs[e].dec
@@ -411,6 +540,7 @@ def _decisions(logs, n_dec, obs, actions, rewards, durations):
                 row = dec[b, i]
                 for w in range(OBS_DIM):
                     obs[o, w] = row[w]
+                obs[o, 1] = _h_obs(p, row[1])
                 actions[o] = np.int64(row[D_ACTION])
                 rewards[o] = row[D_REWARD]
                 durations[o] = row[D_DURATION]
@@ -418,27 +548,33 @@ def _decisions(logs, n_dec, obs, actions, rewards, durations):
 
 
 @jit
-def _arrivals(params, logs, n_arr, time, h, ints):
-    """Every arrival's fields, from the macro-action it started (the bus's next one, in order):
-    ``ints`` rows episode, bus, stop, load, U and B (the latter two as ``_board`` computed them)."""
+def _arrivals(params, states, logs, time, h, ints):
+    """Every served visit's fields, from the macro-action its observation started (the bus's next
+    one, in order): ``ints`` rows episode, bus, stop, load, U and B (as ``_serve`` computed them).
+    A last decision whose action never started (B5, at the horizon) served nobody: left out.
+    Returns the number of rows."""
     p = params[0]
     o = 0
     for e in range(logs.shape[0]):
-        log = logs[e]
+        log, s = logs[e], states[e]
         seen = np.zeros(log.dec.shape[0], np.int64)
-        for i in range(n_arr[e]):
+        for i in range(s.n_arr):
             b = log.order[i]
             row = log.dec[b, seen[b]]
             seen[b] += 1
-            k, load = np.int64(row[0]), np.int64(row[2])
+            if seen[b] == s.n_dec[b] and not s.started[b]:
+                continue
+            k, load, h_s = np.int64(row[0]), np.int64(row[2]), row[1]
             time[o] = row[D_TIME]
-            h[o] = row[1]
+            h[o] = np.nan if p.b2 and h_s == -1.0 else h_s / 60.0
             ints[0, o] = e
             ints[1, o] = b
             ints[2, o] = k
             ints[3, o] = load
-            ints[4, o], ints[5, o] = _alight_board(p, k, load, row[1])
+            start = row[D_TIME] + p.latency if p.b5 else row[D_TIME]
+            ints[4, o], ints[5, o] = _alight_board(p, k, load, h_s, seen[b], start)
             o += 1
+    return o
 
 
 def drive(batch: Any, policy: Policy) -> None:

@@ -1,7 +1,8 @@
-"""What the bus figures and claims measure: arrival tables, 4th-cycle loads, time to regularity.
+"""What the bus figures and claims measure: arrival tables, the paper's load records, time to
+regularity.
 
-A bus's c-th cycle is its c-th visit to Stops 1..K (its arrivals (c-1) K + 1 .. c K, counting from
-its first arrival at Stop 1 at the start of the episode).
+A bus's r-th record is its r-th stop visit, its start at Stop 1 being the first (as the released
+simulator records them); its c-th cycle is records (c-1) K + 1 .. c K.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from repro.core.rollout import Rollout
+from repro.envs.bus.paper_data import PAPER_RECORDS
 
 REGULARITY_BAND_MIN = 1.0
 """Half-width (minutes) of the headway band around H that counts as regular."""
@@ -20,26 +22,51 @@ REGULARITY_MIN_TAIL = 60
 
 
 def arrival_table(rollout: Rollout, n_stops: int) -> pd.DataFrame:
-    """One row per arrival: episode, time_s, time_min, bus, stop (1-based), cycle (1-based), h_min,
-    load (at arrival), alight, board; ordered by episode then processing order."""
+    """One row per served stop visit: episode, time_s, time_min, bus, stop (1-based), record and
+    cycle (1-based), h_min (NaN: unknown under B2), load (at arrival), alight, board; ordered by
+    episode then processing order."""
     a = rollout.info["arrivals"]
     df = pd.DataFrame({"episode": a["episode"], "time_s": a["time"], "time_min": a["time"] / 60.0,
                        "bus": a["bus"] + 1, "stop": a["stop"] + 1, "h_min": a["h"],
                        "load": a["load"], "alight": a["alight"], "board": a["board"]})
-    df["cycle"] = df.groupby(["episode", "bus"]).cumcount() // n_stops + 1
+    df["record"] = df.groupby(["episode", "bus"]).cumcount() + 1
+    df["cycle"] = (df.record - 1) // n_stops + 1
     return df
 
 
-def cycle_loads(arrivals: pd.DataFrame, cycle: int = 4) -> pd.DataFrame:
-    """Load at arrival of every bus at every stop in its ``cycle``-th cycle (one episode's table):
-    rows bus, stop, load, and rank = the bus's place in the order of arrival at Stop 1 in that
-    cycle (0 = the leader)."""
-    c = arrivals[arrivals.cycle == cycle]
-    first = c[c.stop == 1].sort_values("time_s")
-    rank = {b: r for r, b in enumerate(first.bus)}
-    out = c[["bus", "stop", "load"]].sort_values(["bus", "stop"]).reset_index(drop=True)
-    out["rank"] = out.bus.map(rank).astype("int64")
-    return out
+def record_loads(arrivals: pd.DataFrame, records=PAPER_RECORDS) -> pd.DataFrame:
+    """Load at arrival of every bus at its ``records`` (default: those the paper's load figure
+    shows), from one episode's table: columns bus, record, stop, load."""
+    sel = arrivals[arrivals.record.isin(records)]
+    return sel[["bus", "record", "stop", "load"]].sort_values(["bus", "record"]).reset_index(
+        drop=True)
+
+
+def l1_per_point(table: pd.DataFrame) -> float:
+    """Mean |ours - paper| over the paper's points, from one policy's rows of bus_load.csv
+    (columns source, bus, record, load); NaN if one of our points is missing."""
+    paper, ours = table[table.source == "paper"], table[table.source == "ours"]
+    both = paper.merge(ours, on=["bus", "record"], how="left", suffixes=("_p", "_o"))
+    return float((both.load_p - both.load_o).abs().mean(skipna=False))
+
+
+UNIFORM_WINDOW_MIN = 30.0
+"""Width (minutes) of the windows in which :func:`time_to_uniform` counts headways."""
+
+
+def time_to_uniform(arrivals: pd.DataFrame, headway_min: float,
+                    band_min: float = REGULARITY_BAND_MIN, share: float = REGULARITY_SHARE,
+                    window_min: float = UNIFORM_WINDOW_MIN) -> float:
+    """Minutes from the episode start until the arrivals first look uniform (one episode's
+    table): the start of the first window (0, 30, 60, ... min) in which at least ``share`` of the
+    known headways lie within H +- band; NaN if there is none. The paper says when each policy
+    "achieves" uniformity, judged from its arrival figure: a first time, which later stray
+    windows do not undo (:func:`time_to_regularity` asks for it to last)."""
+    known = arrivals[arrivals.h_min.notna()]
+    ok = (np.abs(known.h_min - headway_min) <= band_min).groupby(
+        (known.time_min // window_min).astype(int)).mean()
+    hit = ok.index[ok.to_numpy() >= share]
+    return float(hit[0] * window_min) if len(hit) else float("nan")
 
 
 def time_to_regularity(arrivals: pd.DataFrame, headway_min: float,
@@ -62,6 +89,6 @@ def time_to_regularity(arrivals: pd.DataFrame, headway_min: float,
     return float(arrivals.time_min.to_numpy()[np.argmax(regular)])
 
 
-def load_variance_per_stop(loads: pd.DataFrame) -> pd.Series:
-    """Variance over buses of the load at arrival, per stop (from :func:`cycle_loads`)."""
-    return loads.groupby("stop").load.var(ddof=0)
+def load_variance_per_record(loads: pd.DataFrame) -> pd.Series:
+    """Variance over buses of the load at arrival, per record (from :func:`record_loads`)."""
+    return loads.groupby("record").load.var(ddof=0)

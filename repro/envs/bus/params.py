@@ -1,12 +1,20 @@
-"""Parameters of the bus corridor (SPEC section 5.1, paper Table "bbparams")."""
+"""Parameters of the bus corridor (SPEC section 5.1, paper Table "bbparams"), and the switches B1-B5
+between the authors' released simulator (the default) and the paper's prose (SPEC 5.2, 5.5)."""
 
 from __future__ import annotations
 
 import math
 import numbers
 from dataclasses import dataclass
+from typing import ClassVar
 
 from repro.core.errors import require
+
+DECISION_LATENCY = 1e-5
+"""Seconds between a bus's observation and the start of its action under B5 (the released
+simulator's ACTION_WAIT_TIME, as in the wildfire)."""
+SWITCHES = ("b1_reward", "b2_headway", "b3_boarding", "b4_round_half_even", "b5_timing")
+"""The BusConfig fields of B1-B5: True follows the released simulator, False the paper's prose."""
 
 
 @dataclass(frozen=True)
@@ -39,6 +47,28 @@ class BusConfig:
     """Episode length (s): arrivals at t < horizon count; running macro-actions are then cut."""
     gamma: float = 1e-5
     """Continuous-time discount rate (1/s) inside macro-actions and for M-GAE (paper Table 2)."""
+    b1_reward: bool = True
+    """B1, released reward: an arrival gives every agent -nu_k (h - H)^2 in pax/s and seconds (60
+    times the minutes reading), and nothing when h <= 0 or at a bus's first two stop visits (its
+    start at Stop 1 and its first arrival by travel). Off: -nu_k (h - H)^2 in pax/min and minutes
+    at every visit, the start at Stop 1 included."""
+    b2_headway: bool = True
+    """B2, released headway: h = arrival time minus the latest departure of the bus ahead (Bus N
+    for Bus 1) from the stop, -1 if it has not left the stop yet and at a bus's start at Stop 1;
+    observed in seconds. Off: h = arrival time minus the latest departure of any bus (episode
+    start if none yet), observed in minutes."""
+    b3_boarding: bool = True
+    """B3, released boarding: B = round(nu_k hb) capped by the free seats, hb the current time at a
+    bus's first two stop visits and h from the third on (nu_k in pax/s, so h = -1 boards nobody).
+    Off: hb = h at every visit (nu_k in pax/min, h in minutes)."""
+    b4_round_half_even: bool = True
+    """B4: U and B rounded half to even (Python's round). Off: half up, floor(x + 0.5)."""
+    b5_timing: bool = True
+    """B5, released decision timing: a bus observes two same-instant SimPy steps after it gets the
+    stop (its service process ends, then the wait for it), its action starts DECISION_LATENCY later
+    (it keeps the stop meanwhile; the macro-action and its discounting start then), and dwell and
+    hold are two timeouts. Off: it observes on getting the stop and acts at once, dwell + hold in
+    one timeout."""
 
     def __post_init__(self) -> None:
         for name, low in (("n_buses", 1), ("n_stops", 2), ("l_max", 1), ("n_actions", 1)):
@@ -63,6 +93,25 @@ class BusConfig:
         # 0 (no discounting) is a valid corridor; training needs gamma > 0 (the trainer checks)
         require(self.gamma >= 0.0 and math.isfinite(self.gamma), "--gamma",
                 "a number >= 0 (> 0 to train)", self.gamma)
+        for name in SWITCHES:
+            require(isinstance(getattr(self, name), bool), name, "True or False",
+                    getattr(self, name))
+
+    BEFORE_ADDED: ClassVar[dict[str, bool]] = dict.fromkeys(SWITCHES, False)
+    """Runs recorded before B1-B5 existed (issue 23) ran the corrected semantics."""
+
+    @classmethod
+    def corrected(cls, **fields) -> BusConfig:
+        """The paper's prose: B1-B5 all off (``--corrected``), other fields as given."""
+        return cls(**{**dict.fromkeys(SWITCHES, False), **fields})
+
+    @property
+    def semantics(self) -> str:
+        """'released' (B1-B5 on), 'corrected' (all off), else the switches on, e.g. 'b1-b4'."""
+        on = [name for name in SWITCHES if getattr(self, name)]
+        if len(on) == len(SWITCHES):
+            return "released"
+        return "-".join(name.split("_")[0] for name in on) or "corrected"
 
     @property
     def max_arrivals_per_bus(self) -> int:

@@ -26,7 +26,9 @@ class BusAECEnv(AECEnv):
         self.cfg = cfg or BusConfig()
         self.possible_agents = [f"bus_{i}" for i in range(self.cfg.n_buses)]
         high = np.array([self.cfg.n_stops - 1, np.inf, self.cfg.l_max, np.inf])
-        self.observation_spaces = {a: spaces.Box(np.zeros(OBS_DIM), high, dtype=np.float64)
+        # B2 reports an unknown headway as -1
+        low = np.array([0.0, -1.0 if self.cfg.b2_headway else 0.0, 0.0, 0.0])
+        self.observation_spaces = {a: spaces.Box(low, high, dtype=np.float64)
                                    for a in self.possible_agents}
         self.action_spaces = {a: spaces.Discrete(self.cfg.n_actions) for a in self.possible_agents}
 
