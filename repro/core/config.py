@@ -30,3 +30,10 @@ def for_scale(cls: type[C], scale: str, **overrides: Any) -> C:
 def to_dict(cfg: Any) -> dict[str, Any]:
     """A JSON-ready dict of a (possibly nested) dataclass config."""
     return dataclasses.asdict(cfg)
+
+
+def saved_defaults(config_type: type) -> dict[str, Any]:
+    """What a run recorded before a setting existed held for it: its default, unless the config
+    class names another value in ``BEFORE_ADDED`` (e.g. a switch whose default changed when it
+    was added)."""
+    return {**to_dict(config_type()), **getattr(config_type, "BEFORE_ADDED", {})}

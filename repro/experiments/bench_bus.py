@@ -16,6 +16,7 @@ from repro.envs.bus import BusConfig, make_env, make_reference_env
 from repro.envs.bus.policies import no_holding
 from repro.experiments import bench_common
 from repro.experiments.bench_common import BenchConfig, add_arguments
+from repro.learn.trained_policy import trained_env_config
 
 __all__ = ["BusBenchConfig", "add_arguments", "measure", "run"]
 
@@ -30,7 +31,7 @@ class BusBenchConfig(BenchConfig):
 def measure(cfg: BusBenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
     """``trained``: a loaded checkpoint of a bus run (``trainer.load_trained_run``)."""
     env_cfg = (BusConfig() if trained is None
-               else bench_common.trained_env_config(trained, BusConfig))
+               else trained_env_config(trained, BusConfig))
     return bench_common.measure(make_env(env_cfg), make_reference_env(env_cfg), "nohold",
                                 lambda env, rng: no_holding, cfg, seed, trained)
 

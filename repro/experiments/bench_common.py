@@ -37,7 +37,7 @@ import argparse
 import os
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, TypeVar
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
@@ -52,9 +52,7 @@ from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_o
 from repro.envs import env_package, train_defaults
 from repro.learn.config import TrainConfig
 from repro.learn.trained_policy import load_trained_run, policy_from_state
-from repro.learn.trainer import saved_defaults
 
-C = TypeVar("C")
 
 CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
 """Makes an environment's cheap policy from the benchmark's random source."""
@@ -126,13 +124,6 @@ def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int)
                 decisions_per_cpu_second=np.median(d / cpu),
                 episodes_per_cpu_second=np.median(episodes / cpu),
                 engine_decisions_per_cpu_second=np.median(d / (cpu - policy_cpu)))
-
-
-def trained_env_config(state: dict[str, Any], config: type[C]) -> C:
-    """The environment settings of a checkpoint's run as ``config`` (settings newer than the run
-    keep their defaults, as when it resumes)."""
-    saved = {**saved_defaults(config), **(state["run_config"]["env"] or {})}
-    return config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
 
 
 def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,

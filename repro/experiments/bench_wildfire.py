@@ -18,6 +18,7 @@ from repro.envs.wildfire import WildfireConfig, make_env, make_reference_env
 from repro.envs.wildfire.policies import RandomPolicy
 from repro.experiments import bench_common
 from repro.experiments.bench_common import BenchConfig, add_arguments
+from repro.learn.trained_policy import trained_env_config
 
 __all__ = ["WildfireBenchConfig", "add_arguments", "measure", "run"]
 
@@ -33,7 +34,7 @@ def measure(cfg: WildfireBenchConfig, seed: int,
             trained: dict[str, Any] | None = None) -> pd.DataFrame:
     """``trained``: a loaded checkpoint of a wildfire run (``trainer.load_trained_run``)."""
     env_cfg = (WildfireConfig() if trained is None
-               else bench_common.trained_env_config(trained, WildfireConfig))
+               else trained_env_config(trained, WildfireConfig))
     return bench_common.measure(
         make_env(env_cfg), make_reference_env(env_cfg), "random",
         lambda env, rng: RandomPolicy(rng, n_observed=env_cfg.n_observed), cfg, seed, trained)

@@ -22,7 +22,7 @@ from repro.core.rollout import Policy
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, arrival_table, record_loads,
                                     time_to_regularity, time_to_uniform)
-from repro.envs.bus.policies import POLICIES, make_policy
+from repro.experiments.bus_policies import POLICIES, make_policy
 
 PICTURE_HORIZON = 6 * 3600.0
 """The episode length of the paper's bus pictures (s): the released code's PLOTTING runs."""

@@ -38,7 +38,8 @@ from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
-from repro.envs.bus.policies import ThresholdPolicy, no_holding, read_thresholds
+from repro.envs.bus.policies import ThresholdPolicy, no_holding
+from repro.experiments.bus_policies import read_thresholds
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_dir, run_sweep)
 from repro.learn.config import train_config

@@ -26,7 +26,8 @@ from repro.core.config import for_scale, to_dict
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
-from repro.envs.bus.policies import AUTHORS_THRESHOLDS, THRESHOLDS_CSV, ThresholdPolicy
+from repro.envs.bus.policies import AUTHORS_THRESHOLDS, ThresholdPolicy
+from repro.experiments.bus_policies import THRESHOLDS_CSV
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from repro.experiments.options import add_common
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.envs.bus import add_switch_arguments, config_from_args
-from repro.envs.bus.policies import POLICIES, best_run
+from repro.experiments.bus_policies import POLICIES, best_run
 from repro.experiments.bus_eval import picture_arrivals, policy_from_args
 
 TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",

@@ -26,7 +26,7 @@ from repro.core.io import provenance, save_figure, write_result
 from repro.envs.bus import BusConfig, config_from_args
 from repro.envs.bus.metrics import l1_per_point, record_loads
 from repro.envs.bus.params import SWITCHES
-from repro.envs.bus.policies import LAMBDA_SUMMARY_CSV, GreedyPolicy, make_policy
+from repro.experiments.bus_policies import LAMBDA_SUMMARY_CSV, GreedyPolicy, make_policy
 from repro.experiments.bus_eval import picture_arrivals
 from repro.envs.bus.paper_data import PAPER_RECORDS, PAPER_STOPS, paper_loads
 from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, TITLES, add_policy_arguments,

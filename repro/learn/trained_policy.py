@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from repro.core.errors import require
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn.run_folder import CHECKPOINT, load_checkpoint
+from repro.core.config import saved_defaults
+
+C = TypeVar("C")
 
 
 def load_trained_run(path: str | Path, env_name: str,
@@ -38,3 +41,10 @@ def policy_from_state(state: dict[str, Any], rng: np.random.Generator) -> Sample
     normalizer = ObsNormalizer(obs_dim)
     normalizer.load_state_dict(state["normalizer"])
     return Sampler(policy, normalizer, rng)
+
+
+def trained_env_config(state: dict[str, Any], config: type[C]) -> C:
+    """The environment settings of a checkpoint's run as ``config`` (settings newer than the run
+    keep their defaults, as when it resumes)."""
+    saved = {**saved_defaults(config), **(state["run_config"]["env"] or {})}
+    return config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})

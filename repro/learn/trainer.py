@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from repro.core.config import to_dict
+from repro.core.config import saved_defaults, to_dict
 from repro.core.errors import require
 from repro.core.io import provenance, write_json
 from repro.core.memory import keep_freed_memory
@@ -201,13 +201,6 @@ class Trainer:
         if state is not None:
             self.load_state_dict(state)
         return epochs
-
-
-def saved_defaults(config_type: type) -> dict[str, Any]:
-    """What a run recorded before a setting existed held for it: its default, unless the config
-    class names another value in ``BEFORE_ADDED`` (e.g. a switch whose default changed when it
-    was added)."""
-    return {**to_dict(config_type()), **getattr(config_type, "BEFORE_ADDED", {})}
 
 
 def _default_like(env_config: Any) -> Any:
