@@ -56,19 +56,20 @@ def assert_same(ref: Rollout, fast: Rollout) -> None:
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2 ** 32 - 1), dt=st.sampled_from(DTS),
        t_health=st.sampled_from((3.0, 2.9999)), q1=st.booleans(), q2=st.booleans(),
-       q3=st.booleans(), q4=st.booleans(), q5=st.booleans(),
+       q3=st.booleans(), q4=st.booleans(), q5=st.booleans(), q6=st.booleans(),
        order=st.sampled_from(SAME_INSTANT_ORDERS), round_neg=st.booleans(),
        cut_goes_on=st.booleans(), ranking_resolution=st.sampled_from((1e-9, 0.0)),
        kind=st.sampled_from(("scripted", "random", "nearest", "flowchart")),
        max_decisions=st.sampled_from((None, None, 1, 3, 12)),
        gamma=st.sampled_from((0.02, 0.02, 0.05)))  # gamma also sets the episode cap T_max
-def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, q3, q4, q5, order,
+def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, q3, q4, q5, q6, order,
                                             round_neg, cut_goes_on, ranking_resolution, kind,
                                             max_decisions, gamma):
     cfg = WildfireConfig(dt=dt, t_health=t_health, quirk_q1_stale_attack=q1,
                          quirk_q2_penalty_party_only=q2, quirk_q3_unclamped_health=q3,
                          quirk_q4_latency_not_interrupted=q4,
-                         quirk_q5_discount_from_action_start=q5, same_instant_order=order,
+                         quirk_q5_discount_from_action_start=q5, quirk_q6_short_flight_stays=q6,
+                         same_instant_order=order,
                          fs_round_negative_delays=round_neg, cut_flight_continues=cut_goes_on,
                          ranking_resolution=ranking_resolution, max_decisions=max_decisions,
                          gamma=gamma)

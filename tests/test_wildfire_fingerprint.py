@@ -19,7 +19,7 @@ from repro.envs.wildfire.policies import POLICIES
 BEFORE = dict(quirk_q3_unclamped_health=False, quirk_q4_latency_not_interrupted=False,
               quirk_q5_discount_from_action_start=False, same_instant_order="scheduling",
               ranking_resolution=0.0, fs_round_negative_delays=False,
-              cut_flight_continues=False)
+              cut_flight_continues=False, quirk_q6_short_flight_stays=False)
 """The switches' settings that give the semantics of before issue 18."""
 CONFIGS = {  # name: (policy, config)
     "ED random": ("random", dict()),

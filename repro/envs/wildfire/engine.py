@@ -93,14 +93,16 @@ def params_record(cfg: WildfireConfig) -> np.ndarray:
         ("r_ext", np.float64), ("r_pen", np.float64), ("t_health", np.float64),
         ("t_max", np.float64), ("max_dec", np.int64), ("rank_res", np.float64),
         ("q1", np.bool_), ("q2", np.bool_), ("q3", np.bool_), ("q4", np.bool_), ("q5", np.bool_),
-        ("released", np.bool_), ("round_neg", np.bool_), ("cut_goes_on", np.bool_),
+        ("q6", np.bool_), ("released", np.bool_), ("round_neg", np.bool_),
+        ("cut_goes_on", np.bool_),
         ("fires", np.float64, fires.shape)], align=True))
     rec[0] = (cfg.n_agents, len(fires), cfg.n_observed, cfg.v_uav, cfg.dt or 0.0,
               cfg.decision_latency, cfg.at_fire_tol, cfg.gamma, cfg.r_ext, cfg.r_pen,
               cfg.t_health, cfg.t_max, cfg.max_decisions or 0, cfg.ranking_resolution,
               cfg.quirk_q1_stale_attack, cfg.quirk_q2_penalty_party_only,
               cfg.quirk_q3_unclamped_health, cfg.quirk_q4_latency_not_interrupted,
-              cfg.quirk_q5_discount_from_action_start, cfg.same_instant_order == "released",
+              cfg.quirk_q5_discount_from_action_start, cfg.quirk_q6_short_flight_stays,
+              cfg.same_instant_order == "released",
               cfg.fs_round_negative_delays, cfg.cut_flight_continues, fires)
     return rec
 
@@ -259,6 +261,8 @@ def _position(s, p, i):
     if not s.flying[i]:
         return s.pos[i, 0], s.pos[i, 1]
     length = s.length[i]
+    if p.q6 and length < p.tol:
+        return s.origin[i, 0], s.origin[i, 1]
     if length == 0:
         return s.goal[i, 0], s.goal[i, 1]
     frac = min(1.0, p.v * (s.now - s.t_dep[i]) / length)
@@ -398,7 +402,7 @@ def _land(s, p, i, cut):
     """The flight ends now: at its goal if it finished, else where it got to."""
     if not s.flying[i]:
         return
-    if cut:
+    if cut or (p.q6 and s.length[i] < p.tol):
         s.pos[i, 0], s.pos[i, 1] = _position(s, p, i)
     else:
         s.pos[i, 0], s.pos[i, 1] = s.goal[i, 0], s.goal[i, 1]

@@ -91,6 +91,11 @@ class WildfireConfig:
     a UAV at a fire sees its two cluster-mates at the same distance up to round-off, and this
     ranks them by index, whatever the round-off. A deliberate deviation: the released code ranks
     them by floating-point noise. 0: exact distances (before issue 18; the noise decides)."""
+    quirk_q6_short_flight_stays: bool = True
+    """Q6: a flight shorter than ``at_fire_tol`` takes its travel time but leaves the UAV where it
+    was (released implementation: its position is the action's start while that is within 1e-3 m
+    of the goal). E.g. a UAV cut 0.7 mm after leaving a fire, that flies back to it, stays 0.7 mm
+    off (close enough to hold there). False: it lands at the goal."""
     same_instant_order: str = "released"
     """Order of events at one instant. "released": the order of the released implementation's
     process structure (a macro-action's end reaches its UAV through its action process and an

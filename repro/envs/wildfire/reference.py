@@ -241,14 +241,20 @@ class WildfireModel:
     def _land(self, i: int, cut: bool) -> None:
         """The flight ends now: at its goal if it finished, else where it got to."""
         if self.flight[i] is not None:
-            self.pos[i] = self._position(i) if cut else self.flight[i][1]
+            self.pos[i] = self._position(i) if cut or self._stays(i) else self.flight[i][1]
             self.flight[i] = None
+
+    def _stays(self, i: int) -> bool:
+        """Whether UAV i's flight leaves it at its origin (quirk Q6)."""
+        return self.cfg.quirk_q6_short_flight_stays and self.flight[i][3] < self.cfg.at_fire_tol
 
     def _position(self, i: int) -> tuple:
         """Where UAV i is now: on its flight's segment, or where it landed."""
         if self.flight[i] is None:
             return self.pos[i]
         origin, goal, t0, length = self.flight[i]
+        if self._stays(i):
+            return origin
         if length == 0:
             return goal
         frac = min(1.0, self.cfg.v_uav * (self.env.now - t0) / length)
