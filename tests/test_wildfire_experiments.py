@@ -12,6 +12,7 @@ from repro.envs.wildfire.policies import (FLOWCHART_HOLD_ALONE, FLOWCHART_HOLD_S
                                           FLOWCHART_TARGET, FlowchartPolicy)
 from repro.experiments.sweep import run_sweep
 from repro.experiments.transfer import PAPER, TransferConfig, make_jobs, evaluate_policies
+from repro.envs.wildfire import QUIRKS
 from repro.experiments.wildfire_behaviour import frequencies
 from repro.experiments.wildfire_eval import evaluate
 from tests.conftest import tree_snapshot
@@ -23,10 +24,13 @@ def test_simulators_are_the_papers():
     assert [s.dt for s in sims.values()] == [None, *(10.0 ** x for x in (-1, -0.5, 0, 0.5, 1)),
                                              1.0]
     assert [s.t_health for s in sims.values()] == [3.0] * 6 + [2.9999]
-    assert all(s.quirk_q1_stale_attack and s.quirk_q2_penalty_party_only for s in sims.values())
+    assert len(QUIRKS) == 6
+    assert all(getattr(s, q) for s in sims.values() for q in QUIRKS)
     corrected = TransferConfig(corrected=True)
-    assert not any(s.quirk_q1_stale_attack or s.quirk_q2_penalty_party_only
-                   for s in [*corrected.simulators().values(), corrected.test_simulator()])
+    corrected_sims = [*corrected.simulators().values(), corrected.test_simulator()]
+    assert not any(getattr(s, q) for s in corrected_sims for q in QUIRKS)
+    # the same-instant order is not a quirk: the corrected semantics keep the released one
+    assert all(s.same_instant_order == "released" for s in [*sims.values(), *corrected_sims])
     assert corrected.test_simulator().dt is None and corrected.test_simulator().t_health == 3.0
 
 

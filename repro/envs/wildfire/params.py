@@ -179,6 +179,12 @@ class WildfireConfig:
         return "ED" if self.dt is None else f"FS-{self.dt:g}"
 
 
+QUIRKS = tuple(f for f in WildfireConfig.__dataclass_fields__ if f.startswith("quirk_"))
+"""The released implementation's quirks Q1-Q6: all on by default, all off in the corrected
+semantics (the paper's prose). The same-instant order, the FS rounding of negative delays and
+cut flights going on stay as released; they are not quirks."""
+
+
 def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
     """(9, 2) fire locations: cluster A, then A rotated by +120 deg (B) and by -120 deg (C).
 
