@@ -98,11 +98,12 @@ class WildfireModel:
         self.t_end = math.nan
         self.events = 0
         self.joins = 0
-        self.fire_out = [self.env.event() for _ in range(k)]
         self.fire_procs = [self.env.process(self._fire(j)) for j in range(k)]
         self.uav_procs = [self.env.process(self._uav(i)) for i in range(n)]
         self.over = self.env.event()  # the episode ended (what a UAV's AnyOf also waits on)
         if self.released:
+            self.fire_out = [self.env.event() for _ in range(k)]
+            # as the released code runs until (all fires out) or (T_max)
             ending = self.env.all_of(self.fire_out) | self.env.timeout(cfg.t_max)
             ending.callbacks.append(lambda _: self._end())
         else:
