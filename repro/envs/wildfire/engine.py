@@ -194,6 +194,17 @@ def _heap_insert(s, t, key):
 
 
 @jit
+def _next_anyway(s, prio):
+    """Whether an event pushed now with priority ``prio`` would be the next one: then a hop can
+    run at once instead (the released order's chains of hops mostly do, in ED)."""
+    if s.lane:
+        return False
+    if s.hn == 0 or s.ht[0] > s.now:
+        return True
+    return prio == URGENT and (s.hkey[0] >> PRIO_SHIFT) == NORMAL
+
+
+@jit
 def _next_key(s):
     """The key of the next event."""
     return s.lane_key if s.lane else s.hkey[0]
@@ -457,6 +468,15 @@ def _extinguish(s, p, j):
 
 
 @jit
+def _fire_out(s, log, p, j):
+    """Released order: fire j's burn sub-process ended, the fire goes out; after the last one the
+    conditions "fire out", "all out", "all out or T_max" trigger in turn."""
+    _extinguish(s, p, j)
+    if s.n_alive == 0:
+        _push(s, 0.0, NORMAL, END_HOP, 2)
+
+
+@jit
 def _end(s, log, p):
     """The episode ends now: every UAV's running decision closes."""
     s.done = True
@@ -471,6 +491,29 @@ def _act(s, p, holds, e, i):
     a = s.act[i]
     hold = holds[e, i, s.n_holds[i] % holds.shape[2]] if a == p.n_obs else 0.0
     _start_action(s, p, i, a, hold)
+
+
+@jit
+def _to_uav(s, log, p, e, row, i, hops):
+    """The end of UAV i's macro-action reaches it ``hops`` NORMAL events later (2: the action
+    sub-process ending, then the AnyOf; 1: the AnyOf). Returns the next free row."""
+    if _next_anyway(s, NORMAL):
+        s.events += hops
+        return _macro_action_over(s, log, p, e, row, i, s.cut[i])
+    _push(s, 0.0, NORMAL, ACT_END if hops == 2 else ANY_OF, i)
+    return row
+
+
+@jit
+def _burn_restarts(s, p, j, hops):
+    """Fire j's failed burn sub-process restarts ``hops`` events later (2: its failure, NORMAL,
+    then its start, URGENT; 1: the start)."""
+    if _next_anyway(s, NORMAL if hops == 2 else URGENT):
+        s.events += hops
+        s.burning[j] = True
+        _replan(s, p, j)
+    else:
+        _push(s, 0.0, NORMAL if hops == 2 else URGENT, BURN_FAIL if hops == 2 else BURN_START, j)
 
 
 @jit
@@ -579,11 +622,15 @@ def _advance(states, live, log, used, params, holds, actions, first):
             if kind == LATENCY:
                 if sq == s.uwait[who]:
                     s.in_lat[who] = False
-                    if p.released:  # the action sub-process starts
-                        s.acting[who] = True
-                        _push(s, 0.0, URGENT, ACT_START, who)
-                    else:
+                    if not p.released:
                         _act(s, p, holds, e, who)
+                    else:  # the action sub-process starts
+                        s.acting[who] = True
+                        if _next_anyway(s, URGENT):
+                            s.events += 1
+                            _act(s, p, holds, e, who)
+                        else:
+                            _push(s, 0.0, URGENT, ACT_START, who)
             elif kind == ACT_START:
                 _act(s, p, holds, e, who)
             elif kind == ACTION:
@@ -591,7 +638,7 @@ def _advance(states, live, log, used, params, holds, actions, first):
                     if p.released:  # the sub-process ends
                         s.acting[who] = False
                         s.cut[who] = False
-                        _push(s, 0.0, NORMAL, ACT_END, who)
+                        row = _to_uav(s, log, p, e, row, who, 2)
                     else:
                         row = _macro_action_over(s, log, p, e, row, who, False)
             elif kind == INT_UAV:
@@ -601,34 +648,36 @@ def _advance(states, live, log, used, params, holds, actions, first):
                     s.acting[who] = False
                     s.cut[who] = True
                     s.uwait[who] = -1
-                    _push(s, 0.0, NORMAL, ACT_END, who)
+                    row = _to_uav(s, log, p, e, row, who, 2)
             elif kind == ACT_END:
-                _push(s, 0.0, NORMAL, ANY_OF, who)
+                row = _to_uav(s, log, p, e, row, who, 1)
             elif kind == ANY_OF:
                 row = _macro_action_over(s, log, p, e, row, who, s.cut[who])
             elif kind == EXTINGUISH:
                 if sq == s.fwait[who]:
-                    if p.released:  # the burn sub-process ends
-                        s.burning[who] = False
-                        _push(s, 0.0, NORMAL, BURN_END, who)
-                    else:
+                    if not p.released:
                         _extinguish(s, p, who)
                         if s.n_alive == 0:
                             _end(s, log, p)
+                    else:  # the burn sub-process ends
+                        s.burning[who] = False
+                        if _next_anyway(s, NORMAL):
+                            s.events += 1
+                            _fire_out(s, log, p, who)
+                        else:
+                            _push(s, 0.0, NORMAL, BURN_END, who)
             elif kind == BURN_END:
-                _extinguish(s, p, who)
-                if s.n_alive == 0:  # the conditions "fire out", "all out", "all out or T_max"
-                    _push(s, 0.0, NORMAL, END_HOP, 2)
+                _fire_out(s, log, p, who)
             elif kind == INT_FIRE:
                 if p.released:
                     if s.burning[who]:  # the burn sub-process fails
                         s.burning[who] = False
                         s.fwait[who] = -1
-                        _push(s, 0.0, NORMAL, BURN_FAIL, who)
+                        _burn_restarts(s, p, who, 2)
                 elif s.alive[who]:
                     _replan(s, p, who)
             elif kind == BURN_FAIL:  # the fire restarts its burn sub-process
-                _push(s, 0.0, URGENT, BURN_START, who)
+                _burn_restarts(s, p, who, 1)
             elif kind == BURN_START:
                 s.burning[who] = True
                 _replan(s, p, who)
