@@ -72,6 +72,11 @@ def heap_capacity(cfg: WildfireConfig) -> int:
     process beyond that, so that any number of UAVs fits."""
     return max(128, 8 * (cfg.n_agents + len(fire_positions(cfg)) + 1))
 
+
+def queue_capacity(cfg: WildfireConfig) -> int:
+    """Events due now an episode's two now-queues hold each: at most a few per process."""
+    return 2 * (cfg.n_agents + len(fire_positions(cfg))) + 8
+
 WHO_BITS, KIND_BITS, PRIO_SHIFT = 20, 4, 62
 """A heap entry's integer key: priority << 62 | sequence << 24 | kind << 20 | who. Sequence numbers
 are unique within an episode, so comparing keys compares (priority, sequence) as SimPy does; the
@@ -120,9 +125,10 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         ("done", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8), ("events", i8),
         ("uwait", i8, n), ("act", i8, n),
         # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence; the
-        # one-event lane before it (see _push)
+        # now-queues of URGENT and NORMAL events due now (see _push): keys, first, size
         ("hkey", i8, heap_capacity(cfg)), ("ht", f8, heap_capacity(cfg)), ("hn", i4),
-        ("seq", i8), ("lane", np.bool_), ("lane_key", i8), ("lane_t", f8),
+        ("seq", i8), ("qu", i8, queue_capacity(cfg)), ("qu_0", i4), ("qu_n", i4),
+        ("qn", i8, queue_capacity(cfg)), ("qn_0", i4), ("qn_n", i4),
         # UAV motion
         ("pos", f8, (n, 2)), ("origin", f8, (n, 2)), ("goal", f8, (n, 2)), ("t_dep", f8, n),
         ("length", f8, n), ("flying", i1, n),
@@ -158,22 +164,22 @@ def log_dtype(obs_dim: int) -> np.dtype:
 def _push(s, delay, prio, kind, who):
     """Schedule an event ``delay`` after now (SimPy: time now + delay); return its sequence.
 
-    An event due now while the heap holds only later ones is the next event whatever comes
-    after it (a push flushes it into the heap first): it waits in the lane, not the heap. Most
-    of the released order's hops take that lane in ED."""
+    An event due now goes to the now-queue of its priority, in order, not the heap: every event
+    the heap holds for now was scheduled earlier (sequence numbers grow), so SimPy's order at
+    now is the URGENT queue, then the heap's events due now (all NORMAL timeouts), then the NORMAL
+    queue. The released order's hops and the interrupts all take the queues."""
     seq = s.seq
     s.seq = seq + 1
     t = s.now + delay
     key = (np.int64(prio) << PRIO_SHIFT) | (seq << SEQ_SHIFT) | (np.int64(kind) << WHO_BITS) | who
-    if s.lane:
-        s.lane = False
-        _heap_insert(s, s.lane_t, s.lane_key)
-    if t == s.now and (s.hn == 0 or s.ht[0] > t):
-        s.lane = True
-        s.lane_t = t
-        s.lane_key = key
-    else:
+    if t != s.now:
         _heap_insert(s, t, key)
+    elif prio == URGENT:
+        s.qu[(s.qu_0 + s.qu_n) % s.qu.shape[0]] = key
+        s.qu_n += 1
+    else:
+        s.qn[(s.qn_0 + s.qn_n) % s.qn.shape[0]] = key
+        s.qn_n += 1
     return seq
 
 
@@ -197,25 +203,42 @@ def _heap_insert(s, t, key):
 def _next_anyway(s, prio):
     """Whether an event pushed now with priority ``prio`` would be the next one: then a hop can
     run at once instead (the released order's chains of hops mostly do, in ED)."""
-    if s.lane:
+    if s.qu_n > 0:
         return False
-    if s.hn == 0 or s.ht[0] > s.now:
-        return True
-    return prio == URGENT and (s.hkey[0] >> PRIO_SHIFT) == NORMAL
+    return prio == URGENT or (s.qn_n == 0 and (s.hn == 0 or s.ht[0] > s.now))
+
+
+@jit
+def _next_source(s):
+    """Where the next event is: 0 the URGENT now-queue, 1 the heap, 2 the NORMAL now-queue."""
+    if s.qu_n > 0:
+        return 0
+    if s.qn_n > 0 and (s.hn == 0 or s.ht[0] != s.now):
+        return 2
+    return 1
 
 
 @jit
 def _next_key(s):
     """The key of the next event."""
-    return s.lane_key if s.lane else s.hkey[0]
+    src = _next_source(s)
+    return s.qu[s.qu_0] if src == 0 else s.qn[s.qn_0] if src == 2 else s.hkey[0]
 
 
 @jit
 def _pop(s):
     """Remove the next event; return its time and key."""
-    if s.lane:
-        s.lane = False
-        return s.lane_t, s.lane_key
+    src = _next_source(s)
+    if src == 0:
+        key = s.qu[s.qu_0]
+        s.qu_0 = (s.qu_0 + 1) % s.qu.shape[0]
+        s.qu_n -= 1
+        return s.now, key
+    if src == 2:
+        key = s.qn[s.qn_0]
+        s.qn_0 = (s.qn_0 + 1) % s.qn.shape[0]
+        s.qn_n -= 1
+        return s.now, key
     t0, k0 = s.ht[0], s.hkey[0]
     n = s.hn - 1
     s.hn = n
@@ -548,7 +571,7 @@ def _setup(states, log, used, params, starts):
         s.n_alive = p.n_fires
         s.hn = 0
         s.seq = 0
-        s.lane = False
+        s.qu_0 = s.qu_n = s.qn_0 = s.qn_n = 0
         s.joins = 0
         for i in range(p.n_agents):
             s.pos[i, 0], s.pos[i, 1] = starts[e, i, 0], starts[e, i, 1]
@@ -612,7 +635,9 @@ def _advance(states, live, log, used, params, holds, actions, first):
             if row >= len(log):
                 status = GROW_LOG
                 break
-            if s.hn + p.n_agents + 3 > s.hkey.shape[0]:
+            room = p.n_agents + 3  # what one event may push, at most
+            if (s.hn + room > s.hkey.shape[0] or s.qu_n + room > s.qu.shape[0]
+                    or s.qn_n + room > s.qn.shape[0]):
                 status = HEAP_FULL
                 break
             t, key = _pop(s)
@@ -801,7 +826,8 @@ class WildfireEnv:
                 log = _grow(log)
                 continue
             if status == HEAP_FULL:
-                raise RuntimeError(f"event heap of {heap_capacity(self.cfg)} entries is full")
+                raise RuntimeError(f"event heap of {heap_capacity(self.cfg)} entries or queue of "
+                                   f"{queue_capacity(self.cfg)} is full")
             end = int(used[0])
             if end == first:
                 break
