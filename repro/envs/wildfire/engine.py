@@ -2,13 +2,15 @@
 
 Each episode keeps an array heap of pending events keyed exactly like SimPy's queue, (time,
 priority, sequence number) with interrupts and process starts (URGENT) before timeouts (NORMAL)
-at the same instant, and schedules the same events in the same order as
+at the same instant (events due at the current instant wait in two FIFO now-queues, see
+``_push``), and schedules the same events in the same order as
 :mod:`repro.envs.wildfire.reference`. Hence same-instant events, which FS simulation makes common,
 are processed in the reference's order. In the released order (see the reference's docstring)
 SimPy's intermediate events, a sub-process starting, ending or failing, an AnyOf or the end
 condition triggering, are zero-delay "hop" events here (``ACT_START`` ... ``END_HOP``), pushed when
-SimPy schedules them. An event that a process no longer waits for (its wait was interrupted, or
-its fire re-planned) is stale and skipped, as SimPy skips a triggered event without callbacks.
+SimPy schedules them, or run at once when they would be the next event anyway. An event that a
+process no longer waits for (its wait was interrupted, or its fire re-planned) is stale and
+skipped, as SimPy skips a triggered event without callbacks.
 
 ``_advance`` records the policy's last actions, then runs every live episode until it is blocked
 (its next event is the end of a decision latency whose action the policy has not given yet) or
