@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from repro.core.rollout import DecisionBatch, Rollout
 from repro.envs.wildfire import WildfireConfig, draw_episodes, make_env, make_reference_env
+from repro.envs.wildfire.params import SAME_INSTANT_ORDERS
 from repro.envs.wildfire.policies import POLICIES
 
 DTS = (None, 10 ** -1, 10 ** -0.5, 1.0, 10 ** 0.5, 10.0)
@@ -52,16 +53,26 @@ def assert_same(ref: Rollout, fast: Rollout) -> None:
     np.testing.assert_allclose(ref.episode_return, fast.episode_return, rtol=0, atol=1e-12)
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2 ** 32 - 1), dt=st.sampled_from(DTS),
        t_health=st.sampled_from((3.0, 2.9999)), q1=st.booleans(), q2=st.booleans(),
+       q3=st.booleans(), q4=st.booleans(), q5=st.booleans(), q6=st.booleans(),
+       order=st.sampled_from(SAME_INSTANT_ORDERS), round_neg=st.booleans(),
+       cut_goes_on=st.booleans(), ranking_resolution=st.sampled_from((1e-9, 0.0)),
        kind=st.sampled_from(("scripted", "random", "nearest", "flowchart")),
        max_decisions=st.sampled_from((None, None, 1, 3, 12)),
        gamma=st.sampled_from((0.02, 0.02, 0.05)))  # gamma also sets the episode cap T_max
-def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, kind, max_decisions,
-                                            gamma):
+def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, q3, q4, q5, q6, order,
+                                            round_neg, cut_goes_on, ranking_resolution, kind,
+                                            max_decisions, gamma):
     cfg = WildfireConfig(dt=dt, t_health=t_health, quirk_q1_stale_attack=q1,
-                         quirk_q2_penalty_party_only=q2, max_decisions=max_decisions, gamma=gamma)
+                         quirk_q2_penalty_party_only=q2, quirk_q3_unclamped_health=q3,
+                         quirk_q4_latency_not_interrupted=q4,
+                         quirk_q5_discount_from_action_start=q5, quirk_q6_short_flight_stays=q6,
+                         same_instant_order=order,
+                         fs_round_negative_delays=round_neg, cut_flight_continues=cut_goes_on,
+                         ranking_resolution=ranking_resolution, max_decisions=max_decisions,
+                         gamma=gamma)
     n = 2
     ref = make_reference_env(cfg).rollout(make_policy(kind, seed, cfg, n), n, seed)
     fast = make_env(cfg).rollout(make_policy(kind, seed, cfg, n), n, seed)

@@ -8,7 +8,7 @@ import pytest
 from repro.core.rollout import DecisionBatch
 from repro.envs.wildfire import (EpisodeDraws, WildfireConfig, fire_positions, make_env,
                                  make_reference_env)
-from repro.envs.wildfire.params import fs_delay
+from repro.envs.wildfire.params import SAME_INSTANT_ORDERS, fs_delay
 
 ENGINES = {"reference": make_reference_env, "fast": make_env}
 HOLD = 5
@@ -67,48 +67,112 @@ def test_fs_delay_rounds_up_to_the_grid():
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-def test_c9_fs1_health_3_needs_a_second_hold_2_9999_does_not(engine):
+@pytest.mark.parametrize("order", SAME_INSTANT_ORDERS)
+def test_c9_fs1_health_3_needs_a_second_hold_2_9999_does_not(engine, order):
     """UAV 0 starts on fire 0, holds 2.9 s from t = 1e-5, then flies off (if it still can).
 
     FS-1, T_health = 3.0: the fire is planned out at ceil(3.00001) = 4 but the hold ends at
     ceil(2.90001) = 3; the UAV sees the fire alive, flies away, leaves the party: the fire survives.
-    FS-1, T_health = 2.9999: the fire is out at ceil(2.99991) = 3, the same instant the hold ends.
-    The hold's end was scheduled first, so the UAV observes the live fire first, but the fire's
-    end interrupts its decision latency: the fly is dropped; one hold sufficed.
+    FS-1, T_health = 2.9999: the fire is out at ceil(2.99991) = 3, the instant the hold ends. The
+    released order puts the fire out before the UAV observes (the hold's end reaches the UAV two
+    events later, the fire's end one), and its r_ext belongs to the hold. In scheduling order the
+    hold's end, scheduled first, comes first: the UAV sees the fire alive, and (Q4 off) the fire's
+    end interrupts its decision latency: the fly is dropped. One hold suffices either way.
     """
     others = [FAR, FAR]
+    released = order == "released"
     for t_health, out in ((3.0, False), (2.9999, True)):
-        cfg = WildfireConfig(dt=1.0, t_health=t_health)
+        cfg = WildfireConfig(dt=1.0, t_health=t_health, same_instant_order=order,
+                             quirk_q4_latency_not_interrupted=released)
         r = run(engine, cfg, [FIRE0] + others, [[2.9]], [[HOLD, 3], [HOLD], [HOLD]])
         p0 = path(r, 0)
         t = r.info["decision_time"][p0]
         assert t[1] == pytest.approx(3.0, abs=1e-9)
-        assert r.obs[p0][1, STATUS0] == 1.0  # seen alive at the hold's end either way
         assert (r.episode_return[0] > 0) == out
-        if out:
+        # the observed health at 3: the party of one spent 2.99999 UAV-seconds (Q3: unclamped)
+        assert r.obs[p0][1, HEALTH0] == pytest.approx(t_health - 2.99999, abs=1e-9)
+        if not out:
+            assert r.obs[p0][1, STATUS0] == 1.0
+            assert r.rewards[p0][0] == 0.0
+        elif released:
+            assert r.obs[p0][1, STATUS0] == 0.0  # out before the UAV observed
+            assert r.rewards[p0][0] == pytest.approx(np.exp(-cfg.gamma * (3.0 - 1e-5)))
+            assert t[2] - t[1] > 1.0  # the fly was not dropped
+        else:
+            assert r.obs[p0][1, STATUS0] == 1.0  # seen alive at the hold's end
+            assert r.rewards[p0][0] == 0.0
+            # accrued in the latency (Q5 on): discounted from the hold's start, 1e-5
+            assert r.rewards[p0][1] == pytest.approx(np.exp(-cfg.gamma * (3.0 - 1e-5)))
             assert t[2] == pytest.approx(3.0, abs=1e-9)  # interrupted within the latency
             assert r.durations[p0][1] == pytest.approx(0.0, abs=1e-9)
             assert r.obs[p0][2, STATUS0] == 0.0
-        else:
-            assert r.obs[p0][1, HEALTH0] == pytest.approx(1e-5, abs=1e-9)
     # In ED the same 2.9 s hold ends with 0.1 UAV-seconds left, whatever the 1e-4 difference.
     for t_health in (3.0, 2.9999):
-        r = run(engine, WildfireConfig(t_health=t_health), [FIRE0] + others, [[2.9]],
-                [[HOLD, 3], [HOLD], [HOLD]])
+        r = run(engine, WildfireConfig(t_health=t_health, same_instant_order=order),
+                [FIRE0] + others, [[2.9]], [[HOLD, 3], [HOLD], [HOLD]])
         assert r.episode_return[0] == 0.0
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-def test_c9_fs1_long_hold_ends_with_the_fire(engine):
-    """FS-1, T_health 3.0: a 3.05 s hold ends at 4, the instant the fire goes out; the UAV sees it
-    alive (health 0) and is interrupted at once."""
-    cfg = WildfireConfig(dt=1.0)
-    r = run(engine, cfg, [FIRE0, FAR, FAR], [[3.05]], [[HOLD, 3], [HOLD], [HOLD]])
+@pytest.mark.parametrize("order", SAME_INSTANT_ORDERS)
+@pytest.mark.parametrize("q3", [True, False])
+def test_fs_extinguish_after_the_health_ran_out(engine, order, q3):
+    """FS-1, T_health 2.5: UAV 0 holds 2.9 s on fire 0 from 1e-5. The health runs out at 2.50001,
+    but the fire's rounded end is 3, the instant the hold ends. Released order: the fire is out
+    when the UAV observes; scheduling order: the UAV sees it alive. Either way its observed health
+    is 2.5 - 2.99999 with Q3, 0 without."""
+    cfg = WildfireConfig(dt=1.0, t_health=2.5, same_instant_order=order,
+                         quirk_q3_unclamped_health=q3)
+    r = run(engine, cfg, [FIRE0, FAR, FAR], [[2.9]], [[HOLD, HOLD], [HOLD], [HOLD]])
     p0 = path(r, 0)
-    np.testing.assert_allclose(r.info["decision_time"][p0][:3], [0.0, 4.0, 4.0], atol=1e-9)
-    assert r.obs[p0][1, STATUS0] == 1.0 and r.obs[p0][1, HEALTH0] == 0.0
-    assert r.obs[p0][2, STATUS0] == 0.0
-    assert r.episode_return[0] == pytest.approx(1.0)
+    assert r.info["decision_time"][p0][1] == pytest.approx(3.0, abs=1e-9)
+    assert r.obs[p0][1, STATUS0] == (0.0 if order == "released" else 1.0)
+    assert r.obs[p0][1, HEALTH0] == pytest.approx(-0.49999 if q3 else 0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("order", SAME_INSTANT_ORDERS)
+@pytest.mark.parametrize("q4", [True, False])
+@pytest.mark.parametrize("q5", [True, False])
+def test_fire_out_during_a_uavs_latency(engine, order, q4, q5):
+    """ED. UAV 0 holds on fire 0 from 1e-5: the fire is out at 3.00001. UAV 1 flies to fire 0 from
+    0.044999925 m away, arriving at 1e-5 + 2.999995 = 3.000005, so the fire goes out during its
+    decision latency. Q4: it is not interrupted and carries out its hold at 3.000015; without Q4
+    it decides again at 3.00001. Its r_ext, accrued in the latency, belongs to the decision it made
+    on arrival; Q5 discounts it from the flight's start (1e-5), else from that observation."""
+    cfg = WildfireConfig(same_instant_order=order, quirk_q4_latency_not_interrupted=q4,
+                         quirk_q5_discount_from_action_start=q5)
+    start1 = FIRE0 - np.array([0.044999925, 0.0])
+    r = run(engine, cfg, [FIRE0, start1, FAR], [[5.0], [5.0]], [[HOLD], [0, HOLD], [HOLD]])
+    p1 = path(r, 1)
+    t = r.info["decision_time"][p1]
+    arrival = 1e-5 + 0.044999925 / cfg.v_uav
+    assert t[1] == pytest.approx(arrival, abs=1e-12)
+    assert r.obs[p1][1, STATUS0] == 1.0  # alive when it arrived
+    if q4:
+        assert t[2] == pytest.approx(arrival + 1e-5 + 5.0, abs=1e-9)  # the hold was carried out
+    else:
+        assert t[2] == pytest.approx(3.00001, abs=1e-12)  # dropped: decides again at once
+        assert r.obs[p1][2, STATUS0] == 0.0
+    since = 3.00001 - (1e-5 if q5 else arrival)
+    assert r.rewards[p1][1] == pytest.approx(np.exp(-cfg.gamma * since), abs=1e-12)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("order", SAME_INSTANT_ORDERS)
+@pytest.mark.parametrize("q3", [True, False])
+def test_a_dead_fires_observed_health_drains(engine, order, q3):
+    """UAVs 0 and 1 put fire 0 out at rate 2 (at 1.50001); nobody leaves the party of a fire that
+    is out, so with Q3 its observed health keeps falling at rate 2: UAV 0 holds 1 s more and sees
+    -2 * 1.00001 at 2.50002. Without Q3 a fire that is out shows 0."""
+    cfg = WildfireConfig(same_instant_order=order, quirk_q3_unclamped_health=q3)
+    r = run(engine, cfg, [FIRE0, FIRE0, FAR], [[10.0, 1.0], [10.0, 10.0]],
+            [[HOLD, HOLD, 3], [HOLD, HOLD], [HOLD]])
+    p0 = path(r, 0)
+    np.testing.assert_allclose(r.info["decision_time"][p0][1:3], [1.50001, 2.50002], atol=1e-12)
+    assert r.obs[p0][1, STATUS0] == 0.0 and r.obs[p0][2, STATUS0] == 0.0
+    assert r.obs[p0][1, HEALTH0] == pytest.approx(0.0, abs=1e-12)
+    assert r.obs[p0][2, HEALTH0] == pytest.approx(-2.00002 if q3 else 0.0, abs=1e-12)
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -129,18 +193,24 @@ def test_quirk_q1_stale_attack(engine, q1):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("order", SAME_INSTANT_ORDERS)
 @pytest.mark.parametrize("q2", [True, False])
-def test_quirk_q2_penalty(engine, q2):
-    """UAVs 0 and 1 start on fire 0 and hold; UAV 1 joins a party that has a member: penalty for
-    the party (Q2) or for everyone. The pair then puts the fire out at rate 2."""
-    cfg = WildfireConfig(quirk_q2_penalty_party_only=q2)
+@pytest.mark.parametrize("q5", [True, False])
+def test_two_uavs_join_one_party_at_one_instant(engine, order, q2, q5):
+    """UAVs 0 and 1 start on fire 0 and hold, both acting at 1e-5: UAV 1 joins a party that has a
+    member: penalty for the party (Q2) or for everyone. The fire re-plans with both (in the
+    released order the two changes make one restart of its burn) and goes out at rate 2."""
+    cfg = WildfireConfig(quirk_q2_penalty_party_only=q2, same_instant_order=order,
+                         quirk_q5_discount_from_action_start=q5)
     r = run(engine, cfg, [FIRE0, FIRE0, FAR], [[10.0], [10.0], [10.0]],
             [[HOLD, 3], [HOLD, 3], [HOLD]])
     returns = [r.rewards[path(r, i)].sum() for i in range(3)]
+    np.testing.assert_allclose(r.info["decision_time"][path(r, 0)][1], 1.50001, atol=1e-12)
     third = 1.0 if q2 else -19.0
-    # rewards discounted within the first macro-action: the penalty at 1e-5, the fire at 1.5+1e-5
     disc = lambda t: np.exp(-cfg.gamma * t)  # noqa: E731
-    expect = [-20 * disc(1e-5) + disc(1.5 + 1e-5)] * 2 + [
-        disc(1.5 + 1e-5) + (0 if q2 else -20 * disc(1e-5))]
+    # the penalty at 1e-5, the fire at 1.5 + 1e-5. Q5 discounts from the action's start, 1e-5:
+    # UAV 2, still in its latency when UAV 1 joins, from its previous action's start, 0.
+    pen, fire = (disc(0.0), disc(1.5)) if q5 else (disc(1e-5), disc(1.5 + 1e-5))
+    expect = [-20 * pen + fire] * 2 + [fire + (0 if q2 else -20 * disc(1e-5))]
     np.testing.assert_allclose(returns, expect, atol=1e-12)
     assert r.episode_return[0] == pytest.approx((-19 - 19 + third) / 3)

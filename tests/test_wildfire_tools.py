@@ -98,6 +98,9 @@ def test_cli_json():
     ("--policy", "nearest", "--t-health", "-1"), ("--policy", "nearest", "--episodes", "0"),
     ("--policy", "nearest", "--sim", "fs"), ("--policy", "nearest", "--dt", "1"),
     ("--policy", "nearest", "--t-health", "inf"), ("--policy", "nearest", "--t-health", "nan"),
+    ("--policy", "nearest", "--same-instant-order", "fifo"),
+    ("--policy", "nearest", "--ranking-resolution", "-1e-9"),
+    ("--policy", "nearest", "--ranking-resolution", "nan"),
 ])
 def test_cli_bad_input(args, tmp_path, monkeypatch, capsys):
     from repro.cli import main
@@ -118,6 +121,17 @@ def test_cli_bad_input(args, tmp_path, monkeypatch, capsys):
               quirk_q2_penalty_party_only=True, max_decisions=None)),
     (["--no-quirk-q1", "--no-quirk-q2", "--max-decisions", "0"],
      dict(quirk_q1_stale_attack=False, quirk_q2_penalty_party_only=False, max_decisions=None)),
+    ([], dict(quirk_q3_unclamped_health=True, quirk_q4_latency_not_interrupted=True,
+              quirk_q5_discount_from_action_start=True, quirk_q6_short_flight_stays=True,
+              same_instant_order="released", fs_round_negative_delays=True,
+              cut_flight_continues=True, ranking_resolution=1e-9)),
+    (["--no-quirk-q3", "--no-quirk-q4", "--no-quirk-q5", "--no-quirk-q6", "--same-instant-order",
+      "scheduling", "--no-fs-round-negative-delays", "--no-cut-flight-continues",
+      "--ranking-resolution", "0"],
+     dict(quirk_q3_unclamped_health=False, quirk_q4_latency_not_interrupted=False,
+          quirk_q5_discount_from_action_start=False, quirk_q6_short_flight_stays=False,
+          same_instant_order="scheduling", fs_round_negative_delays=False,
+          cut_flight_continues=False, ranking_resolution=0.0)),
     (["--sim", "fs", "--dt", "0.316", "--t-health", "2.9999", "--gamma", "0.05",
       "--max-decisions", "7"], dict(dt=0.316, t_health=2.9999, gamma=0.05, max_decisions=7)),
 ])

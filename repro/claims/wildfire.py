@@ -158,7 +158,7 @@ def check_c9(results: Path) -> Verdict:
 
 
 def _corrected_line(results: Path, judge, means: bool) -> str:
-    """The same check on the run with quirks Q1 and Q2 corrected, when it exists."""
+    """The same check on the run with quirks Q1-Q6 corrected, when it exists."""
     try:
         s, path = _summary(results, "transfer_corrected")
     except FileNotFoundError:

@@ -20,7 +20,8 @@ import numpy as np
 from repro.core.errors import require
 from repro.core.rollout import Policy, Rollout, concat
 from repro.core.stats import sem
-from repro.envs.wildfire import add_env_arguments, config_from_args, make_env, make_reference_env
+from repro.envs.wildfire import (QUIRKS, add_env_arguments, config_from_args, make_env,
+                                 make_reference_env)
 from repro.envs.wildfire.policies import POLICIES
 
 BATCH_EPISODES = 1000
@@ -78,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
                seconds=round(seconds, 3), decisions_per_second=rollout.n_decisions / seconds,
                mean_episode_return=float(rollout.episode_return.mean()), policy=args.policy,
                engine=args.engine, sim=cfg.label, t_health=cfg.t_health,
-               quirk_q1=cfg.quirk_q1_stale_attack, quirk_q2=cfg.quirk_q2_penalty_party_only,
+               **{f"quirk_{f.split('_')[1]}": getattr(cfg, f) for f in QUIRKS},
+               same_instant_order=cfg.same_instant_order,
                seed=args.seed)
     if args.json:
         print(json.dumps(out, sort_keys=True))

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 
 from repro.core.errors import require
-from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episodes,
+from repro.envs.wildfire.params import (QUIRKS, EpisodeDraws, WildfireConfig, draw_episodes,
                                         fire_positions)
 
 TRAIN_DEFAULTS = dict(lam=1.0, batch_episodes=600, epochs=300)
@@ -20,7 +20,7 @@ TRAIN_DEFAULTS = dict(lam=1.0, batch_episodes=600, epochs=300)
 
 def add_env_arguments(parser: argparse.ArgumentParser) -> None:
     """The simulator options: ED or FS-dT, T_health, the discount rate, the quirk switches, the
-    decision limit."""
+    same-instant and ranking rules, the decision limit."""
     parser.add_argument("--sim", choices=("ed", "fs"), default="ed",
                         help="event-driven, or fixed-step (needs --dt)")
     parser.add_argument("--dt", type=float, help="FS time step dT in seconds (only with --sim fs)")
@@ -35,6 +35,27 @@ def add_env_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quirk-q2", action=argparse.BooleanOptionalAction,
                         default=WildfireConfig.quirk_q2_penalty_party_only,
                         help="Q2: the penalty goes to the extinguish party only")
+    for q, help_ in (("q3", "observed health unclamped, out fires keep draining"),
+                     ("q4", "a fire out during a UAV's decision latency does not interrupt it"),
+                     ("q5", "rewards discounted from the action's start, not the observation"),
+                     ("q6", "a flight shorter than 1e-3 m leaves the UAV where it was")):
+        field = next(f for f in QUIRKS if f.startswith(f"quirk_{q}_"))
+        parser.add_argument(f"--quirk-{q}", action=argparse.BooleanOptionalAction,
+                            default=getattr(WildfireConfig, field), help=f"{q.upper()}: {help_}")
+    parser.add_argument("--same-instant-order", default=WildfireConfig.same_instant_order,
+                        help="order of events at one instant: released (the released code's "
+                             "process structure) or scheduling (before issue 18)")
+    parser.add_argument("--fs-round-negative-delays", action=argparse.BooleanOptionalAction,
+                        default=WildfireConfig.fs_round_negative_delays,
+                        help="FS: a fire re-planned after its health ran out is rounded like any "
+                             "delay (released), not first clamped to 0")
+    parser.add_argument("--cut-flight-continues", action=argparse.BooleanOptionalAction,
+                        default=WildfireConfig.cut_flight_continues,
+                        help="a cut flight goes on until the UAV's next action starts (released)")
+    parser.add_argument("--ranking-resolution", type=float,
+                        default=WildfireConfig.ranking_resolution,
+                        help="fires are ranked by distance rounded to this (m), ties to the "
+                             "lower index; 0: exact distances")
     parser.add_argument("--max-decisions", type=int,
                         help="end an episode when a UAV's macro-action ends after this many of its "
                              "decisions (not in the paper; default and 0: no limit)")
@@ -46,9 +67,12 @@ def config_from_args(args: argparse.Namespace) -> WildfireConfig:
         require(args.dt is not None, "--dt", "given with --sim fs")
     else:
         require(args.dt is None, "--dt", "only used with --sim fs", args.dt)
-    cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, gamma=args.gamma,
-                         quirk_q1_stale_attack=args.quirk_q1,
-                         quirk_q2_penalty_party_only=args.quirk_q2,
+    quirks = {f: getattr(args, f"quirk_{f.split('_')[1]}") for f in QUIRKS}
+    cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, gamma=args.gamma, **quirks,
+                         same_instant_order=args.same_instant_order,
+                         fs_round_negative_delays=args.fs_round_negative_delays,
+                         cut_flight_continues=args.cut_flight_continues,
+                         ranking_resolution=args.ranking_resolution,
                          max_decisions=args.max_decisions or None)  # 0: no limit
     cfg.validate()
     return cfg
@@ -68,5 +92,5 @@ def make_reference_env(cfg: WildfireConfig):
     return ReferenceEnv(cfg)
 
 
-__all__ = ["WildfireConfig", "EpisodeDraws", "draw_episodes", "fire_positions",
+__all__ = ["WildfireConfig", "QUIRKS", "EpisodeDraws", "draw_episodes", "fire_positions",
            "add_env_arguments", "config_from_args", "make_env", "make_reference_env"]

@@ -1,11 +1,16 @@
 """The fast wildfire engine: a batch of episodes in numba, one policy call per round.
 
 Each episode keeps an array heap of pending events keyed exactly like SimPy's queue, (time,
-priority, sequence number) with interrupts (URGENT) before timeouts (NORMAL) at the same instant,
-and schedules the same events in the same order as :mod:`repro.envs.wildfire.reference`. Hence
-same-instant events, which FS simulation makes common, are processed in the reference's order.
-An event that a process no longer waits for (its wait was interrupted, or its fire re-planned) is
-stale and skipped, as SimPy skips a triggered event without callbacks.
+priority, sequence number) with interrupts and process starts (URGENT) before timeouts (NORMAL)
+at the same instant (events due at the current instant wait in two FIFO now-queues, see
+``_push``), and schedules the same events in the same order as
+:mod:`repro.envs.wildfire.reference`. Hence same-instant events, which FS simulation makes common,
+are processed in the reference's order. In the released order (see the reference's docstring)
+SimPy's intermediate events, a sub-process starting, ending or failing, an AnyOf or the end
+condition triggering, are zero-delay "hop" events here (``ACT_START`` ... ``END_HOP``), pushed when
+SimPy schedules them, or run at once when they would be the next event anyway. An event that a
+process no longer waits for (its wait was interrupted, or its fire re-planned) is stale and
+skipped, as SimPy skips a triggered event without callbacks.
 
 ``_advance`` records the policy's last actions, then runs every live episode until it is blocked
 (its next event is the end of a decision latency whose action the policy has not given yet) or
@@ -48,14 +53,19 @@ from numba import njit
 from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import DecisionBatch, Policy, Rollout
 from repro.envs.wildfire.params import (OBS_PER_FIRE, EpisodeDraws, WildfireConfig, draw_episodes,
-                                        fire_positions, fs_delay)
+                                        fire_positions, fs_delay, rank_key)
 from repro.envs.wildfire.reference import actions_error
 
 URGENT, NORMAL = 0, 1
-"""SimPy's priorities: an interrupt at time t comes before any timeout at t."""
-LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK = range(6)
-"""Event kinds: decision latency over, macro-action over, fire out, UAV interrupted (its fire
-went out), fire interrupted (its party changed), T_max reached."""
+"""SimPy's priorities: an interrupt or a process start at time t comes before any timeout at t."""
+(LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK, ACT_START, INT_ACT, ACT_END, ANY_OF,
+ BURN_FAIL, BURN_START, BURN_END, END_HOP) = range(14)
+"""Event kinds: decision latency over, macro-action over, fire out, UAV process interrupted (its
+fire went out: in scheduling order, or in the latency without Q4), fire interrupted (its party
+changed), T_max reached. The released order's hops, SimPy's intermediate events there: the action
+sub-process starts (URGENT), is interrupted (URGENT), ends or fails, then the AnyOf the UAV waits
+on triggers; the burn sub-process fails (interrupted), restarts (URGENT), ends (its fire is out);
+the episode's end condition (END_HOP: ``who`` more hops to go)."""
 OK, GROW_LOG, HEAP_FULL, BAD_ACTION = range(4)
 """Status codes of ``_advance``."""
 def heap_capacity(cfg: WildfireConfig) -> int:
@@ -64,10 +74,15 @@ def heap_capacity(cfg: WildfireConfig) -> int:
     process beyond that, so that any number of UAVs fits."""
     return max(128, 8 * (cfg.n_agents + len(fire_positions(cfg)) + 1))
 
-WHO_BITS, KIND_BITS, PRIO_SHIFT = 20, 3, 62
-"""A heap entry's integer key: priority << 62 | sequence << 23 | kind << 20 | who. Sequence numbers
+
+def queue_capacity(cfg: WildfireConfig) -> int:
+    """Events due now an episode's two now-queues hold each: at most a few per process."""
+    return 2 * (cfg.n_agents + len(fire_positions(cfg))) + 8
+
+WHO_BITS, KIND_BITS, PRIO_SHIFT = 20, 4, 62
+"""A heap entry's integer key: priority << 62 | sequence << 24 | kind << 20 | who. Sequence numbers
 are unique within an episode, so comparing keys compares (priority, sequence) as SimPy does; the
-39 bits of the sequence outlast any episode, and who (an agent or fire index) must stay below
+38 bits of the sequence outlast any episode, and who (an agent or fire index) must stay below
 2^20 (params check the number of UAVs)."""
 SEQ_SHIFT = WHO_BITS + KIND_BITS
 
@@ -76,6 +91,7 @@ SEQ_SHIFT = WHO_BITS + KIND_BITS
 jit = njit(cache=True)
 
 fs_delay_nb = jit(fs_delay)
+rank_key_nb = jit(rank_key)
 
 
 def params_record(cfg: WildfireConfig) -> np.ndarray:
@@ -85,12 +101,19 @@ def params_record(cfg: WildfireConfig) -> np.ndarray:
         ("n_agents", np.int64), ("n_fires", np.int64), ("n_obs", np.int64), ("v", np.float64),
         ("dt", np.float64), ("latency", np.float64), ("tol", np.float64), ("gamma", np.float64),
         ("r_ext", np.float64), ("r_pen", np.float64), ("t_health", np.float64),
-        ("t_max", np.float64), ("max_dec", np.int64), ("q1", np.bool_), ("q2", np.bool_),
+        ("t_max", np.float64), ("max_dec", np.int64), ("rank_res", np.float64),
+        ("q1", np.bool_), ("q2", np.bool_), ("q3", np.bool_), ("q4", np.bool_), ("q5", np.bool_),
+        ("q6", np.bool_), ("released", np.bool_), ("round_neg", np.bool_),
+        ("cut_goes_on", np.bool_),
         ("fires", np.float64, fires.shape)], align=True))
     rec[0] = (cfg.n_agents, len(fires), cfg.n_observed, cfg.v_uav, cfg.dt or 0.0,
               cfg.decision_latency, cfg.at_fire_tol, cfg.gamma, cfg.r_ext, cfg.r_pen,
-              cfg.t_health, cfg.t_max, cfg.max_decisions or 0, cfg.quirk_q1_stale_attack,
-              cfg.quirk_q2_penalty_party_only, fires)
+              cfg.t_health, cfg.t_max, cfg.max_decisions or 0, cfg.ranking_resolution,
+              cfg.quirk_q1_stale_attack, cfg.quirk_q2_penalty_party_only,
+              cfg.quirk_q3_unclamped_health, cfg.quirk_q4_latency_not_interrupted,
+              cfg.quirk_q5_discount_from_action_start, cfg.quirk_q6_short_flight_stays,
+              cfg.same_instant_order == "released",
+              cfg.fs_round_negative_delays, cfg.cut_flight_continues, fires)
     return rec
 
 
@@ -103,9 +126,11 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # each episode's first visit of a round misses the cache
         ("done", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8), ("events", i8),
         ("uwait", i8, n), ("act", i8, n),
-        # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence
+        # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence; the
+        # now-queues of URGENT and NORMAL events due now (see _push): keys, first, size
         ("hkey", i8, heap_capacity(cfg)), ("ht", f8, heap_capacity(cfg)), ("hn", i4),
-        ("seq", i8),
+        ("seq", i8), ("qu", i8, queue_capacity(cfg)), ("qu_0", i4), ("qu_n", i4),
+        ("qn", i8, queue_capacity(cfg)), ("qn_0", i4), ("qn_n", i4),
         # UAV motion
         ("pos", f8, (n, 2)), ("origin", f8, (n, 2)), ("goal", f8, (n, 2)), ("t_dep", f8, n),
         ("length", f8, n), ("flying", i1, n),
@@ -113,13 +138,17 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # it): its log row, time and discounted reward so far
         ("interest", i4, n), ("attacking", i4, n), ("in_party", i1, n), ("n_holds", i4, n),
         ("rank", i4, (n, cfg.n_observed)), ("n_dec", i4, n), ("returns", f8, n),
-        ("cur", i8, n), ("t_obs", f8, n), ("rew", f8, n),
-        # fires
+        ("cur", i8, n), ("t_obs", f8, n), ("rew", f8, n), ("t_disc", f8, n),
+        # when the UAV joined its interest party (a counter: the party's order); whether it waits
+        # its latency; whether its action sub-process is alive (released order), and whether the
+        # action ended by an interrupt
+        ("joined", i8, n), ("joins", i8), ("in_lat", i1, n), ("acting", i1, n), ("cut", i1, n),
+        # fires; whether the burn sub-process is alive (released order)
         ("alive", i1, k), ("health", f8, k), ("t_update", f8, k), ("party", i4, k),
-        ("fwait", i8, k),
-        # scratch of an observation: the observing UAV's distance to every fire, the fires in
-        # (distance, index) order, the size of every fire's interest party
-        ("fire_dist", f8, k), ("fire_order", i4, k), ("fire_party", i4, k),
+        ("fwait", i8, k), ("burning", i1, k),
+        # scratch of an observation: the observing UAV's distance to every fire and its ranking
+        # key, the fires in ranking order, the size of every fire's interest party
+        ("fire_dist", f8, k), ("fire_key", f8, k), ("fire_order", i4, k), ("fire_party", i4, k),
     ], align=True)
 
 
@@ -135,11 +164,29 @@ def log_dtype(obs_dim: int) -> np.dtype:
 
 @jit
 def _push(s, delay, prio, kind, who):
-    """Schedule an event ``delay`` after now (SimPy: time now + delay); return its sequence."""
+    """Schedule an event ``delay`` after now (SimPy: time now + delay); return its sequence.
+
+    An event due now goes to the now-queue of its priority, in order, not the heap: every event
+    the heap holds for now was scheduled earlier (sequence numbers grow), so SimPy's order at
+    now is the URGENT queue, then the heap's events due now (all NORMAL timeouts), then the NORMAL
+    queue. The released order's hops and the interrupts all take the queues."""
     seq = s.seq
     s.seq = seq + 1
     t = s.now + delay
     key = (np.int64(prio) << PRIO_SHIFT) | (seq << SEQ_SHIFT) | (np.int64(kind) << WHO_BITS) | who
+    if t != s.now:
+        _heap_insert(s, t, key)
+    elif prio == URGENT:
+        s.qu[(s.qu_0 + s.qu_n) % s.qu.shape[0]] = key
+        s.qu_n += 1
+    else:
+        s.qn[(s.qn_0 + s.qn_n) % s.qn.shape[0]] = key
+        s.qn_n += 1
+    return seq
+
+
+@jit
+def _heap_insert(s, t, key):
     n = s.hn
     s.hn = n + 1
     while n > 0:  # sift the new entry up, moving parents into the hole
@@ -152,12 +199,48 @@ def _push(s, delay, prio, kind, who):
         n = parent
     s.ht[n] = t
     s.hkey[n] = key
-    return seq
+
+
+@jit
+def _next_anyway(s, prio):
+    """Whether an event pushed now with priority ``prio`` would be the next one: then a hop can
+    run at once instead (the released order's chains of hops mostly do, in ED)."""
+    if s.qu_n > 0:
+        return False
+    return prio == URGENT or (s.qn_n == 0 and (s.hn == 0 or s.ht[0] > s.now))
+
+
+@jit
+def _next_source(s):
+    """Where the next event is: 0 the URGENT now-queue, 1 the heap, 2 the NORMAL now-queue."""
+    if s.qu_n > 0:
+        return 0
+    if s.qn_n > 0 and (s.hn == 0 or s.ht[0] != s.now):
+        return 2
+    return 1
+
+
+@jit
+def _next_key(s):
+    """The key of the next event."""
+    src = _next_source(s)
+    return s.qu[s.qu_0] if src == 0 else s.qn[s.qn_0] if src == 2 else s.hkey[0]
 
 
 @jit
 def _pop(s):
-    """Remove the first event; return its time and key."""
+    """Remove the next event; return its time and key."""
+    src = _next_source(s)
+    if src == 0:
+        key = s.qu[s.qu_0]
+        s.qu_0 = (s.qu_0 + 1) % s.qu.shape[0]
+        s.qu_n -= 1
+        return s.now, key
+    if src == 2:
+        key = s.qn[s.qn_0]
+        s.qn_0 = (s.qn_0 + 1) % s.qn.shape[0]
+        s.qn_n -= 1
+        return s.now, key
     t0, k0 = s.ht[0], s.hkey[0]
     n = s.hn - 1
     s.hn = n
@@ -197,10 +280,11 @@ def _dist(ax, ay, bx, by):
 
 
 @jit
-def _health_now(s, j):
-    if not s.alive[j]:
-        return 0.0
-    return max(0.0, s.health[j] - s.party[j] * (s.now - s.t_update[j]))
+def _health_now(s, p, j):
+    left = s.health[j] - s.party[j] * (s.now - s.t_update[j])
+    if p.q3:
+        return left
+    return max(0.0, left) if s.alive[j] else 0.0
 
 
 @jit
@@ -211,19 +295,36 @@ def _close(s, r, i):
 
 
 @jit
+def _position(s, p, i):
+    """Where UAV i is now: on its flight's segment, or where it landed."""
+    if not s.flying[i]:
+        return s.pos[i, 0], s.pos[i, 1]
+    length = s.length[i]
+    if p.q6 and length < p.tol:
+        return s.origin[i, 0], s.origin[i, 1]
+    if length == 0:
+        return s.goal[i, 0], s.goal[i, 1]
+    frac = min(1.0, p.v * (s.now - s.t_dep[i]) / length)
+    return (s.origin[i, 0] + frac * (s.goal[i, 0] - s.origin[i, 0]),
+            s.origin[i, 1] + frac * (s.goal[i, 1] - s.origin[i, 1]))
+
+
+@jit
 def _observe(s, p, r, row, e, i):
     """UAV i observes into log row r (number ``row``) and waits the decision latency."""
     now = s.now
     sojourn = now - s.t_obs[i] if s.n_dec[i] > 0 else 0.0
-    x, y = s.pos[i, 0], s.pos[i, 1]
+    x, y = _position(s, p, i)
     o = r.obs
     o[0], o[1] = x, y
-    dist, order, party = s.fire_dist, s.fire_order, s.fire_party
-    for j in range(p.n_fires):  # insertion sort by (distance, index): the lower index wins ties
+    dist, key, order, party = s.fire_dist, s.fire_key, s.fire_order, s.fire_party
+    for j in range(p.n_fires):  # insertion sort by (ranking key, index): lower index wins ties
         d = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
         dist[j] = d
+        kj = rank_key_nb(d, p.rank_res)
+        key[j] = kj
         at = j
-        while at > 0 and dist[order[at - 1]] > d:
+        while at > 0 and key[order[at - 1]] > kj:
             order[at] = order[at - 1]
             at -= 1
         order[at] = j
@@ -239,7 +340,7 @@ def _observe(s, p, r, row, e, i):
         o[base + 1] = 1.0
         o[base + 2] = party[best]
         o[base + 3] = 1.0 if s.alive[best] else 0.0
-        o[base + 4] = _health_now(s, best)
+        o[base + 4] = _health_now(s, p, best)
     o[2 + OBS_PER_FIRE * p.n_obs] = sojourn
     r.time = now
     r.ep = e
@@ -249,13 +350,16 @@ def _observe(s, p, r, row, e, i):
     s.cur[i] = row
     s.act[i] = -1
     s.t_obs[i] = now
+    if not p.q5:
+        s.t_disc[i] = now
     s.rew[i] = 0.0
+    s.in_lat[i] = True
     s.uwait[i] = _push(s, p.latency, NORMAL, LATENCY, i)
 
 
 @jit
 def _accrue(s, p, i, r):
-    s.rew[i] += math.exp(-p.gamma * (s.now - s.t_obs[i])) * r
+    s.rew[i] += math.exp(-p.gamma * (s.now - s.t_disc[i])) * r
     s.returns[i] += r
 
 
@@ -267,7 +371,10 @@ def _party_change(s, p, j, delta):
     s.health[j] = s.health[j] - s.party[j] * (now - s.t_update[j])
     s.t_update[j] = now
     s.party[j] += delta
-    _push(s, 0.0, URGENT, INT_FIRE, j)
+    if not p.released:
+        _push(s, 0.0, URGENT, INT_FIRE, j)
+    elif s.burning[j]:  # else it ended at this instant: the fire goes out all the same
+        _push(s, 0.0, URGENT, INT_FIRE, j)
 
 
 @jit
@@ -281,13 +388,23 @@ def _penalise(s, p, j):
 
 
 @jit
+def _join_interest(s, i, j):
+    s.interest[i] = j
+    s.joined[i] = s.joins
+    s.joins += 1
+
+
+@jit
 def _start_action(s, p, i, a, hold):
     """UAV i starts action a; ``hold`` is its next hold duration (used if a holds)."""
     now = s.now
+    if p.q5:
+        s.t_disc[i] = now
+    _land(s, p, i, True)  # a cut flight that went on until now
     s.interest[i] = -1
     if a < p.n_obs:
         target = s.rank[i, a]
-        s.interest[i] = target
+        _join_interest(s, i, target)
         if s.in_party[i]:
             s.in_party[i] = False
             _party_change(s, p, s.attacking[i], -1)
@@ -301,12 +418,12 @@ def _start_action(s, p, i, a, hold):
         s.t_dep[i] = now
         s.length[i] = length
         s.flying[i] = True
-        d = fs_delay_nb(now, length / p.v, p.dt)
+        d = fs_delay_nb(now, length / p.v, p.dt, p.round_neg)
     else:
         x, y = s.pos[i, 0], s.pos[i, 1]
         for j in range(p.n_fires):
             if _dist(x, y, p.fires[j, 0], p.fires[j, 1]) < p.tol:
-                s.interest[i] = j
+                _join_interest(s, i, j)
                 if s.attacking[i] != j:
                     s.attacking[i] = j
                     if s.alive[j]:
@@ -315,19 +432,17 @@ def _start_action(s, p, i, a, hold):
                         _penalise(s, p, j)
                 break
         s.n_holds[i] += 1
-        d = fs_delay_nb(now, hold, p.dt)
+        d = fs_delay_nb(now, hold, p.dt, p.round_neg)
     s.uwait[i] = _push(s, d, NORMAL, ACTION, i)
 
 
 @jit
 def _land(s, p, i, cut):
+    """The flight ends now: at its goal if it finished, else where it got to."""
     if not s.flying[i]:
         return
-    length = s.length[i]
-    if cut and length > 0:
-        frac = min(1.0, p.v * (s.now - s.t_dep[i]) / length)
-        for c in range(2):
-            s.pos[i, c] = s.origin[i, c] + frac * (s.goal[i, c] - s.origin[i, c])
+    if cut or (p.q6 and s.length[i] < p.tol):
+        s.pos[i, 0], s.pos[i, 1] = _position(s, p, i)
     else:
         s.pos[i, 0], s.pos[i, 1] = s.goal[i, 0], s.goal[i, 1]
     s.flying[i] = False
@@ -338,8 +453,20 @@ def _replan(s, p, j):
     if s.party[j] == 0:
         s.fwait[j] = -1  # idle until the party changes
     else:
-        d = fs_delay_nb(s.now, s.health[j] / s.party[j], p.dt)
+        d = fs_delay_nb(s.now, s.health[j] / s.party[j], p.dt, p.round_neg)
         s.fwait[j] = _push(s, d, NORMAL, EXTINGUISH, j)
+
+
+@jit
+def _interrupt(s, p, i):
+    """A fire UAV i is interested in went out."""
+    if s.in_lat[i]:
+        if not p.q4:
+            _push(s, 0.0, URGENT, INT_UAV, i)  # drop the pending decision
+    elif not p.released:
+        _push(s, 0.0, URGENT, INT_UAV, i)
+    elif s.acting[i]:  # else it ended at this instant: the UAV will observe
+        _push(s, 0.0, URGENT, INT_ACT, i)
 
 
 @jit
@@ -348,9 +475,30 @@ def _extinguish(s, p, j):
     s.n_alive -= 1
     for i in range(p.n_agents):
         _accrue(s, p, i, p.r_ext)
-    for i in range(p.n_agents):
-        if s.interest[i] == j:
-            _push(s, 0.0, URGENT, INT_UAV, i)
+    if p.released:  # in the order they joined the interest party
+        last = np.int64(-1)
+        while True:
+            nxt, first = -1, np.int64(0)
+            for i in range(p.n_agents):
+                if s.interest[i] == j and s.joined[i] > last and (nxt < 0 or s.joined[i] < first):
+                    nxt, first = i, s.joined[i]
+            if nxt < 0:
+                break
+            _interrupt(s, p, nxt)
+            last = first
+    else:
+        for i in range(p.n_agents):
+            if s.interest[i] == j:
+                _interrupt(s, p, i)
+
+
+@jit
+def _fire_out(s, log, p, j):
+    """Released order: fire j's burn sub-process ended, the fire goes out; after the last one the
+    conditions "fire out", "all out", "all out or T_max" trigger in turn."""
+    _extinguish(s, p, j)
+    if s.n_alive == 0:
+        _push(s, 0.0, NORMAL, END_HOP, 2)
 
 
 @jit
@@ -362,12 +510,58 @@ def _end(s, log, p):
         _close(s, log[s.cur[i]], i)
 
 
+@jit
+def _act(s, p, holds, e, i):
+    """UAV i starts the action the policy gave it."""
+    a = s.act[i]
+    hold = holds[e, i, s.n_holds[i] % holds.shape[2]] if a == p.n_obs else 0.0
+    _start_action(s, p, i, a, hold)
+
+
+@jit
+def _to_uav(s, log, p, e, row, i, hops):
+    """The end of UAV i's macro-action reaches it ``hops`` NORMAL events later (2: the action
+    sub-process ending, then the AnyOf; 1: the AnyOf). Returns the next free row."""
+    if _next_anyway(s, NORMAL):
+        s.events += hops
+        return _macro_action_over(s, log, p, e, row, i, s.cut[i])
+    _push(s, 0.0, NORMAL, ACT_END if hops == 2 else ANY_OF, i)
+    return row
+
+
+@jit
+def _burn_restarts(s, p, j, hops):
+    """Fire j's failed burn sub-process restarts ``hops`` events later (2: its failure, NORMAL,
+    then its start, URGENT; 1: the start)."""
+    if _next_anyway(s, NORMAL if hops == 2 else URGENT):
+        s.events += hops
+        s.burning[j] = True
+        _replan(s, p, j)
+    else:
+        _push(s, 0.0, NORMAL if hops == 2 else URGENT, BURN_FAIL if hops == 2 else BURN_START, j)
+
+
+@jit
+def _macro_action_over(s, log, p, e, row, i, cut):
+    """UAV i's macro-action ended (cut: by an interrupt): it observes again (log row ``row``),
+    unless that was its last allowed decision; returns the next free row."""
+    if not (cut and p.cut_goes_on):
+        _land(s, p, i, cut)
+    _close(s, log[s.cur[i]], i)
+    if s.n_dec[i] == p.max_dec:  # 0 (no limit) never: n_dec >= 1 here
+        _end(s, log, p)
+        return row
+    _observe(s, p, log[row], row, e, i)
+    return row + 1
+
+
 # --- kernels -------------------------------------------------------------------------------------
 
 @jit
 def _setup(states, log, used, params, starts):
     """Every field of every (uninitialised) state, then time 0: every UAV observes (in index
-    order), and the T_max clock starts."""
+    order), and the T_max clock starts (in the released order before, as the released code
+    creates it before running its processes)."""
     p = params[0]
     row = used[0]
     for e in range(len(states)):
@@ -379,6 +573,8 @@ def _setup(states, log, used, params, starts):
         s.n_alive = p.n_fires
         s.hn = 0
         s.seq = 0
+        s.qu_0 = s.qu_n = s.qn_0 = s.qn_n = 0
+        s.joins = 0
         for i in range(p.n_agents):
             s.pos[i, 0], s.pos[i, 1] = starts[e, i, 0], starts[e, i, 1]
             s.flying[i] = False  # origin, goal, t_dep and length are set on take-off
@@ -388,17 +584,25 @@ def _setup(states, log, used, params, starts):
             s.n_holds[i] = 0
             s.n_dec[i] = 0
             s.uwait[i] = -1
-            s.returns[i] = 0.0  # rank, cur, t_obs and rew are set by the first observation
+            s.joined[i] = 0
+            s.acting[i] = False
+            s.cut[i] = False
+            s.t_disc[i] = 0.0
+            s.returns[i] = 0.0  # rank, cur, t_obs, rew, in_lat: set by the first observation
         for j in range(p.n_fires):
             s.alive[j] = True
             s.health[j] = p.t_health
             s.t_update[j] = 0.0
             s.party[j] = 0
             s.fwait[j] = -1
+            s.burning[j] = True  # the burn sub-process waits for a party
+        if p.released:
+            _push(s, p.t_max, NORMAL, CLOCK, 0)
         for i in range(p.n_agents):
             _observe(s, p, log[row], row, e, i)
             row += 1
-        _push(s, p.t_max, NORMAL, CLOCK, 0)
+        if not p.released:
+            _push(s, p.t_max, NORMAL, CLOCK, 0)
     used[0] = row
 
 
@@ -421,20 +625,21 @@ def _advance(states, live, log, used, params, holds, actions, first):
         if s.cur[r.agent] == first + k:  # else superseded: its latency's end is stale
             s.act[r.agent] = actions[k]
     row = used[0]
-    size = holds.shape[2]
     status = OK
     n_live = 0
     for q in range(live[0]):
         e = live[1 + q]
         s = states[e]
         while not s.done:
-            sq, kind, who = _unpack(s.hkey[0])
+            sq, kind, who = _unpack(_next_key(s))
             if kind == LATENCY and sq == s.uwait[who] and s.act[who] < 0:
                 break  # the policy has not decided yet
             if row >= len(log):
                 status = GROW_LOG
                 break
-            if s.hn + p.n_agents + 2 > s.hkey.shape[0]:
+            room = p.n_agents + 3  # what one event may push, at most
+            if (s.hn + room > s.hkey.shape[0] or s.qu_n + room > s.qu.shape[0]
+                    or s.qn_n + room > s.qn.shape[0]):
                 status = HEAP_FULL
                 break
             t, key = _pop(s)
@@ -443,26 +648,73 @@ def _advance(states, live, log, used, params, holds, actions, first):
             s.events += 1
             if kind == LATENCY:
                 if sq == s.uwait[who]:
-                    a = s.act[who]
-                    hold = holds[e, who, s.n_holds[who] % size] if a == p.n_obs else 0.0
-                    _start_action(s, p, who, a, hold)
-            elif kind == ACTION or kind == INT_UAV:
-                if kind == INT_UAV or sq == s.uwait[who]:
-                    _land(s, p, who, kind == INT_UAV)
-                    _close(s, log[s.cur[who]], who)
-                    if s.n_dec[who] == p.max_dec:  # 0 (no limit) never: n_dec >= 1 here
-                        _end(s, log, p)
+                    s.in_lat[who] = False
+                    if not p.released:
+                        _act(s, p, holds, e, who)
+                    else:  # the action sub-process starts
+                        s.acting[who] = True
+                        if _next_anyway(s, URGENT):
+                            s.events += 1
+                            _act(s, p, holds, e, who)
+                        else:
+                            _push(s, 0.0, URGENT, ACT_START, who)
+            elif kind == ACT_START:
+                _act(s, p, holds, e, who)
+            elif kind == ACTION:
+                if sq == s.uwait[who]:
+                    if p.released:  # the sub-process ends
+                        s.acting[who] = False
+                        s.cut[who] = False
+                        row = _to_uav(s, log, p, e, row, who, 2)
                     else:
-                        _observe(s, p, log[row], row, e, who)
-                        row += 1
+                        row = _macro_action_over(s, log, p, e, row, who, False)
+            elif kind == INT_UAV:
+                row = _macro_action_over(s, log, p, e, row, who, True)
+            elif kind == INT_ACT:
+                if s.acting[who]:  # the sub-process fails
+                    s.acting[who] = False
+                    s.cut[who] = True
+                    s.uwait[who] = -1
+                    row = _to_uav(s, log, p, e, row, who, 2)
+            elif kind == ACT_END:
+                row = _to_uav(s, log, p, e, row, who, 1)
+            elif kind == ANY_OF:
+                row = _macro_action_over(s, log, p, e, row, who, s.cut[who])
             elif kind == EXTINGUISH:
                 if sq == s.fwait[who]:
-                    _extinguish(s, p, who)
-                    if s.n_alive == 0:
-                        _end(s, log, p)
+                    if not p.released:
+                        _extinguish(s, p, who)
+                        if s.n_alive == 0:
+                            _end(s, log, p)
+                    else:  # the burn sub-process ends
+                        s.burning[who] = False
+                        if _next_anyway(s, NORMAL):
+                            s.events += 1
+                            _fire_out(s, log, p, who)
+                        else:
+                            _push(s, 0.0, NORMAL, BURN_END, who)
+            elif kind == BURN_END:
+                _fire_out(s, log, p, who)
             elif kind == INT_FIRE:
-                if s.alive[who]:
+                if p.released:
+                    if s.burning[who]:  # the burn sub-process fails
+                        s.burning[who] = False
+                        s.fwait[who] = -1
+                        _burn_restarts(s, p, who, 2)
+                elif s.alive[who]:
                     _replan(s, p, who)
+            elif kind == BURN_FAIL:  # the fire restarts its burn sub-process
+                _burn_restarts(s, p, who, 1)
+            elif kind == BURN_START:
+                s.burning[who] = True
+                _replan(s, p, who)
+            elif kind == END_HOP:
+                if who > 0:
+                    _push(s, 0.0, NORMAL, END_HOP, who - 1)
+                else:
+                    _end(s, log, p)
+            elif p.released:  # CLOCK: then the condition "all out or T_max"
+                _push(s, 0.0, NORMAL, END_HOP, 0)
             else:
                 _end(s, log, p)
         if not s.done:
@@ -576,7 +828,8 @@ class WildfireEnv:
                 log = _grow(log)
                 continue
             if status == HEAP_FULL:
-                raise RuntimeError(f"event heap of {heap_capacity(self.cfg)} entries is full")
+                raise RuntimeError(f"event heap of {heap_capacity(self.cfg)} entries or queue of "
+                                   f"{queue_capacity(self.cfg)} is full")
             end = int(used[0])
             if end == first:
                 break

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -13,6 +14,8 @@ from repro.core.rollout import children
 
 OBS_PER_FIRE = 5
 """Per observed fire: distance, level, interest party size, status, remaining health."""
+SAME_INSTANT_ORDERS = ("released", "scheduling")
+"""Values of :attr:`WildfireConfig.same_instant_order`."""
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,53 @@ class WildfireConfig:
     quirk_q2_penalty_party_only: bool = True
     """Q2: r_pen goes to the extinguish party's members only (released implementation); False gives
     it to every agent, as the paper says."""
+    quirk_q3_unclamped_health: bool = True
+    """Q3: a fire's observed remaining health is ``health - party size * time since the party last
+    changed``, unclamped, also once the fire is out (released implementation): it goes negative
+    in FS when the rounded extinguish event comes after the health ran out, and a fire that is out
+    keeps draining at the rate of the party it had (nobody leaves the party of a fire that is out).
+    False: clamped at 0, and 0 for fires that are out."""
+    quirk_q4_latency_not_interrupted: bool = True
+    """Q4: a fire going out while a UAV interested in it waits its decision latency does not
+    interrupt it (released implementation: the interrupt reaches the UAV's previous, finished
+    action and is swallowed): the UAV carries out the decision made on its stale observation.
+    False: the pending decision is dropped and the UAV decides again at once."""
+    quirk_q5_discount_from_action_start: bool = True
+    """Q5: a UAV's rewards are discounted from the start of its latest action, as the released
+    implementation does, not from its latest observation. Besides shifting every weight by
+    ``exp(gamma * latency)`` (below 1e-6), a reward accrued while the UAV waits its decision
+    latency (in FS: a fire out, or a penalty, at the grid instant it observed) belongs to the new
+    decision but is discounted from the PREVIOUS action's start. False: from the observation."""
+    fs_round_negative_delays: bool = True
+    """In FS a fire's health can run out before its rounded extinguish event; a party change in
+    between re-plans it with a negative delay, which is rounded to the grid like any other delay
+    (SPEC's formula, released code): the fire goes out at once if a grid point lies between the
+    run-out and now. False (before issue 18): the negative delay counts as 0, so the fire goes out
+    at the next grid point."""
+    cut_flight_continues: bool = True
+    """A flight cut by its fire going out goes on along its segment until the UAV's next action
+    starts, one decision latency later (released code: the position is computed from the
+    action's start, and only the next action sets a new start). The UAV observes where it is at
+    the cut; the 1.5e-7 m it flies during the latency can move the next flight's rounded FS
+    arrival by a grid step. False (before issue 18): it stops where it is at the cut."""
+    ranking_resolution: float = 1e-9
+    """Fires are ranked by distance rounded to multiples of this (m), ties to the lower fire index:
+    a UAV at a fire sees its two cluster-mates at the same distance up to round-off, and this
+    ranks them by index, whatever the round-off. A deliberate deviation: the released code ranks
+    them by floating-point noise. 0: exact distances (before issue 18; the noise decides)."""
+    quirk_q6_short_flight_stays: bool = True
+    """Q6: a flight shorter than ``at_fire_tol`` takes its travel time but leaves the UAV where it
+    was (released implementation: its position is the action's start while that is within 1e-3 m
+    of the goal). E.g. a UAV cut 0.7 mm after leaving a fire, that flies back to it, stays 0.7 mm
+    off (close enough to hold there). False: it lands at the goal."""
+    same_instant_order: str = "released"
+    """Order of events at one instant. "released": the order of the released implementation's
+    process structure (a macro-action's end reaches its UAV through its action process and an
+    AnyOf condition; a fire burns in a sub-process that party changes interrupt; the episode ends
+    through the conditions "all fires out" or T_max; a fire interrupts the UAVs interested in it in
+    the order they joined its interest party). "scheduling": each process waits on its own timeouts
+    and the episode ends at once (the suite's order before issue 18). Not a quirk: the corrected
+    semantics keep "released"."""
     max_decisions: int | None = None
     """The episode also ends when a UAV's macro-action ends after its ``max_decisions``-th decision
     (instead of that UAV deciding again), as at T_max: every running macro-action is cut. None: no
@@ -66,6 +116,14 @@ class WildfireConfig:
     """Hold durations pre-drawn per agent and episode, at least: :attr:`hold_table` adds more when
     T_max needs them. Used in order, cyclically; both engines index the table by the agent's hold
     count."""
+
+    BEFORE_ADDED: ClassVar[dict[str, object]] = dict(
+        quirk_q3_unclamped_health=False, quirk_q4_latency_not_interrupted=False,
+        quirk_q5_discount_from_action_start=False, quirk_q6_short_flight_stays=False,
+        fs_round_negative_delays=False, cut_flight_continues=False, ranking_resolution=0.0,
+        same_instant_order="scheduling")
+    """What runs recorded before these settings existed (issue 18) ran: the behaviour before the
+    released simulator's, so that such a run is not resumed as one of the released semantics."""
 
     def validate(self) -> None:
         # the fast engine's event keys hold an agent index in 20 bits
@@ -90,6 +148,10 @@ class WildfireConfig:
                 self.hold_std)
         require(1 <= self.n_observed <= 9, "n_observed", "between 1 and the number of fires",
                 self.n_observed)
+        require(self.ranking_resolution >= 0 and math.isfinite(self.ranking_resolution),
+                "--ranking-resolution", "a number >= 0", self.ranking_resolution)
+        require(self.same_instant_order in SAME_INSTANT_ORDERS, "--same-instant-order",
+                " or ".join(SAME_INSTANT_ORDERS), self.same_instant_order)
         require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
                 "a positive integer (0: no limit)", self.max_decisions)
         require(self.hold_table_size >= 1, "hold_table_size", "an integer >= 1",
@@ -126,6 +188,12 @@ class WildfireConfig:
         return "ED" if self.dt is None else f"FS-{self.dt:g}"
 
 
+QUIRKS = tuple(f for f in WildfireConfig.__dataclass_fields__ if f.startswith("quirk_"))
+"""The released implementation's quirks Q1-Q6: all on by default, all off in the corrected
+semantics (the paper's prose). The same-instant order, the FS rounding of negative delays and
+cut flights going on stay as released; they are not quirks."""
+
+
 def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
     """(9, 2) fire locations: cluster A, then A rotated by +120 deg (B) and by -120 deg (C).
 
@@ -141,18 +209,31 @@ def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
     return np.concatenate(out)
 
 
-def fs_delay(now: float, delay: float, dt: float) -> float:
-    """The FS replacement of a delay scheduled at ``now``: its end is rounded up to the dT grid.
+def fs_delay(now: float, delay: float, dt: float, round_negative: bool = True) -> float:
+    """The FS replacement of a delay scheduled at ``now``: its end is rounded up to the dT grid,
+    and the delay is at least 0.
 
-    ``dt <= 0`` stands for ED (no rounding). Negative delays (round-off in a fire's re-planned
-    health) count as 0. Plain float arithmetic, so the numba engine compiles the same operations;
-    a float ceiling, because numba's ``math.ceil`` returns an int64, which overflows (to a delay of
-    0) once the number of steps passes 2^63.
+    ``dt <= 0`` stands for ED (no rounding). A negative delay (a fire whose health ran out before
+    its rounded extinguish event, re-planned at a party change) is rounded like any other if
+    ``round_negative`` (SPEC, released code: to the grid point at or before now when that is more
+    than now + delay, so at once), else it first counts as 0 (rounded up to the next grid point).
+    Plain float arithmetic, so the numba engine compiles the same operations; a float ceiling,
+    because numba's ``math.ceil`` returns an int64, which overflows (to a delay of 0) once the
+    number of steps passes 2^63.
     """
-    d = max(delay, 0.0)
+    d = delay if round_negative else max(delay, 0.0)
     if dt <= 0.0:
-        return d
+        return max(d, 0.0)
     return max(0.0, np.ceil((now + d) / dt) * dt - now)
+
+
+def rank_key(distance: float, resolution: float) -> float:
+    """What fires are ranked by (ties to the lower index): the distance rounded to multiples of
+    ``resolution``, or the distance itself if ``resolution`` is 0. Plain float arithmetic, so the
+    numba engine compiles the same operations."""
+    if resolution <= 0.0:
+        return distance
+    return np.floor(distance / resolution + 0.5)
 
 
 @dataclass(frozen=True)

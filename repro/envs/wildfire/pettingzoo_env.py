@@ -91,9 +91,11 @@ def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
     """Bounds of an observation: own x, y (UAVs start uniformly on [-1, 1]^2 and fly straight
     between starts and fires, so they stay in the square that holds both); per observed fire its
     distance (at most the square's diagonal), level (1), interest party size (0..N), status (0 or
-    1) and remaining health (0..T_health); the sojourn time (0..T_max)."""
+    1) and remaining health (0..T_health; with quirk Q3 it drains on, at most N UAVs until T_max);
+    the sojourn time (0..T_max)."""
     side = max(1.0, float(np.abs(fire_positions(cfg)).max()))
-    per_fire_low = [0, 1, 0, 0, 0]
+    lowest_health = cfg.t_health - cfg.n_agents * cfg.t_max if cfg.quirk_q3_unclamped_health else 0
+    per_fire_low = [0, 1, 0, 0, lowest_health]
     per_fire_high = [2 * np.sqrt(2) * side, 1, cfg.n_agents, 1, cfg.t_health]
     low = [-side, -side, *per_fire_low * cfg.n_observed, 0]
     high = [side, side, *per_fire_high * cfg.n_observed, cfg.t_max]

@@ -4,24 +4,47 @@ match.
 One process per UAV and one per fire, as the paper describes event-driven simulation:
 
 - A UAV observes, waits the decision latency, acts, and waits for its macro-action to end. A fire
-  it is interested in being extinguished interrupts that wait (the latency included: an action
-  not yet started is then dropped) and the UAV decides again.
+  it is interested in being extinguished interrupts its macro-action and the UAV decides again
+  (during the latency, see quirk Q4).
 - A fire waits until its extinguish party has spent its remaining health. Every party change
   drains the health at the old rate and interrupts the fire, which re-plans its extinguish time
   (in FS, re-rounds it to the grid).
 
+Same-instant order (``same_instant_order``). FS puts many events on one instant, and their order
+decides who sees what. By default the model has the process structure of the authors' released
+simulator, so that SimPy itself yields the released order (its queue is keyed by time, then
+URGENT before NORMAL, then scheduling order; starting a process and interrupting one are URGENT):
+
+- a UAV runs each macro-action as a sub-process and waits on AnyOf(that process, episode end):
+  the end of a macro-action (its timeout, or an interrupt) reaches the UAV two NORMAL events later
+  (the sub-process ending, then the AnyOf), and a fire interrupts the sub-process, not the UAV;
+- a fire burns in a sub-process that party changes interrupt; the interrupted sub-process fails,
+  and the fire restarts it (a NORMAL event, then the URGENT start), reading its party then; the
+  extinguish timeout reaches the fire one NORMAL event later (the sub-process ending), so a party
+  change in between changes the party of a fire that is about to go out;
+- the episode ends when the condition (all fires out) or (T_max) is processed: three NORMAL events
+  after the last fire's extinguishing, one after T_max's timeout;
+- a fire interrupts the UAVs of its interest party in the order they joined it.
+
+E.g. a fire that goes out at the instant a UAV's hold ends is out before that UAV observes, and
+its r_ext belongs to the hold that just ended. "scheduling" is the suite's order before issue 18:
+the processes wait on their own timeouts, interrupts go in agent-index order, and the episode
+ends at once.
+
 Choices the SPEC leaves open, made once here and mirrored by the fast engine:
 
 - A decision's macro-action starts at its observation (the latency belongs to it), so the
-  durations of a path add up to the episode's end time.
-- Observed remaining health is ``max(0, ...)`` for live fires (in FS the rounded extinguish event
-  can come after the health ran out) and 0 for fires that are out.
-- Parties are sets of agent indices; interrupts and penalties go out in agent-index order. A fire
-  that is out keeps its interest party (UAVs leave it with their next action), and joining or
-  leaving its extinguish party does nothing (but Q1's memory of the attacked fire is still set).
-- The episode ends right after the event that puts out the last fire or reaches T_max, or (with
-  ``max_decisions``) ends a UAV's macro-action after its last allowed decision; events scheduled
-  for the same instant are not processed.
+  durations of a path add up to the episode's end time (quirk Q5 only moves the discount's
+  origin).
+- Ranking ties (a deliberate deviation from the released code, which ranks a UAV's two
+  equidistant cluster-mates by floating-point noise): distances rounded to
+  ``ranking_resolution`` (1e-9 m), ties to the lower fire index.
+- Parties are agent indices; penalties go out in agent-index order. A fire that is out keeps its
+  interest party (UAVs leave it with their next action), and joining or leaving its extinguish
+  party does nothing (but Q1's memory of the attacked fire is still set).
+- The episode ends right after the event that ends it (see above) or (with ``max_decisions``)
+  ends a UAV's macro-action after its last allowed decision; events left at that instant are not
+  processed (in the released code they run with rewards switched off and change no record).
 """
 
 from __future__ import annotations
@@ -33,7 +56,7 @@ import simpy
 
 from repro.core.rollout import DecisionBatch, Policy, Rollout
 from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episodes,
-                                        fire_positions, fs_delay)
+                                        fire_positions, fs_delay, rank_key)
 from repro.envs.wildfire.records import rollout_from_records
 
 class WildfireModel:
@@ -41,6 +64,7 @@ class WildfireModel:
 
     def __init__(self, cfg: WildfireConfig, starts: np.ndarray, holds: np.ndarray):
         self.cfg = cfg
+        self.released = cfg.same_instant_order == "released"
         self.fires = fire_positions(cfg)
         n, k = cfg.n_agents, len(self.fires)
         self.dt = cfg.dt or 0.0
@@ -50,16 +74,21 @@ class WildfireModel:
         self.pos = [tuple(p) for p in starts]
         self.flight: list[tuple | None] = [None] * n  # (origin, goal, departure time, length)
         self.interest = [-1] * n  # fire whose interest party the UAV is in
+        self.joined = [0] * n  # when it joined that party (a counter: the party's order)
         self.attacking = [-1] * n  # fire the UAV remembers attacking (quirk Q1)
         self.in_party = [False] * n  # whether it is in that fire's extinguish party
         self.n_holds = [0] * n
         self.action: list[int | None] = [None] * n
         self.ranking: list[list[int]] = [[] for _ in range(n)]
+        self.in_latency = [False] * n
+        self.t_disc = [0.0] * n  # origin of the discount of the UAV's rewards
+        self.action_procs: list[simpy.Process | None] = [None] * n  # released order
         # fire state
         self.alive = [True] * k
         self.health = [cfg.t_health] * k  # as of t_update
         self.t_update = [0.0] * k
         self.party = [0] * k  # extinguish party size
+        self.burn_procs: list[simpy.Process | None] = [None] * k  # released order
         # records: one list entry per decision
         self.rec: list[dict] = []
         self.current = [-1] * n  # each UAV's current decision (index into rec)
@@ -68,9 +97,17 @@ class WildfireModel:
         self.done = False
         self.t_end = math.nan
         self.events = 0
+        self.joins = 0
         self.fire_procs = [self.env.process(self._fire(j)) for j in range(k)]
         self.uav_procs = [self.env.process(self._uav(i)) for i in range(n)]
-        self.env.process(self._clock())
+        self.over = self.env.event()  # the episode ended (what a UAV's AnyOf also waits on)
+        if self.released:
+            self.fire_out = [self.env.event() for _ in range(k)]
+            # as the released code runs until (all fires out) or (T_max)
+            ending = self.env.all_of(self.fire_out) | self.env.timeout(cfg.t_max)
+            ending.callbacks.append(lambda _: self._end())
+        else:
+            self.env.process(self._clock())
 
     # --- driving ---------------------------------------------------------------------------------
 
@@ -96,22 +133,38 @@ class WildfireModel:
             self._observe(i)
             try:
                 yield self.env.timeout(self.cfg.decision_latency)
-                yield self.env.timeout(self._start_action(i))
+                self.in_latency[i] = False
+                if self.released:
+                    self.action_procs[i] = self.env.process(self._macro_action(i))
+                    yield self.env.any_of([self.action_procs[i], self.over])
+                else:
+                    yield from self._macro_action(i)
                 self._land(i, cut=False)
             except simpy.Interrupt:
-                self._land(i, cut=True)
+                if not self.cfg.cut_flight_continues:
+                    self._land(i, cut=True)
+
+    def _macro_action(self, i: int):
+        yield self.env.timeout(self._start_action(i))
 
     def _fire(self, j: int):
         while True:
             try:
-                if self.party[j] == 0:
-                    yield self.env.event()  # idle until the party changes
+                if self.released:
+                    self.burn_procs[j] = self.env.process(self._burn(j))
+                    yield self.burn_procs[j]
                 else:
-                    yield self.env.timeout(self._delay(self.health[j] / self.party[j]))
-                    break
+                    yield from self._burn(j)
+                break
             except simpy.Interrupt:
                 pass  # the party changed: re-plan
         self._extinguish(j)
+
+    def _burn(self, j: int):
+        if self.party[j] == 0:
+            yield self.env.event()  # idle until the party changes
+        else:
+            yield self.env.timeout(self._delay(self.health[j] / self.party[j]))
 
     def _clock(self):
         yield self.env.timeout(self.cfg.t_max)
@@ -125,10 +178,11 @@ class WildfireModel:
         sojourn = 0.0 if prev < 0 else now - self.rec[prev]["time"]
         if prev >= 0:
             self.rec[prev]["duration"] = sojourn
-        x, y = self.pos[i]
+        x, y = self._position(i)
         dist = np.array([math.sqrt((fx - x) * (fx - x) + (fy - y) * (fy - y))
                          for fx, fy in self.fires])
-        rank = np.argsort(dist, kind="stable")[:cfg.n_observed]
+        key = [rank_key(d, cfg.ranking_resolution) for d in dist]
+        rank = np.argsort(key, kind="stable")[:cfg.n_observed]
         self.ranking[i] = rank.tolist()
         obs = [x, y]
         for j in rank:
@@ -140,15 +194,21 @@ class WildfireModel:
                              index=0 if prev < 0 else self.rec[prev]["index"] + 1,
                              time=now, obs=obs, action=-1, reward=0.0, duration=math.nan))
         self.pending.append(i)
+        self.in_latency[i] = True
+        if not cfg.quirk_q5_discount_from_action_start:
+            self.t_disc[i] = now
 
     def _start_action(self, i: int) -> float:
         """Act; return the macro-action's (rounded) duration."""
         cfg, now = self.cfg, self.env.now
+        if cfg.quirk_q5_discount_from_action_start:
+            self.t_disc[i] = now
+        self._land(i, cut=True)  # a cut flight that went on until now
         self.interest[i] = -1
         a = self.action[i]
         if a < cfg.n_observed:
             target = self.ranking[i][a]
-            self.interest[i] = target
+            self._join_interest(i, target)
             if self.in_party[i]:
                 self.in_party[i] = False
                 self._party_change(self.attacking[i], -1)
@@ -162,7 +222,7 @@ class WildfireModel:
         x, y = self.pos[i]
         for j, (fx, fy) in enumerate(self.fires):
             if math.sqrt((fx - x) * (fx - x) + (fy - y) * (fy - y)) < cfg.at_fire_tol:
-                self.interest[i] = j
+                self._join_interest(i, j)
                 if self.attacking[i] != j:
                     self.attacking[i] = j
                     if self.alive[j]:
@@ -174,25 +234,50 @@ class WildfireModel:
         self.n_holds[i] += 1
         return self._delay(hold)
 
+    def _join_interest(self, i: int, j: int) -> None:
+        self.interest[i] = j
+        self.joined[i] = self.joins
+        self.joins += 1
+
     def _land(self, i: int, cut: bool) -> None:
-        """The macro-action ended: a finished flight ends at its goal, a cut one on its segment."""
+        """The flight ends now: at its goal if it finished, else where it got to."""
+        if self.flight[i] is not None:
+            self.pos[i] = self._position(i) if cut or self._stays(i) else self.flight[i][1]
+            self.flight[i] = None
+
+    def _stays(self, i: int) -> bool:
+        """Whether UAV i's flight leaves it at its origin (quirk Q6)."""
+        return self.cfg.quirk_q6_short_flight_stays and self.flight[i][3] < self.cfg.at_fire_tol
+
+    def _position(self, i: int) -> tuple:
+        """Where UAV i is now: on its flight's segment, or where it landed."""
         if self.flight[i] is None:
-            return
+            return self.pos[i]
         origin, goal, t0, length = self.flight[i]
-        if cut and length > 0:
-            frac = min(1.0, self.cfg.v_uav * (self.env.now - t0) / length)
-            self.pos[i] = (origin[0] + frac * (goal[0] - origin[0]),
-                           origin[1] + frac * (goal[1] - origin[1]))
-        else:
-            self.pos[i] = goal
-        self.flight[i] = None
+        if self._stays(i):
+            return origin
+        if length == 0:
+            return goal
+        frac = min(1.0, self.cfg.v_uav * (self.env.now - t0) / length)
+        return (origin[0] + frac * (goal[0] - origin[0]), origin[1] + frac * (goal[1] - origin[1]))
+
+    def _interrupt(self, i: int) -> None:
+        """A fire UAV i is interested in went out."""
+        if self.in_latency[i]:
+            if not self.cfg.quirk_q4_latency_not_interrupted:
+                self.uav_procs[i].interrupt()  # drop the pending decision
+        elif not self.released:
+            self.uav_procs[i].interrupt()
+        elif self.action_procs[i].is_alive:  # else it ended at this instant: the UAV will observe
+            self.action_procs[i].interrupt()
 
     # --- fires -----------------------------------------------------------------------------------
 
     def _health_now(self, j: int) -> float:
-        if not self.alive[j]:
-            return 0.0
-        return max(0.0, self.health[j] - self.party[j] * (self.env.now - self.t_update[j]))
+        left = self.health[j] - self.party[j] * (self.env.now - self.t_update[j])
+        if self.cfg.quirk_q3_unclamped_health:
+            return left
+        return max(0.0, left) if self.alive[j] else 0.0
 
     def _party_change(self, j: int, delta: int) -> None:
         """Drain fire j's health at the old rate, change its party size, and make it re-plan."""
@@ -202,7 +287,9 @@ class WildfireModel:
         self.health[j] = self.health[j] - self.party[j] * (now - self.t_update[j])
         self.t_update[j] = now
         self.party[j] += delta
-        self.fire_procs[j].interrupt()
+        burning = self.burn_procs[j] if self.released else self.fire_procs[j]
+        if burning.is_alive:  # else it ended at this instant: the fire goes out all the same
+            burning.interrupt()
 
     def _penalise(self, j: int) -> None:
         """A UAV just joined fire j's extinguish party: penalise if it already had a member."""
@@ -217,10 +304,14 @@ class WildfireModel:
         self.alive[j] = False
         for i in range(self.cfg.n_agents):
             self._accrue(i, self.cfg.r_ext)
-        for i in range(self.cfg.n_agents):
-            if self.interest[i] == j:
-                self.uav_procs[i].interrupt()
-        if not any(self.alive):
+        party = [i for i in range(self.cfg.n_agents) if self.interest[i] == j]
+        if self.released:
+            party.sort(key=lambda i: self.joined[i])
+        for i in party:
+            self._interrupt(i)
+        if self.released:
+            self.fire_out[j].succeed()
+        elif not any(self.alive):
             self._end()
 
     # --- bookkeeping -----------------------------------------------------------------------------
@@ -230,15 +321,16 @@ class WildfireModel:
         return 0 if self.current[i] < 0 else self.rec[self.current[i]]["index"] + 1
 
     def _delay(self, d: float) -> float:
-        return fs_delay(self.env.now, d, self.dt)
+        return fs_delay(self.env.now, d, self.dt, self.cfg.fs_round_negative_delays)
 
     def _accrue(self, i: int, r: float) -> None:
         rec = self.rec[self.current[i]]
-        rec["reward"] += math.exp(-self.cfg.gamma * (self.env.now - rec["time"])) * r
+        rec["reward"] += math.exp(-self.cfg.gamma * (self.env.now - self.t_disc[i])) * r
         self.returns[i] += r
 
     def _end(self) -> None:
         self.done = True
+        self.over.succeed()
         self.t_end = self.env.now
         for i in range(self.cfg.n_agents):
             rec = self.rec[self.current[i]]
