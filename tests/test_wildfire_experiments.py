@@ -119,7 +119,11 @@ def test_a_dask_sweep_needs_no_shared_disk(tmp_path, monkeypatch):
                                   dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
         client.register_plugin(WorkOnItsOwnDisk(str(tmp_path / "worker-disk")))
-        run_sweep(jobs, Path("dask"), scheduler=cluster.scheduler_address)
+        with distributed.get_task_stream(client) as tasks:
+            run_sweep(jobs, Path("dask"), scheduler=cluster.scheduler_address)
+    # one task per epoch, so a worker that dies loses at most the epoch in progress: the begun
+    # run's second epoch, the other run's two
+    assert sum("run_shipped_job" in t["key"] for t in tasks.data) == 3
     assert not (tmp_path / "worker-disk" / "dask").exists()
     for job in jobs:
         for name in ("config.json", "checkpoint.pt"):

@@ -8,16 +8,18 @@ with other settings is refused before anything runs (use another ``--runs-dir``)
 its own seed in its TrainConfig, so the results do not depend on the scheduler or on the order in
 which workers pick up jobs.
 
-On a Dask cluster the run folders stay on the client's disk: the client locks a job's folder,
-sends its files (none for a new run) with the job, the worker trains in a private temporary folder
-and sends the files back, and the client writes them into place. No shared file system is needed.
-The price: a job's epochs reach the client's disk when the job ends, so a client stopped while a
-job runs loses that job's work since its last finished call (the folder itself stays consistent).
+On a Dask cluster the run folders stay on the client's disk: the client locks a job's folder and
+sends its files (none for a new run) with a task that trains one more epoch; the worker trains in a
+private temporary folder and sends the files back, the client writes them into place and sends the
+next epoch's task. No shared file system is needed, and a worker (or the client) that dies loses at
+most the epoch in progress; the next sweep resumes from the client's folders. Each epoch pays for
+building the environment and loading the checkpoint on the worker, tens of milliseconds.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import tempfile
 from contextlib import ExitStack
@@ -28,8 +30,8 @@ from typing import Any
 from repro.core.errors import UsageError
 from repro.core.io import write_bytes
 from repro.core.workers import die_with_parent
-from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, is_finished,
-                                    writer_lock)
+from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, epochs_done,
+                                    is_finished, writer_lock)
 from repro.envs import env_package
 from repro.learn.trainer import Trainer, check_run_folder
 
@@ -97,17 +99,30 @@ def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
         raise UsageError("--scheduler", "the address of a running Dask scheduler",
                          scheduler) from None
     with client, ExitStack() as locks:
-        futures = {}
-        for job in pending:
+        running: dict[Any, TrainJob] = {}
+
+        def next_epoch(job: TrainJob) -> Any:
+            """The task that trains ``job``'s next epoch (or, when its epochs are done, finishes
+            its run folder)."""
             folder = run_dir(root, job)
-            locks.enter_context(writer_lock(folder, "--runs-dir"))
-            futures[client.submit(run_shipped_job, job, folder_files(folder), pure=False)] = folder
-        for future in as_completed(futures):
-            folder, files = futures[future], future.result()
+            epochs = min(epochs_done(folder) + 1, job.train.epochs)
+            step = dataclasses.replace(job, train=dataclasses.replace(job.train, epochs=epochs))
+            future = client.submit(run_shipped_job, step, folder_files(folder), pure=False)
+            running[future] = job
+            return future
+
+        for job in pending:
+            locks.enter_context(writer_lock(run_dir(root, job), "--runs-dir"))
+        done = as_completed([next_epoch(job) for job in pending])
+        for future in done:
+            job = running.pop(future)
+            folder, files = run_dir(root, job), future.result()
             for stale in set(folder_files(folder)) - set(files):  # e.g. a killed write's leftovers
                 (folder / stale).unlink()
             for name, data in files.items():
                 write_bytes(folder / name, data)
+            if not is_finished(folder, job.train.epochs):
+                done.add(next_epoch(job))
 
 
 def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
