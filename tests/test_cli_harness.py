@@ -308,3 +308,24 @@ def test_a_result_interrupted_before_its_sidecar_reads_not_yet_run(tmp_path, mon
     v = c10.evaluate(tmp_path)
     assert v.verdict == NOT_RUN and sidecar in v.detail
     assert main(argv) == 0 and sidecar not in c10.evaluate(tmp_path).detail
+
+
+@pytest.mark.parametrize("argv, param", [
+    (["wildfire-eval", "--policy", "nearest", "--gamma", "1e-300"], "--gamma"),
+    (["wildfire-eval", "--policy", "nearest", "--sim", "fs", "--dt", "1e300"], "--dt"),
+    (["train", "--env", "wildfire", "--gamma", "1e-300", "--out", "run"], "--gamma"),
+    (["train", "--env", "bus", "--gamma", "1e308", "--out", "run"], "--gamma"),
+    (["bus-eval", "--policy", "thresholds", "--thresholds", "-1", "-2", "-3"], "--thresholds"),
+    (["bus-eval", "--policy", "thresholds", "--results-dir", "garbage"], "--thresholds"),
+    (["bus-eval", "--policy", "mlp", "--results-dir", "garbage"], "--mlp-run"),
+])
+def test_values_that_cannot_mean_anything_are_one_line(tmp_path, monkeypatch, capsys, argv, param):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "garbage").mkdir()
+    (tmp_path / "garbage" / "bus_thresholds.csv").write_text("source,T1\nours,abc\n")
+    (tmp_path / "garbage" / "bus_lambda_summary.csv").write_text("\x00\x01 not a table\n")
+    before = tree_snapshot(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and param in err
+    assert tree_snapshot(tmp_path) == before and not (tmp_path / "run").exists()

@@ -11,7 +11,8 @@ import pandas as pd
 from repro.core.errors import UsageError, require
 from repro.core.rollout import DecisionBatch, Policy
 from repro.envs.bus.params import SWITCHES, BusConfig
-from repro.envs.bus.policies import AUTHORS_THRESHOLDS, ThresholdPolicy, no_holding
+from repro.envs.bus.policies import (AUTHORS_THRESHOLDS, ThresholdPolicy, check_thresholds,
+                                     no_holding)
 from repro.learn.run_folder import CHECKPOINT
 from repro.learn.trained_policy import load_trained_run, policy_from_state, trained_env_config
 
@@ -54,9 +55,13 @@ def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.
             raise UsageError(param, f"given, or {path} written first by `make table-thresholds`")
         raise UsageError(param, f"a folder holding {THRESHOLDS_CSV} (`make table-thresholds` "
                          "writes it)", str(results_dir))
-    table = pd.read_csv(path)
-    row = table[table.source == "ours"].iloc[0]
-    return np.array([row.T1, row.T2, row.T3], float)
+    try:
+        row = pd.read_csv(path).query("source == 'ours'").iloc[0]
+        return check_thresholds(np.array([row.T1, row.T2, row.T3], float))[0]
+    except (ValueError, KeyError, IndexError, AttributeError, pd.errors.UndefinedVariableError):
+        raise UsageError(param, f"a folder whose {THRESHOLDS_CSV} is the table "
+                         "`make table-thresholds` writes (run it again)",
+                         str(results_dir)) from None
 
 
 def best_run(results_dir: str | Path) -> Path:
@@ -65,9 +70,13 @@ def best_run(results_dir: str | Path) -> Path:
     path = Path(results_dir) / LAMBDA_SUMMARY_CSV
     if not path.exists():
         raise UsageError("--mlp-run", f"given, or {path} written first by `make fig-bus-lambda`")
-    runs = pd.read_csv(path)
-    runs = runs[runs.policy == "mlp-run"]
-    return Path(runs.run.iloc[int(np.argmax(runs.final_iqm.to_numpy()))])
+    try:
+        runs = pd.read_csv(path).query("policy == 'mlp-run'")
+        return Path(runs.run.iloc[int(np.argmax(runs.final_iqm.to_numpy(float)))])
+    except (ValueError, KeyError, IndexError, AttributeError, TypeError,
+            pd.errors.UndefinedVariableError):
+        raise UsageError("--mlp-run", f"given, or a {LAMBDA_SUMMARY_CSV} as `make fig-bus-lambda` "
+                         "writes it (run it again)", str(path)) from None
 
 
 def make_policy(name: str, cfg: BusConfig, *, thresholds: np.ndarray | None = None,

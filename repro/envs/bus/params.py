@@ -3,7 +3,6 @@ between the authors' released simulator (the default) and the paper's prose (SPE
 
 from __future__ import annotations
 
-import math
 import numbers
 from dataclasses import dataclass
 from typing import ClassVar
@@ -91,8 +90,9 @@ class BusConfig:
         require(self.t_hold >= 0.0, "t_hold", ">= 0", self.t_hold)
         require(self.horizon > 0.0, "horizon", "> 0", self.horizon)
         # 0 (no discounting) is a valid corridor; training needs gamma > 0 (the trainer checks)
-        require(self.gamma >= 0.0 and math.isfinite(self.gamma), "--gamma",
-                "a number >= 0 (> 0 to train)", self.gamma)
+        # above 1/s a macro-action's later rewards vanish below double precision (e^-745)
+        require(0.0 <= self.gamma <= 1.0, "--gamma", "a number from 0 to 1 per second (> 0 to "
+                "train)", self.gamma)
         for name in SWITCHES:
             require(isinstance(getattr(self, name), bool), name, "True or False",
                     getattr(self, name))

@@ -18,6 +18,10 @@ SAME_INSTANT_ORDERS = ("released", "scheduling")
 """Values of :attr:`WildfireConfig.same_instant_order`."""
 
 
+MAX_T_MAX = 1e5
+"""The longest episode cap T_max (s) a config may ask for (through a small gamma)."""
+
+
 @dataclass(frozen=True)
 class WildfireConfig:
     """Every parameter of SPEC section 3; the defaults are the paper's (released implementation)."""
@@ -135,10 +139,16 @@ class WildfireConfig:
                 "a number > 0", self.dt)
         require(self.v_uav > 0 and math.isfinite(self.v_uav), "v_uav", "a number > 0",
                 self.v_uav)
-        require(self.gamma > 0 and math.isfinite(self.gamma), "--gamma", "a number > 0",
-                self.gamma)
         require(0 < self.horizon_discount < 1, "horizon_discount", "in (0, 1)",
                 self.horizon_discount)
+        # T_max sets the hold table, drawn for a whole batch up front: 1e5 s is 48,000 holds per
+        # UAV and episode (the paper's T_max is 265 s)
+        least = math.log(1.0 / self.horizon_discount) / MAX_T_MAX
+        require(least <= self.gamma < math.inf, "--gamma", f"a number >= {least:.3g} (the "
+                f"episode cap T_max = ln(1/{self.horizon_discount:g}) / gamma is at most "
+                f"{MAX_T_MAX:g} s)", self.gamma)
+        require(self.dt is None or self.dt <= self.t_max, "--dt",
+                f"at most the episode cap T_max = {self.t_max:.4g} s", self.dt)
         # with no latency a UAV flying to the fire it is at would decide forever at one instant
         require(self.decision_latency > 0 and math.isfinite(self.decision_latency),
                 "decision_latency", "a number > 0", self.decision_latency)
