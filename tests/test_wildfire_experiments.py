@@ -295,3 +295,19 @@ def test_stay_flights_are_flights_to_the_fire_the_uav_is_at():
     assert c["n_fly"] - c["n_fly_ex_stay"] == c["stay_flight_events"]
     assert c["fly_rank_1_events"] - c["fly_rank_1_events_ex_stay"] == c["stay_flight_events"]
     assert c["hold_alone_events"] == c["hold_alone_events_ex_stay"]  # a hold is never a flight
+
+
+@pytest.mark.parametrize("finished, stale", [("2026-11-22T10:00:00Z", True),
+                                             ("2026-11-25T04:00:00Z", False)])
+def test_a_result_of_the_earlier_semantics_reads_not_yet_run(tmp_path, finished, stale):
+    """C7 on a result finished before the engines followed the released simulator: "not yet
+    run", with the verdict it had; after: the verdict itself."""
+    learned = np.array([3.0, 3.1, 2.9])
+    write_result_csv(pd.DataFrame(dict(adr_learned=learned, adr_flowchart=2.1,
+                                       flowchart_worse=1.0 - 2.1 / learned)),
+                     tmp_path / "wildfire_behaviour.csv", finished_utc=finished)
+    c7 = next(c for c in claims.CLAIMS if c.id == "C7")
+    v = c7.evaluate(tmp_path)
+    assert v.verdict == ("not yet run" if stale else "PASS")
+    assert ("it read PASS" in v.detail) == stale
+

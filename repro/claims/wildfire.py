@@ -7,11 +7,13 @@ Interval estimates are over the trained policies (seeds): percentile bootstrap C
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
 
-from repro.claims import Claim, Verdict, scale_of
+from repro.claims import NOT_RUN, Claim, Verdict, scale_of
+from repro.core.io import read_provenance
 from repro.core.stats import bootstrap_ci
 
 C6_TOLERANCE = 0.10
@@ -26,6 +28,31 @@ C8_SAME = ("FS-0.1", "FS-0.316", "FS-1")
 C8_WORSE = ("FS-3.16", "FS-10")
 """FS simulators whose policies degrade on ED (paper)."""
 C9_PAIR = ("FS-1 (T_health=2.9999)", "FS-1")
+
+
+RELEASED_SINCE = "2026-11-25T03:16:00Z"
+"""When the wildfire engines began to follow the released simulator's same-instant semantics
+(Q3-Q6, its order; issue 18). A wildfire result finished before then was made on the earlier
+semantics: it does not answer a claim about today's engines, so it reads "not yet run", with what
+it showed."""
+
+
+def made_before_released_semantics(path: Path) -> bool:
+    """Whether the wildfire result ``path`` (its sidecar's finish time) predates RELEASED_SINCE."""
+    return read_provenance(path).get("finished_utc", "") < RELEASED_SINCE
+
+
+def on_current_semantics(check: Callable[[Path], Verdict], stem: str) -> Callable[[Path], Verdict]:
+    """``check``, unless its result file ``stem`` predates the released semantics: then "not yet
+    run", keeping the old verdict and numbers in the detail."""
+    def checked(results: Path) -> Verdict:
+        v = check(results)
+        if not made_before_released_semantics(results / stem):
+            return v
+        return Verdict(f"earlier semantics: {v.ours}", NOT_RUN,
+                       f"Not yet rerun since the engines follow the released simulator (issue 18); "
+                       f"on the earlier semantics it read {v.verdict}: {v.detail}", v.scale)
+    return checked
 
 
 def _ci(x: np.ndarray) -> tuple[float, float, float]:
@@ -162,28 +189,34 @@ def _corrected_line(results: Path, judge, means: bool) -> str:
     try:
         s, path = _summary(results, "transfer_corrected")
     except FileNotFoundError:
-        return (" Corrected semantics (Q1, Q2 off): not yet run "
+        return (" Corrected semantics (Q1-Q6 off): not yet run "
                 "(`make fig-transfer ARGS=--corrected`).")
     verdict, why = judge(s)
     verdict, caveat = _at_most_partial(verdict, s)
     shown = f"{_means(s)}; " if means else ""
-    return (f" Corrected semantics (Q1, Q2 off; {scale_of(path)} scale): {verdict}: {shown}{why}."
+    if made_before_released_semantics(path):
+        return (f" Corrected semantics: not yet rerun since issue 18 (Q3-Q6 and the released order "
+                f"were added); before, with Q1, Q2 off, it read {verdict}: {shown}{why}.{caveat}")
+    return (f" Corrected semantics (Q1-Q6 off; {scale_of(path)} scale): {verdict}: {shown}{why}."
             f"{caveat}")
 
+
+BEHAVIOUR, TRANSFER = "wildfire_behaviour.csv", "transfer_summary.csv"
 
 CLAIMS = [
     Claim("C6", "Long ED training: hold shared 27%, alone 84%; fly 1st/2nd/3rd 15/15/68%; "
           "closest cluster 98%",
           "27%, 84%, 15/15/68%, 98%", "each within 10 percentage points (mean over policies)",
-          "make wildfire-behaviour", check_c6, where="Sec. 5.2, Fig. 6"),
+          "make wildfire-behaviour", on_current_semantics(check_c6, BEHAVIOUR),
+          where="Sec. 5.2, Fig. 6"),
     Claim("C7", "The flowchart of C6 does 28% worse than the learned policy (ADR)",
           "28% worse", "PASS: 18-38% worse; PARTIAL: worse for every policy",
-          "make wildfire-behaviour", check_c7, where="Sec. 5.2"),
+          "make wildfire-behaviour", on_current_semantics(check_c7, BEHAVIOUR), where="Sec. 5.2"),
     Claim("C8", "Trained on FS with dT <= 1 s transfers to ED; dT = 3.16, 10 s degrade",
           "ED 2.780, FS-0.1 2.771, FS-0.316 2.745, FS-1 2.789, FS-3.16 2.212, FS-10 1.841",
           "95% CIs of FS-0.1/0.316/1 overlap ED's; those of FS-3.16/10 lie below ED's",
-          "make fig-transfer", check_c8, where="Fig. 7"),
+          "make fig-transfer", on_current_semantics(check_c8, TRANSFER), where="Fig. 7"),
     Claim("C9", "FS-1 with T_health = 2.9999 degrades on ED", "1.937 vs 2.789",
-          "95% CI of FS-1(2.9999) entirely below FS-1(3.0)'s", "make fig-transfer", check_c9,
-          where="Fig. 7"),
+          "95% CI of FS-1(2.9999) entirely below FS-1(3.0)'s", "make fig-transfer",
+          on_current_semantics(check_c9, TRANSFER), where="Fig. 7"),
 ]

@@ -129,6 +129,12 @@ class WildfireConfig:
     """What runs recorded before these settings existed (issue 18) ran: the behaviour before the
     released simulator's, so that such a run is not resumed as one of the released semantics."""
 
+    @classmethod
+    def corrected(cls, **fields) -> WildfireConfig:
+        """The paper's prose: quirks Q1-Q6 all off (``--corrected``; the released same-instant
+        order stays), other fields as given."""
+        return cls(**{**dict.fromkeys(QUIRKS, False), **fields})
+
     def validate(self) -> None:
         # the fast engine's event keys hold an agent index in 20 bits
         require(isinstance(self.n_agents, numbers.Integral) and 1 <= self.n_agents < 2**20,
