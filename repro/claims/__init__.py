@@ -46,6 +46,9 @@ class Verdict:
     """How the verdict was reached (tolerance, intervals, caveats)."""
     scale: str = ""
     """Scale of the run the value comes from (read from the provenance sidecar)."""
+    outdated: bool = False
+    """The result files exist but were made on semantics the engines no longer follow (the verdict
+    is then "not yet run"); a rerun is pending."""
 
 
 @dataclass(frozen=True)
@@ -139,10 +142,12 @@ WIDTH = 100
 
 
 def default_results(root: Path = Path("results")) -> Path:
-    """The folder ``claims`` reads unless told: the largest scale whose results give every claim a
-    verdict, else the largest scale that has results at all (paper, then quick, then smoke)."""
+    """The folder ``claims`` reads unless told: the largest scale that has every claim's results
+    (outdated ones count), else the largest scale that has results at all (paper, then quick, then
+    smoke)."""
     folders = [root / s for s in reversed(SCALES) if (root / s).is_dir()]
-    complete = (f for f in folders if all(c.evaluate(f).verdict != NOT_RUN for c in registry()))
+    complete = (f for f in folders if all(v.verdict != NOT_RUN or v.outdated
+                                          for v in (c.evaluate(f) for c in registry())))
     return next(complete, folders[0] if folders else root / SCALES[-1])
 
 

@@ -51,7 +51,8 @@ def on_current_semantics(check: Callable[[Path], Verdict], stem: str) -> Callabl
             return v
         return Verdict(f"earlier semantics: {v.ours}", NOT_RUN,
                        f"Not yet rerun since the engines follow the released simulator (issue 18); "
-                       f"on the earlier semantics it read {v.verdict}: {v.detail}", v.scale)
+                       f"on the earlier semantics it read {v.verdict}: {v.detail}", v.scale,
+                       outdated=True)
     return checked
 
 
