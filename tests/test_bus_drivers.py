@@ -45,8 +45,8 @@ def test_outputs_and_c4(smoke):
 
 
 def test_load_figure_reproduces_the_paper(smoke):
-    """With No Holding and with the authors' thresholds our loads equal the paper's at all 55
-    points of each panel (SPEC 5.5); the file holds both sources side by side."""
+    """With No Holding and with the authors' thresholds our loads equal the paper's at all 55 points
+    of each panel (docs/semantics.md section 6.5); the file holds both sources side by side."""
     res, _ = smoke
     table = pd.read_csv(res / "bus_load.csv")
     assert list(table.columns) == ["source", "policy", "bus", "record", "stop", "load"]

@@ -1,5 +1,6 @@
 """The bus engine against its SimPy reference under every combination of the switches B1-B5, the
-paper's worked No Holding numbers (SPEC 5.4, the corrected semantics), conventions."""
+paper's worked No Holding numbers (docs/semantics.md section 4.10, the corrected semantics),
+conventions."""
 
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ def nohold_arrivals():
 
 
 def test_worked_check_no_holding(nohold_arrivals):
-    """SPEC 5.4 on the corrected semantics: Stop 10 of the 3rd cycle, then the 4th cycle."""
+    """docs/semantics.md section 4.10 on the corrected semantics: Stop 10 of the 3rd cycle, then the
+    4th cycle."""
     loads = record_loads(nohold_arrivals, range(30, 41))
     assert loads[loads.bus == 1].load.tolist() == PAPER_NOHOLD_LEADER  # the fleet never reorders
     assert (loads[loads.bus > 1].load == 0).all()

@@ -1,5 +1,5 @@
-"""The released simulator's rules (SPEC 5.5, B1-B5), each in a hand-built scenario with a known
-answer, on both engines.
+"""The released simulator's rules (B1-B5, docs/semantics.md section 4.9), each in a hand-built
+scenario with a known answer, on both engines.
 
 The scenario: 2 buses, 2 stops, 100 s links, nu = 6 pax/min (0.1 pax/s) at both stops, 25% alight
 at Stop 1, none at Stop 2, No Holding, horizon 300 s. Worked by hand (latency 1e-5 s; times ~):

@@ -1,4 +1,5 @@
-"""Scripted episodes that pin down SPEC 3's mechanisms, in both engines."""
+"""Scripted episodes that pin down the mechanisms of docs/semantics.md section 3, in both
+engines."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The claims registry: one small check per claim C1..C11 of SPEC section 1, rendered to
-``paper_claims.md`` by ``python -m repro claims`` (``make claims``).
+"""The claims registry: one small check per claim C1..C11 of docs/semantics.md section 1.2, rendered
+to ``paper_claims.md`` by ``python -m repro claims`` (``make claims``).
 
 A check reads result files and returns a :class:`Verdict`. A claim whose result files do not exist,
 or lack the rows and columns its check reads (a stale or hand-edited file), reads "not yet run",

@@ -178,7 +178,8 @@ def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic'
              "", "Since issue 23 both bus engines follow the authors' released simulator "
              "(BusBunching/busbunchingenv.py) path for path, because it draws the paper's "
              "pictures: with it the authors' thresholds reproduce the paper's thresholds load "
-             "panel at all 55 points, which the paper's prose (SPEC 5.2) does not. Each "
+             "panel at all 55 points, which the paper's prose (docs/semantics.md section "
+             "4.9) does not. Each "
              "departure from the prose is a switch, B1-B5 (README, 'Deviations from the "
              "paper'); `--corrected` turns them off and gives the earlier rollouts bit for bit.",
              "", "| id | released: verdict, ours | corrected: verdict, ours |", "|---|---|---|"]

@@ -2,10 +2,10 @@
 
 ``python -m repro bus-eval --policy {nohold,authors,thresholds,mlp} [--thresholds T1 T2 T3]
 [--json]`` prints the numbers and writes nothing. The corridor is deterministic and so is every
-policy here (the MLP acts greedily), so one episode is the exact value. The returns are those of
-the training episode (3 h); the loads and the time to regularity those of the paper's pictures, a
-6 h episode (SPEC 5.5). :func:`evaluate` also takes more episodes, for sampling policies built in
-code (its per-episode figures come from episode 0).
+policy here (the MLP acts greedily), so one episode is the exact value. The returns are those of the
+training episode (3 h); the loads and the time to regularity those of the paper's pictures, a 6 h
+episode (docs/semantics.md section 6.5). :func:`evaluate` also takes more episodes, for sampling
+policies built in code (its per-episode figures come from episode 0).
 """
 
 from __future__ import annotations

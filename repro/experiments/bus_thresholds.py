@@ -1,4 +1,5 @@
-"""Optimized Thresholds by scipy's differential evolution, the authors' set-up (SPEC 5.5).
+"""Optimized Thresholds by scipy's differential evolution, the authors' set-up (docs/semantics.md
+section 4.8).
 
 As in ``optimize_heuristic()`` of the released BusBunching/busbunchingenv.py: three thresholds,
 each searched in [0, 3H] seconds, in any order (the rule counts the thresholds above h, so the

@@ -1,4 +1,5 @@
-"""Race conditions in fixed-step simulation (paper Table "nvdt", claim C10; SPEC section 2).
+"""Race conditions in fixed-step simulation (paper Table "nvdt", claim C10; docs/semantics.md
+section 6.6).
 
 N event times are drawn i.i.d. from p(t). A race occurs when two or more fall into the same interval
 [k dT, (k+1) dT) of a grid anchored at 0. For each N the driver finds, by bisection in log dT, the

@@ -1,11 +1,12 @@
 """Policy transfer from fixed-step to event-driven simulation (paper Fig. "transferperformance",
-claims C8 and C9; SPEC section 3).
+claims C8 and C9; docs/semantics.md section 6.2).
 
-Policies are trained from scratch (PS-TRPO + M-GAE, ``repro.learn``) on each training simulator:
-ED, FS-dT for the paper's five dT values, and FS-1 with T_health = 2.9999. Every trained policy is
-then tested on the ED simulator with T_health = 3.0: its ADR (SPEC 3) over ``test_episodes``
-episodes. All policies see the same test episodes (one environment seed), so differences between
-them are not test-episode noise; each policy samples its actions from its own generator.
+Policies are trained from scratch (PS-TRPO + M-GAE, ``repro.learn``) on each training simulator: ED,
+FS-dT for the paper's five dT values, and FS-1 with T_health = 2.9999. Every trained policy is then
+tested on the ED simulator with T_health = 3.0: its ADR (docs/semantics.md section 6.1) over
+``test_episodes`` episodes. All policies see the same test episodes (one environment seed), so
+differences between them are not test-episode noise; each policy samples its actions from its own
+generator.
 
 The paper averages the test ADR of the last epochs' policies; we test each run's final policy (the
 one its checkpoint holds) on many episodes, which estimates the same quantity once training has

@@ -3,9 +3,10 @@ compares (claim C7); paper section "Wildfire, Results", Fig. "appxpolicy".
 
 Policies are trained on the ED simulator (PS-TRPO + M-GAE through the sweep runner, checkpointed
 under ``--runs-dir``/wildfire-behaviour/<scale>/). Each trained policy is then run, sampling its
-actions as in training, on ``test_episodes`` ED episodes, and every recorded (observation o,
-action a) pair of every agent is classified. With the observation layout of SPEC 3, fire j = the
-j-th closest observed fire, d_j its distance, s_j its status, I_j its interest party size:
+actions as in training, on ``test_episodes`` ED episodes, and every recorded (observation o, action
+a) pair of every agent is classified (docs/semantics.md section 6.3). With the observation layout of
+section 3.6, fire j = the j-th closest observed fire, d_j its distance, s_j its status, I_j its
+interest party size:
 
 - *at a live fire*: d_1 < AT_FIRE_TOL and s_1 = 1 (the UAV sits on its closest fire, which burns);
 - *other interest*: I_1 - 1 >= 1. The observer is in the interest party of the fire it sits at (it
@@ -18,12 +19,12 @@ j-th closest observed fire, d_j its distance, s_j its status, I_j its interest p
   observed position, as the engine does; clusters are the blocks of three of ``fire_positions``.
 
 *Stay flights*: a fly action to a fire closer than AT_FIRE_TOL, that is, to the fire the UAV is at.
-It takes no time (in ED; a UAV cut off just short of the fire flies the rest, under 0.07 s), so
-the UAV decides again after the 1e-5 s latency. SPEC counts them among the fly actions, as above.
-Learned ED policies make many (about half of the decisions of the quick-scale policy, 92% of a
-paper-scale run's at epoch 316), which swamps ``fly_rank_1`` and ``hold_alone``. So every
-frequency is also given without them (suffix ``_ex_stay``), and ``stay_flight`` is their share of
-all decisions. The flowchart's own frequencies are measured the same way
+It takes no time (in ED; a UAV cut off just short of the fire flies the rest, under 0.07 s), so the
+UAV decides again after the 1e-5 s latency. docs/semantics.md section 6.3 counts them among the fly
+actions, as above. Learned ED policies make many (about half of the decisions of the quick-scale
+policy, 92% of a paper-scale run's at epoch 316), which swamps ``fly_rank_1`` and ``hold_alone``. So
+every frequency is also given without them (suffix ``_ex_stay``), and ``stay_flight`` is their share
+of all decisions. The flowchart's own frequencies are measured the same way
 (``wildfire_behaviour_flowchart.csv``): its ``_ex_stay`` values are the paper's policy, as the
 flowchart encodes it, without stay flights.
 
@@ -84,10 +85,11 @@ class BehaviourConfig:
     """ED episodes on which frequencies and ADRs are measured."""
     max_decisions: int | None = None
     """Decision limit per UAV and episode in training and test (``WildfireConfig.max_decisions``);
-    None is SPEC's ED simulator. Paper scale sets 1,000: its policies drift into stay flights, and
-    a 600-episode epoch of them needed more than 14.7 million decisions and ran out of 24 GB of
-    memory at epoch 302. Without stay flights a UAV cannot come near the limit: its shortest moves,
-    between fires of a cluster, take 1.3 s, so it decides at most about 200 times in T_max."""
+    None: no limit (docs/semantics.md section 3.7). Paper scale sets 1,000: its policies drift into
+    stay flights, and a 600-episode epoch of them needed more than 14.7 million decisions and ran
+    out of 24 GB of memory at epoch 302. Without stay flights a UAV cannot come near the limit: its
+    shortest moves, between fires of a cluster, take 1.3 s, so it decides at most about 200 times in
+    T_max."""
 
     SCALES: ClassVar[dict] = {
         "smoke": dict(seeds=1, epochs=2, batch_episodes=8, test_episodes=20),

@@ -1,10 +1,10 @@
 """Evaluate a heuristic policy on the wildfire environment: average discounted return (ADR).
 
-ADR (SPEC 3) is the mean, over every agent path of every test episode, of the path's return
-discounted in continuous time (``Rollout.discounted_path_returns(gamma)``); its standard error is
-taken over those paths. Episodes run in batches of ``BATCH_EPISODES``, batch c drawing from child c
-of the root seed, so results depend on the seed only (and on the engine for random policies:
-the reference asks the policy once per decision, the fast engine once per round).
+ADR (docs/semantics.md section 6.1) is the mean, over every agent path of every test episode, of the
+path's return discounted in continuous time (``Rollout.discounted_path_returns(gamma)``); its
+standard error is taken over those paths. Episodes run in batches of ``BATCH_EPISODES``, batch c
+drawing from child c of the root seed, so results depend on the seed only (and on the engine for
+random policies: the reference asks the policy once per decision, the fast engine once per round).
 """
 
 from __future__ import annotations

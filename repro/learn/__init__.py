@@ -1,5 +1,5 @@
-"""PS-TRPO with M-GAE (SPEC section 4): a categorical MLP shared by all agents, trained by TRPO on
-advantages that discount by each macro-action's duration."""
+"""PS-TRPO with M-GAE (docs/semantics.md section 5): a categorical MLP shared by all agents,
+trained by TRPO on advantages that discount by each macro-action's duration."""
 
 from repro.learn.baseline import LinearFeatureBaseline, MLPBaseline
 from repro.learn.m_gae import m_gae, m_gae_paths

@@ -1,4 +1,5 @@
-"""M-GAE: generalized advantage estimation for macro-actions of random durations (SPEC section 4).
+"""M-GAE: generalized advantage estimation for macro-actions of random durations
+(docs/semantics.md section 5.3).
 
 For one agent's path with rewards r_k, durations dt_k and baseline values V_k = V(o_k):
 

@@ -1,4 +1,4 @@
-"""PS-TRPO with M-GAE: the training loop (SPEC section 4).
+"""PS-TRPO with M-GAE: the training loop (docs/semantics.md section 5.6).
 
 One epoch = sample ``batch_episodes`` whole episodes with the current shared policy, compute M-GAE
 advantages with the current baseline, take one TRPO step, update the observation normaliser, then

@@ -1,4 +1,5 @@
-"""Real-time bus holding on a loop corridor (SPEC section 5; paper section "Real-Time Bus Holding").
+"""Real-time bus holding on a loop corridor (docs/semantics.md section 4; paper section "Real-Time
+Bus Holding").
 
 ``make_env`` gives the fast numba engine, ``make_reference_env`` the SimPy reference it is tested
 against; both implement :class:`repro.core.rollout.BatchEnv`.
@@ -32,8 +33,8 @@ SWITCH_FLAGS = {
 def add_switch_arguments(parser: argparse.ArgumentParser) -> None:
     """The switches B1-B5 (default: the released simulator's behaviour) and --corrected."""
     parser.add_argument("--corrected", action="store_true",
-                        help="turn B1-B5 off (the paper's prose, SPEC 5.2); a --b<i> given as "
-                             "well still sets that one")
+                        help="turn B1-B5 off (the paper's prose, docs/semantics.md section 4.9); "
+                             "a --b<i> given as well still sets that one")
     for name, (flag, text) in SWITCH_FLAGS.items():
         parser.add_argument(flag, dest=name, action=argparse.BooleanOptionalAction, default=None,
                             help=text + " (default: on; off with --corrected)")

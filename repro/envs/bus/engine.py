@@ -43,8 +43,9 @@ row order. Events at t >= horizon are never processed. Steps SimPy takes at the 
 when nothing else is scheduled at it (B5: SERVED and WAITED, a zero dwell's or hold's timeout) are
 taken at once, without the event: the order is the same, and they are most of No Holding's events.
 
-Reward convention (SPEC 5.2, 5.5 and section 3): every arrival at stop k with headway h gives every
-agent r = -nu_k (h - H)^2 (B1: in pax/s and seconds, 0 if h <= 0 or at a bus's first two visits),
+Reward convention (docs/semantics.md sections 2.2, 4.4): every arrival at stop k with headway h
+gives every agent r = -nu_k (h - H)^2 (B1: in pax/s and seconds, 0 if h <= 0 or at a bus's first
+two visits),
 added to the agent's reward buffer as exp(-gamma (t - T)) r, T the agent's discount anchor (0 at
 first, then the start of its latest action: its decision, or under B5 DECISION_LATENCY later). An
 agent's observation records and clears its buffer as the reward of its previous macro-action (none

@@ -1,5 +1,6 @@
-"""Parameters of the bus corridor (SPEC section 5.1, paper Table "bbparams"), and the switches B1-B5
-between the authors' released simulator (the default) and the paper's prose (SPEC 5.2, 5.5)."""
+"""Parameters of the bus corridor (docs/semantics.md section 4.1, paper Table "bbparams"), and the
+switches B1-B5 between the authors' released simulator (the default) and the paper's prose
+(docs/semantics.md section 4.9)."""
 
 from __future__ import annotations
 

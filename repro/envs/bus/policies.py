@@ -1,4 +1,4 @@
-"""The bus baselines (SPEC 5.3) as batched policies."""
+"""The bus baselines (docs/semantics.md section 4.8) as batched policies."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ H_COLUMN = 1
 
 AUTHORS_THRESHOLDS = (532.79107018, 340.28721132, 262.62855417)
 """The authors' Optimized Thresholds (s), from ``optimize_heuristic()`` in their released
-BusBunching/busbunchingenv.py (SPEC 5.5), sorted T1 > T2 > T3."""
+BusBunching/busbunchingenv.py (docs/semantics.md section 4.8), sorted T1 > T2 > T3."""
 
 
 def no_holding(batch: DecisionBatch) -> np.ndarray:

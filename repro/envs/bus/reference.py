@@ -1,5 +1,6 @@
-"""The SimPy reference model of the bus corridor: the executable statement of SPEC sections 5.2 and
-5.5 (the authors' released simulator, with each of its departures B1-B5 from the prose a switch).
+"""The SimPy reference model of the bus corridor: the executable statement of docs/semantics.md
+section 4 (the authors' released simulator, with each of its departures B1-B5 from the prose a
+switch).
 
 Each stop is a capacity-one ``simpy.Resource`` (its FIFO request queue is the queue of buses), and
 each bus is a SimPy process::

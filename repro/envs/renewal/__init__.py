@@ -1,4 +1,5 @@
-"""A generic N-agent renewal event process, simulated three ways (claim C11, SPEC section 2).
+"""A generic N-agent renewal event process, simulated three ways (claim C11, docs/semantics.md
+section 6.7).
 
 Not an environment of the paper: it is the abstract process behind the paper's scaling argument
 ("event times drawn from p(t)"), used to measure what event-driven and time-stepped simulation cost.

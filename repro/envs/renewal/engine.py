@@ -10,11 +10,11 @@ Three simulators:
 
 - ``simulate_events(draws, T)``: event-driven (ED). A binary heap of the agents' next event times;
   events are processed in time order, and the clock jumps from event to event.
-- ``simulate_events(draws, T, dt)``: the rounding fixed-step simulator used for training (SPEC
-  section 3): every delay d scheduled at time ``now`` ends at ceil((now + d)/dT) dT instead. It
-  still jumps from event to event, so its cost does not depend on dT. Events at the same instant are
-  processed in scheduling order, as SimPy does (``tie_order="scheduled"``), or in agent order
-  (``tie_order="agent"``, the order of the time-stepped simulator).
+- ``simulate_events(draws, T, dt)``: the rounding fixed-step simulator used for training
+  (docs/semantics.md section 2.3): every delay d scheduled at time ``now`` ends at ceil((now +
+  d)/dT) dT instead. It still jumps from event to event, so its cost does not depend on dT. Events
+  at the same instant are processed in scheduling order, as SimPy does (``tie_order="scheduled"``),
+  or in agent order (``tie_order="agent"``, the order of the time-stepped simulator).
 - ``simulate_steps(draws, T, dt)``: genuinely time-stepped (TS). The clock advances by dT and every
   agent is visited at every step to see whether its event is due; the events due in one step are
   processed in agent order. With ``tie_order="agent"`` it reproduces the rounding simulator exactly.

@@ -1,4 +1,4 @@
-"""The wildfire-fighting environment of SPEC section 3 (ED and FS-dT), in two engines.
+"""The wildfire-fighting environment of docs/semantics.md section 3 (ED and FS-dT), in two engines.
 
 - :func:`make_env`: the fast numba engine (:class:`WildfireEnv`), a whole batch per policy call.
 - :func:`make_reference_env`: the SimPy model (:class:`ReferenceEnv`), the oracle.

@@ -777,7 +777,7 @@ def _grow(log: np.ndarray) -> np.ndarray:
 
 
 class WildfireEnv:
-    """SPEC section 3, fast: implements :class:`repro.core.rollout.BatchEnv`."""
+    """docs/semantics.md section 3, fast: implements :class:`repro.core.rollout.BatchEnv`."""
 
     name = "wildfire"
 

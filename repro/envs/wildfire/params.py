@@ -1,4 +1,4 @@
-"""Parameters of the wildfire environment (SPEC section 3) and the fire layout."""
+"""Parameters of the wildfire environment (docs/semantics.md section 3) and the fire layout."""
 
 from __future__ import annotations
 
@@ -24,7 +24,8 @@ MAX_T_MAX = 1e5
 
 @dataclass(frozen=True)
 class WildfireConfig:
-    """Every parameter of SPEC section 3; the defaults are the paper's (released implementation)."""
+    """Every parameter of docs/semantics.md section 3.1 and every switch of section 3.11; the
+    defaults are the paper's (released implementation)."""
 
     n_agents: int = 3
     """N, the number of UAVs."""
@@ -82,9 +83,9 @@ class WildfireConfig:
     fs_round_negative_delays: bool = True
     """In FS a fire's health can run out before its rounded extinguish event; a party change in
     between re-plans it with a negative delay, which is rounded to the grid like any other delay
-    (SPEC's formula, released code): the fire goes out at once if a grid point lies between the
-    run-out and now. False (before issue 18): the negative delay counts as 0, so the fire goes out
-    at the next grid point."""
+    (docs/semantics.md section 2.3, released code): the fire goes out at once if a grid point lies
+    between the run-out and now. False (before issue 18): the negative delay counts as 0, so the
+    fire goes out at the next grid point."""
     cut_flight_continues: bool = True
     """A flight cut by its fire going out goes on along its segment until the UAV's next action
     starts, one decision latency later (released code: the position is computed from the
@@ -112,10 +113,11 @@ class WildfireConfig:
     max_decisions: int | None = None
     """The episode also ends when a UAV's macro-action ends after its ``max_decisions``-th decision
     (instead of that UAV deciding again), as at T_max: every running macro-action is cut. None: no
-    limit (SPEC). Not in the paper; rllab's ``max_path_length``, which the released sampler
-    (``ed_dec_rollout``) applies to the longest agent path. Only a policy that flies to the fire it
-    is at, over and over, comes near a limit of a thousand: each such flight takes no time, so the
-    UAV decides again after the latency, up to T_max / 1e-5 s = 26 million times an episode."""
+    limit (docs/semantics.md section 3.7). Not in the paper; rllab's ``max_path_length``, which the
+    released sampler (``ed_dec_rollout``) applies to the longest agent path. Only a policy that
+    flies to the fire it is at, over and over, comes near a limit of a thousand: each such flight
+    takes no time, so the UAV decides again after the latency, up to T_max / 1e-5 s = 26 million
+    times an episode."""
     hold_table_size: int = 128
     """Hold durations pre-drawn per agent and episode, at least: :attr:`hold_table` adds more when
     T_max needs them. Used in order, cyclically; both engines index the table by the agent's hold
@@ -231,11 +233,11 @@ def fs_delay(now: float, delay: float, dt: float, round_negative: bool = True) -
 
     ``dt <= 0`` stands for ED (no rounding). A negative delay (a fire whose health ran out before
     its rounded extinguish event, re-planned at a party change) is rounded like any other if
-    ``round_negative`` (SPEC, released code: to the grid point at or before now when that is more
-    than now + delay, so at once), else it first counts as 0 (rounded up to the next grid point).
-    Plain float arithmetic, so the numba engine compiles the same operations; a float ceiling,
-    because numba's ``math.ceil`` returns an int64, which overflows (to a delay of 0) once the
-    number of steps passes 2^63.
+    ``round_negative`` (docs/semantics.md section 3.11, released code: to the grid point at or
+    before now when that is more than now + delay, so at once), else it first counts as 0 (rounded
+    up to the next grid point). Plain float arithmetic, so the numba engine compiles the same
+    operations; a float ceiling, because numba's ``math.ceil`` returns an int64, which overflows (to
+    a delay of 0) once the number of steps passes 2^63.
     """
     d = delay if round_negative else max(delay, 0.0)
     if dt <= 0.0:

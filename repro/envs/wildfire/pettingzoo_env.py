@@ -1,7 +1,8 @@
 """A PettingZoo AEC view of the SimPy wildfire model: the UAV whose decision comes next acts.
 
 After each ``step`` the model runs until the next UAV observes; that UAV is selected, its reward
-is its just-finished macro-action's reward (discounted to the action's start, SPEC 3) and its info
+is its just-finished macro-action's reward (discounted to the action's start, docs/semantics.md
+section 2.2) and its info
 holds the macro-action's ``duration`` and the simulation ``time``. When the episode ends every
 UAV's running macro-action is cut and rewarded; the episode is terminated if all fires are out,
 truncated at T_max.

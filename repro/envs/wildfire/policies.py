@@ -1,8 +1,8 @@
 """Heuristic wildfire policies: callables on a DecisionBatch, vectorised over its rows.
 
-They read the observation layout of SPEC 3: own x, y; per observed fire (closest first) distance,
-level, interest party size, status, remaining health; sojourn time. Action k < n_observed flies to
-the k-th closest fire, action n_observed holds.
+They read the observation layout of docs/semantics.md section 3.6: own x, y; per observed fire
+(closest first) distance, level, interest party size, status, remaining health; sojourn time. Action
+k < n_observed flies to the k-th closest fire, action n_observed holds.
 
 "Other UAV interested" is read from the interest party size. The observation does not say whether
 the observer itself is in the party, so the policies assume what the dynamics make true: a UAV at

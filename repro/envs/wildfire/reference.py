@@ -1,5 +1,5 @@
-"""The wildfire environment of SPEC section 3 as a SimPy model: the oracle the fast engine must
-match.
+"""The wildfire environment of docs/semantics.md section 3 as a SimPy model: the oracle the fast
+engine must match.
 
 One process per UAV and one per fire, as the paper describes event-driven simulation:
 
@@ -31,7 +31,8 @@ its r_ext belongs to the hold that just ended. "scheduling" is the suite's order
 the processes wait on their own timeouts, interrupts go in agent-index order, and the episode
 ends at once.
 
-Choices the SPEC leaves open, made once here and mirrored by the fast engine:
+Choices the paper leaves open, made once here and mirrored by the fast engine (docs/semantics.md
+sections 3.3-3.7, 3.11):
 
 - A decision's macro-action starts at its observation (the latency belongs to it), so the
   durations of a path add up to the episode's end time (quirk Q5 only moves the discount's
