@@ -2,7 +2,9 @@
 training curves over lambda (at 540 episodes per epoch) and over the batch size (at lambda = 2),
 with the No Holding and Optimized Thresholds returns as horizontal lines.
 
-Every (lambda, batch, seed) is one checkpointed run under ``<runs-dir>/bus/`` (see
+Every (lambda, batch, seed) is one checkpointed run under ``<runs-dir>/bus-released/`` for the
+released semantics, ``<runs-dir>/bus/`` for the corrected ones, ``<runs-dir>/bus-<switches on>/``
+otherwise (see
 ``repro.experiments.sweep``); the two sweeps share the lambda = 2, batch = 540 runs, and re-running
 a driver skips what is finished. Outputs, for sweep ``s`` in {lambda, batch}:
 
