@@ -18,6 +18,17 @@ DEFAULT_SCALE = "quick"
 C = TypeVar("C")
 
 
+class Validated:
+    """Base of the configs: a dataclass that has a ``validate`` method runs it on construction, so
+    no config with a bad value exists (``dataclasses.replace`` validates too)."""
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise :class:`~repro.core.errors.UsageError` naming a bad field (subclasses)."""
+
+
 def for_scale(cls: type[C], scale: str, **overrides: Any) -> C:
     """The config of ``cls`` at ``scale``; overrides whose value is ``None`` are ignored."""
     if scale not in SCALES:

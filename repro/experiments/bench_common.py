@@ -44,7 +44,7 @@ import pandas as pd
 import torch
 
 from repro.experiments.options import add_common
-from repro.core.config import for_scale
+from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
@@ -59,7 +59,7 @@ CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
 
 
 @dataclass(frozen=True)
-class BenchConfig:
+class BenchConfig(Validated):
     """Sizes of an engine benchmark (the timings are its result; a scale changes only sizes)."""
 
     fast_episodes: int
@@ -178,7 +178,6 @@ def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
     (``<command>_checkpoint.csv`` with ``--checkpoint``)."""
     cfg = for_scale(config, args.scale, fast_episodes=args.fast_episodes,
                     reference_episodes=args.reference_episodes, repeats=args.repeats)
-    cfg.validate()
     trained = (None if args.checkpoint is None
                else load_trained_run(args.checkpoint, command.removeprefix("bench-")))
     results = check_writable_dir(args.results_dir, "--results-dir")

@@ -22,7 +22,7 @@ import pandas as pd
 import torch
 
 from repro.experiments.options import add_common
-from repro.core.config import for_scale, to_dict
+from repro.core.config import Validated, for_scale, to_dict
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.envs import BUILT_IN, env_package
@@ -37,7 +37,7 @@ from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, normali
 
 
 @dataclass(frozen=True)
-class BenchConfig:
+class BenchConfig(Validated):
     """Size of the timing run."""
 
     episodes: int = 1000
@@ -151,7 +151,6 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(BenchConfig, args.scale, episodes=args.episodes, epochs=args.epochs,
                     repeats=args.repeats)
-    cfg.validate()
     pkg = env_package(args.env)
     train_cfg = train_config("quick", args.env, seed=args.seed, epochs=cfg.epochs,
                              batch_episodes=cfg.episodes)

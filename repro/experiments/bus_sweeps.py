@@ -35,7 +35,7 @@ import pandas as pd
 from scipy import stats as sps
 
 from repro.experiments.options import add_common
-from repro.core.config import for_scale
+from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm
@@ -50,7 +50,7 @@ SWEEPS = ("lambda", "batch")
 
 
 @dataclass(frozen=True)
-class BusSweepConfig:
+class BusSweepConfig(Validated):
     """What the two bus sweeps train, and how their final returns are summarised."""
 
     lambdas: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0)
@@ -195,7 +195,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run_named(sweep: str, args: argparse.Namespace) -> int:
     cfg = for_scale(BusSweepConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
                     final_epochs=args.final_epochs)
-    cfg.validate()
     check_sweep_arguments(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")

@@ -23,7 +23,7 @@ import pandas as pd
 from scipy.optimize import differential_evolution
 
 from repro.experiments.options import add_common
-from repro.core.config import for_scale, to_dict
+from repro.core.config import Validated, for_scale, to_dict
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
@@ -32,7 +32,7 @@ from repro.experiments.bus_policies import THRESHOLDS_CSV
 
 
 @dataclass(frozen=True)
-class ThresholdsConfig:
+class ThresholdsConfig(Validated):
     """Differential-evolution budget (scipy's defaults at paper scale, as the authors ran it)."""
 
     popsize: int = 15
@@ -93,7 +93,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(ThresholdsConfig, args.scale, popsize=args.popsize, maxiter=args.maxiter)
-    cfg.validate()
     bus = config_from_args(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
     t0 = time.perf_counter()

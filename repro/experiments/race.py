@@ -31,7 +31,7 @@ import pandas as pd
 from scipy import optimize
 
 from repro.experiments.options import add_common
-from repro.core.config import for_scale
+from repro.core.config import Validated, for_scale
 from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.progress import progress
@@ -43,7 +43,7 @@ MAX_EVENT_TIMES = 200_000_000
 
 
 @dataclass(frozen=True)
-class RaceConfig:
+class RaceConfig(Validated):
     """Settings of the race-condition study; the defaults are the paper's (the study is cheap)."""
 
     n_sets: int = 10_000
@@ -196,7 +196,6 @@ def fit_power_law(n: np.ndarray, dt: np.ndarray) -> tuple[float, float, float]:
 
 def run_study(cfg: RaceConfig, seed: int) -> dict[str, pd.DataFrame]:
     """Compute every table of the study (pure: no files are touched)."""
-    cfg.validate()
     streams = np.random.SeedSequence(seed).spawn(len(cfg.distributions))
     table, points, exact_rows, ranges = [], [], [], []
     for key, ss in zip(cfg.distributions, streams):
@@ -287,7 +286,6 @@ def run(args: argparse.Namespace) -> int:
     cfg = for_scale(RaceConfig, args.scale, n_sets=args.n_sets, n_min=args.n_min,
                     n_max=args.n_max, delta=args.delta,
                     distributions=tuple(args.distributions) if args.distributions else None)
-    cfg.validate()
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.options import add_common
-from repro.core.config import for_scale
+from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.progress import progress
@@ -52,7 +52,7 @@ WORK_MEASURES = {
 
 
 @dataclass(frozen=True)
-class ScalingConfig:
+class ScalingConfig(Validated):
     """Settings of the scaling measurement."""
 
     n_agents: tuple[int, ...] = (2, 3, 4, 5, 7, 10, 14, 20, 30, 50, 70, 100)
@@ -129,7 +129,6 @@ def fit_rows(work: pd.DataFrame, wall: pd.DataFrame, split_n: int) -> pd.DataFra
 
 def run_study(cfg: ScalingConfig, seed: int) -> dict[str, pd.DataFrame]:
     """Every table of the measurement (no files are touched)."""
-    cfg.validate()
     ns = tuple(sorted(cfg.n_agents))
     work, wall = [], []
     streams = np.random.SeedSequence(seed).spawn(len(cfg.distributions))
@@ -218,7 +217,6 @@ def run(args: argparse.Namespace) -> int:
                     repeats=args.repeats,
                     n_agents=tuple(sorted(args.n_agents)) if args.n_agents else None,
                     distributions=tuple(args.distributions) if args.distributions else None)
-    cfg.validate()
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     warm_up()

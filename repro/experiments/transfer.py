@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.options import add_common
-from repro.core.config import for_scale
+from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm, sem
@@ -56,7 +56,7 @@ _TEST_ENV_STREAM, _TEST_POLICY_STREAM, _BOOT_STREAM = 0, 1, 2
 
 
 @dataclass(frozen=True)
-class TransferConfig:
+class TransferConfig(Validated):
     """Sizes of the transfer study; the simulators and their semantics never change with scale."""
 
     seeds: int = 3
@@ -233,7 +233,6 @@ def run(args: argparse.Namespace) -> int:
     cfg = for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
                     corrected=args.corrected or None)
-    cfg.validate()
     check_sweep_arguments(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")

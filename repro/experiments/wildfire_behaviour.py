@@ -49,7 +49,7 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.options import add_common
-from repro.core.config import for_scale
+from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import Rollout
@@ -70,7 +70,7 @@ _TEST_ENV_STREAM, _POLICY_STREAM = 0, 1
 
 
 @dataclass(frozen=True)
-class BehaviourConfig:
+class BehaviourConfig(Validated):
     """Sizes of the behaviour study (the ED simulator and its semantics never change)."""
 
     seeds: int = 1
@@ -226,13 +226,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
     """The validated config of the command line at its scale (UsageError if bad)."""
+    no_limit = args.max_decisions == 0  # asked for no limit (paper scale's default has one)
     cfg = for_scale(BehaviourConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
-                    max_decisions=args.max_decisions)
-    if cfg.max_decisions == 0:  # asked for no limit (paper scale's default has one)
-        cfg = dataclasses.replace(cfg, max_decisions=None)
-    cfg.validate()
-    return cfg
+                    max_decisions=None if no_limit else args.max_decisions)
+    return dataclasses.replace(cfg, max_decisions=None) if no_limit else cfg
 
 
 def run(args: argparse.Namespace) -> int:

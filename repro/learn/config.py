@@ -6,14 +6,14 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from repro.core.config import SCALES
+from repro.core.config import Validated, SCALES
 from repro.core.errors import require
 from repro.envs import env_package, train_defaults
 from repro.learn.baseline import BASELINES
 
 
 @dataclass(frozen=True)
-class TrainConfig:
+class TrainConfig(Validated):
     """Hyperparameters of one PS-TRPO + M-GAE run."""
 
     env: str = "toy"
@@ -91,7 +91,6 @@ def train_config(scale: str, env: str, **overrides: Any) -> TrainConfig:
     fields = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], "env": env}
     fields.update({k: v for k, v in overrides.items() if v is not None})
     cfg = TrainConfig(**fields)
-    cfg.validate()
     return cfg
 
 

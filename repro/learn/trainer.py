@@ -63,7 +63,6 @@ class Trainer:
 
     def __init__(self, cfg: TrainConfig, env: BatchEnv, out: str | Path | None = None,
                  env_config: Any = None):
-        cfg.validate()
         require(env.gamma > 0 and math.isfinite(env.gamma), "--gamma", "a number > 0", env.gamma)
         self.cfg, self.env = cfg, env
         self.out = None if out is None else Path(out)

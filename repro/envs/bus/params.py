@@ -8,6 +8,7 @@ import numbers
 from dataclasses import dataclass
 from typing import ClassVar
 
+from repro.core.config import Validated
 from repro.core.errors import require
 
 DECISION_LATENCY = 1e-5
@@ -18,7 +19,7 @@ SWITCHES = ("b1_reward", "b2_headway", "b3_boarding", "b4_round_half_even", "b5_
 
 
 @dataclass(frozen=True)
-class BusConfig:
+class BusConfig(Validated):
     """The bus corridor. Times are in seconds unless a field says minutes."""
 
     n_buses: int = 6
@@ -70,7 +71,7 @@ class BusConfig:
     hold are two timeouts. Off: it observes on getting the stop and acts at once, dwell + hold in
     one timeout."""
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         for name, low in (("n_buses", 1), ("n_stops", 2), ("l_max", 1), ("n_actions", 1)):
             value = getattr(self, name)
             require(isinstance(value, numbers.Integral) and value >= low, name,

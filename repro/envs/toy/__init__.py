@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from repro.core.config import Validated
 from repro.core.errors import require
 from repro.core.rollout import DecisionBatch, Policy, Rollout, episode_streams
 
@@ -43,7 +44,7 @@ PAYMENT = np.array([[1.0, 2.5, 0.0], [1.0, 2.5, 0.0]])
 
 
 @dataclass(frozen=True)
-class ToyConfig:
+class ToyConfig(Validated):
     n_agents: int = 2
     """Workers sharing the reward stream."""
     horizon: int = 40
@@ -67,7 +68,6 @@ class ToyEnv:
     n_actions = N_ACTIONS
 
     def __init__(self, cfg: ToyConfig):
-        cfg.validate()
         self.cfg = cfg
         self.n_agents = cfg.n_agents
         self.gamma = cfg.gamma
@@ -149,7 +149,6 @@ def add_env_arguments(parser: argparse.ArgumentParser) -> None:
 
 def config_from_args(args: argparse.Namespace) -> ToyConfig:
     cfg = ToyConfig(n_agents=args.n_agents, horizon=args.horizon, gamma=args.gamma)
-    cfg.validate()
     return cfg
 
 

@@ -74,7 +74,6 @@ def config_from_args(args: argparse.Namespace) -> WildfireConfig:
                          cut_flight_continues=args.cut_flight_continues,
                          ranking_resolution=args.ranking_resolution,
                          max_decisions=args.max_decisions or None)  # 0: no limit
-    cfg.validate()
     return cfg
 
 

@@ -9,6 +9,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from repro.core.config import Validated
 from repro.core.errors import require
 from repro.core.rollout import children
 
@@ -23,7 +24,7 @@ MAX_T_MAX = 1e5
 
 
 @dataclass(frozen=True)
-class WildfireConfig:
+class WildfireConfig(Validated):
     """Every parameter of docs/semantics.md section 3.1 and every switch of section 3.11; the
     defaults are the paper's (released implementation)."""
 
