@@ -13,7 +13,7 @@ TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
 .PHONY: setup reproduce test lint claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
-	fig-bus-arrivals fig-bus-load \
+	fig-bus-arrivals fig-bus-load wildfire-heuristics \
 	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour clean
 .DEFAULT_GOAL := help
 
@@ -52,6 +52,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) fig-scaling SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
+	$(MAKE) wildfire-heuristics SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
@@ -93,6 +94,9 @@ fig-scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table a
 
 fig-transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARGS="--corrected")
 	$(REPRO) fig-transfer --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+wildfire-heuristics: $(STAMP) ## heuristic policies on the transfer study's ED test episodes (C8, C9)
+	$(REPRO) wildfire-heuristics --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the flowchart (C6, C7)
 	$(REPRO) wildfire-behaviour --scale $(SCALE) --seed $(SEED) $(ARGS)

@@ -34,6 +34,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                 "event-driven vs time-stepped compute against N (C11)"),
     "fig-transfer": ("repro.experiments.transfer",
                      "train on ED and FS simulators, test on ED (C8, C9)"),
+    "wildfire-heuristics": ("repro.experiments.wildfire_heuristics",
+                            "heuristics' ADR on the transfer study's test episodes (C8, C9)"),
     "wildfire-behaviour": ("repro.experiments.wildfire_behaviour",
                            "frequencies of a long ED-trained policy vs the flowchart (C6, C7)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),

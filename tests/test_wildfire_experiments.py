@@ -311,3 +311,17 @@ def test_a_result_of_the_earlier_semantics_reads_not_yet_run(tmp_path, finished,
     assert v.verdict == ("not yet run" if stale else "PASS")
     assert ("it read PASS" in v.detail) == stale == v.outdated
 
+
+
+def test_heuristics_play_the_transfer_studys_test_episodes(tmp_path):
+    """wildfire-heuristics: every heuristic under both semantics, on the transfer study's test
+    seed; nearest far above random; the same command writes the same bytes."""
+    argv = ["wildfire-heuristics", "--scale", "smoke", "--results-dir", str(tmp_path)]
+    assert _main(argv) == 0
+    table = pd.read_csv(tmp_path / "wildfire_heuristics.csv")
+    assert set(zip(table.semantics, table.policy)) == {
+        (s, p) for s in ("released", "corrected") for p in ("random", "nearest", "flowchart")}
+    adr = table.set_index(["semantics", "policy"]).adr
+    assert adr["released", "nearest"] > adr["released", "random"] + 1.0
+    before = (tmp_path / "wildfire_heuristics.csv").read_bytes()
+    assert _main(argv) == 0 and (tmp_path / "wildfire_heuristics.csv").read_bytes() == before

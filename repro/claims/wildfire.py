@@ -162,8 +162,21 @@ def check_c8(results: Path) -> Verdict:
     verdict, caveat = _at_most_partial(verdict, s)
     detail = (f"{int(s.n_policies.min())} policies per simulator, tested on ED (T_health = 3.0); "
               f"95% bootstrap CIs of the mean: {_cis(s)}. {why}.{caveat}")
+    detail += _heuristics_line(results)
     detail += _corrected_line(results, c8_verdict, means=True)
     return Verdict(_means(s.drop(index=C9_PAIR[0])), verdict, detail, scale_of(path))
+
+
+def _heuristics_line(results: Path) -> str:
+    """The heuristic policies' ADR on the same ED test episodes, the baselines of the learned."""
+    path = results / "wildfire_heuristics.csv"
+    try:
+        h = pd.read_csv(path)
+        scale_of(path)
+    except FileNotFoundError:
+        return " Heuristics on the same test episodes: not yet run (`make wildfire-heuristics`)."
+    parts = [f"{r.semantics} {r.policy} {r.adr:.3f}+-{r.sem:.3f}" for r in h.itertuples()]
+    return f" Heuristics on the same ED test episodes: {', '.join(parts)}."
 
 
 def c9_verdict(s: pd.DataFrame) -> tuple[str, str]:

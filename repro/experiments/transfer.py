@@ -144,6 +144,11 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     return jobs
 
 
+def test_env_seed(seed: int) -> int:
+    """The environment seed of the ED test episodes (the same for every policy tested)."""
+    return int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])
+
+
 def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
                       folders: list[Path], seed: int) -> pd.DataFrame:
     """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths)."""
@@ -151,7 +156,7 @@ def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
     from repro.learn.trained_policy import policy_from_checkpoint
 
     env = make_env(cfg.test_simulator())
-    env_seed = int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])
+    env_seed = test_env_seed(seed)
     rows = []
     for i, ((label, job), folder) in enumerate(zip(labelled, folders)):
         stream = np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i))
