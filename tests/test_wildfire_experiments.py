@@ -80,10 +80,14 @@ def test_sweep_on_a_local_dask_cluster_matches_joblib_and_skips_finished_runs(tm
         before = tree_snapshot(tmp_path / "dask")
         run_sweep(jobs, tmp_path / "dask", scheduler=cluster.scheduler_address)
         assert tree_snapshot(tmp_path / "dask") == before  # finished runs are skipped
+        tested_on_dask = evaluate_policies(cfg, labelled, on_dask, 0,
+                                           scheduler=cluster.scheduler_address)
     on_joblib = run_sweep(jobs, tmp_path / "joblib", n_jobs=1)
-    a, b = (evaluate_policies(cfg, labelled, f, 0).drop(columns="run")
-            for f in (on_dask, on_joblib))
+    a, b, c = (evaluate_policies(cfg, labelled, f, 0, n_jobs=n).drop(columns="run")
+               for f, n in ((on_dask, 1), (on_joblib, 1), (on_joblib, 2)))
     pd.testing.assert_frame_equal(a, b)
+    pd.testing.assert_frame_equal(a, c)  # tested on two worker processes
+    pd.testing.assert_frame_equal(a, tested_on_dask.drop(columns="run"))
     assert list(a.simulator) == ["ED", "FS-10"] and (a.epochs == 2).all()
 
 

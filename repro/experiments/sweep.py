@@ -25,7 +25,7 @@ import tempfile
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from repro.core.errors import UsageError
 from repro.core.io import write_bytes
@@ -91,14 +91,9 @@ def folder_files(folder: Path) -> dict[str, bytes]:
 
 
 def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
-    from dask.distributed import Client, as_completed
+    from dask.distributed import as_completed
 
-    try:
-        client = Client(scheduler, timeout=30)
-    except (OSError, ValueError, TypeError):  # a malformed address, or no scheduler there
-        raise UsageError("--scheduler", "the address of a running Dask scheduler",
-                         scheduler) from None
-    with client, ExitStack() as locks:
+    with _dask_client(scheduler) as client, ExitStack() as locks:
         running: dict[Any, TrainJob] = {}
 
         def next_epoch(job: TrainJob) -> Any:
@@ -144,6 +139,30 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
         workers = min(len(pending), n_jobs or os.cpu_count() or 1)
         Parallel(n_jobs=workers, backend="loky")(delayed(run_job)(j, Path(root)) for j in pending)
     return [run_dir(root, j) for j in jobs]
+
+
+def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None = None,
+              scheduler: str | None = None) -> list[Any]:
+    """``[fn(*task) for task in tasks]`` on joblib worker processes, or on the Dask scheduler
+    named; the tasks carry everything they need (no shared disk)."""
+    if scheduler:
+        with _dask_client(scheduler) as client:
+            return client.gather([client.submit(fn, *task, pure=False) for task in tasks])
+    from joblib import Parallel, delayed
+
+    workers = max(1, min(len(tasks), n_jobs or os.cpu_count() or 1))
+    return Parallel(n_jobs=workers, backend="loky")(delayed(fn)(*task) for task in tasks)
+
+
+def _dask_client(scheduler: str) -> Any:
+    """A client of the running Dask scheduler at ``scheduler`` (UsageError if there is none)."""
+    from dask.distributed import Client
+
+    try:
+        return Client(scheduler, timeout=30)
+    except (OSError, ValueError, TypeError):  # a malformed address, or no scheduler there
+        raise UsageError("--scheduler", "the address of a running Dask scheduler",
+                         scheduler) from None
 
 
 def add_sweep_arguments(p: argparse.ArgumentParser) -> None:

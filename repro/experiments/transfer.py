@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import io
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,7 +42,7 @@ from repro.core.io import check_writable_dir, provenance, save_figure, write_res
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import QUIRKS, WildfireConfig, make_env
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
-                                     run_sweep)
+                                     map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
 
 PAPER = {
@@ -150,19 +151,19 @@ def test_env_seed(seed: int) -> int:
 
 
 def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
-                      folders: list[Path], seed: int) -> pd.DataFrame:
-    """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths)."""
+                      folders: list[Path], seed: int, *, n_jobs: int | None = 1,
+                      scheduler: str | None = None) -> pd.DataFrame:
+    """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths).
+    The policies are tested in parallel like a sweep (``map_tasks``); each has its own stream, so
+    the numbers do not depend on where or in which order they run."""
     from repro.learn.run_folder import CHECKPOINT
-    from repro.learn.trained_policy import policy_from_checkpoint
 
-    env = make_env(cfg.test_simulator())
-    env_seed = test_env_seed(seed)
+    tasks = [(cfg.test_simulator(), (folder / CHECKPOINT).read_bytes(), cfg.test_episodes,
+              test_env_seed(seed), np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i)))
+             for i, folder in enumerate(folders)]
+    scores = map_tasks(score_policy, tasks, n_jobs=n_jobs, scheduler=scheduler)
     rows = []
-    for i, ((label, job), folder) in enumerate(zip(labelled, folders)):
-        stream = np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i))
-        policy = policy_from_checkpoint(folder / CHECKPOINT, np.random.default_rng(stream))
-        mean, err = adr(evaluate(env, policy, cfg.test_episodes, env_seed, keep_obs=False),
-                        env.gamma)
+    for ((label, job), folder), (mean, err) in zip(zip(labelled, folders), scores):
         curve = pd.read_csv(folder / "progress.csv")
         last = curve.average_discounted_return.iloc[-max(1, len(curve) // 10):]
         rows.append(dict(simulator=label, dt=job.env_config.dt or 0.0,  # 0 stands for ED
@@ -171,6 +172,19 @@ def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
                          test_episodes=cfg.test_episodes, adr_ed=mean, adr_ed_sem=err,
                          train_adr_last=float(last.mean()), run=job.name))
     return pd.DataFrame(rows)
+
+
+def score_policy(env_cfg: WildfireConfig, checkpoint: bytes, episodes: int, env_seed: int,
+                policy_stream: np.random.SeedSequence) -> tuple[float, float]:
+    """ADR and its standard error of the policy of ``checkpoint`` (its bytes, so that a worker
+    without the client's disk can test it) on ``episodes`` episodes of ``env_cfg``."""
+    from repro.learn.run_folder import load_checkpoint
+    from repro.learn.trained_policy import policy_from_state
+
+    env = make_env(env_cfg)
+    policy = policy_from_state(load_checkpoint(io.BytesIO(checkpoint)),
+                               np.random.default_rng(policy_stream))
+    return adr(evaluate(env, policy, episodes, env_seed, keep_obs=False), env.gamma)
 
 
 def summarise(per_policy: pd.DataFrame, n_boot: int, seed: int) -> pd.DataFrame:
@@ -248,7 +262,8 @@ def run(args: argparse.Namespace) -> int:
     folders = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
                         scheduler=args.scheduler)
     t_train = time.perf_counter() - t0
-    per_policy = evaluate_policies(cfg, labelled, folders, args.seed)
+    per_policy = evaluate_policies(cfg, labelled, folders, args.seed, n_jobs=args.n_jobs,
+                                   scheduler=args.scheduler)
     summary = summarise(per_policy, cfg.n_boot, args.seed)
     wall = time.perf_counter() - t0
     seconds = [pd.read_csv(f / "progress.csv").seconds for f in folders]
