@@ -828,15 +828,39 @@ class WildfireBatch:
         """Finish a round the kernel left with ``status``: a full log grows and the round goes on
         as one (it may be a part of a large one)."""
         while status == GROW_LOG:
-            bigger = np.empty(2 * len(self.log), self.log.dtype)
-            bigger[:len(self.log)] = self.log
-            self.log = bigger
+            self._grow()
             status = self._advance(_NO_ACTIONS)
         if status == BAD_ACTION:
             raise actions_error(answer, len(answer), self.env.n_actions)
         if status == HEAP_FULL:
             raise RuntimeError(f"event heap of {heap_capacity(self.env.cfg)} entries or queue of "
                                f"{queue_capacity(self.env.cfg)} is full")
+
+    def _grow(self) -> None:
+        bigger = np.empty(2 * len(self.log), self.log.dtype)
+        bigger[:len(self.log)] = self.log
+        self.log = bigger
+
+    def restart(self, slots: np.ndarray, draws: EpisodeDraws) -> None:
+        """Start the episodes of ``draws`` in the ended episodes' ``slots`` (between rounds); their
+        first decisions join the pending ones."""
+        while self.used[0] + len(slots) * self.env.n_agents > len(self.log):
+            self._grow()
+        self.holds[slots] = draws.holds
+        _setup(self.states, self.log, self.used, self.env.params,
+               np.ascontiguousarray(draws.starts, np.float64), slots)
+        n_live = self.live[0]
+        self.live[1 + n_live:1 + n_live + len(slots)] = slots
+        self.live[0] = n_live + len(slots)
+
+    def drop(self, m: int) -> None:
+        """Forget the log's rows before row ``m``, which nobody reads again (the vector env has
+        reported them; no running decision's row is among them): row r becomes row r - m."""
+        used = int(self.used[0])
+        self.log[:used - m] = self.log[m:used]
+        self.used[0] = used - m
+        self.first -= m
+        self.states["cur"] -= m
 
     def to_rollout(self) -> Rollout:
         """The recorded decisions, once every episode has ended."""
