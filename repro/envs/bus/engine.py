@@ -508,6 +508,10 @@ class BusBatch:
         self._decisions = _gathered(obs, ids, rows)
         return self._decisions
 
+    def state(self, e: int) -> np.void:
+        """Episode e's state record (a copy), for pictures."""
+        return self._states[e].copy()
+
     @property
     def n_decisions(self) -> np.ndarray:
         """(E, N) decisions so far of every bus of every episode."""
