@@ -5,6 +5,10 @@ is its just-finished macro-action's reward (discounted to the action's start, SP
 holds the macro-action's ``duration`` and the simulation ``time``. When the episode ends every
 UAV's running macro-action is cut and rewarded; the episode is terminated if all fires are out,
 truncated at T_max.
+
+``env()`` is the environment in PettingZoo's usual wrappers, ``raw_env()`` the bare one (both take
+``cfg`` and ``render_mode``: "rgb_array", a picture as an array, or "human", in a window; see
+:mod:`repro.envs.wildfire.render`).
 """
 
 from __future__ import annotations
@@ -12,18 +16,28 @@ from __future__ import annotations
 import gymnasium
 import numpy as np
 from pettingzoo import AECEnv
+from pettingzoo.utils import wrappers
 
+from repro.core.canvas import RENDER_MODES, Canvas
+from repro.core.errors import require
 from repro.envs.wildfire.params import WildfireConfig, draw_episodes, fire_positions
 from repro.envs.wildfire.reference import WildfireModel
+from repro.envs.wildfire.render import draw, frame_of_model
 
 
-class WildfireAEC(AECEnv):
-    metadata = {"name": "wildfire_v0", "render_modes": [], "is_parallelizable": False}
+class WildfireAECEnv(AECEnv):
+    metadata = {"name": "wildfire_v0", "render_modes": list(RENDER_MODES),
+                "is_parallelizable": False, "render_fps": 4}
 
-    def __init__(self, cfg: WildfireConfig = WildfireConfig()):
+    def __init__(self, cfg: WildfireConfig | None = None, render_mode: str | None = None):
         super().__init__()
+        cfg = cfg or WildfireConfig()
         cfg.validate()
+        require(render_mode is None or render_mode in RENDER_MODES, "render_mode",
+                f"None or one of {', '.join(RENDER_MODES)}", render_mode)
         self.cfg = cfg
+        self.render_mode = render_mode
+        self._canvas: Canvas | None = None
         self.possible_agents = [f"uav_{i}" for i in range(cfg.n_agents)]
         self._obs_space = observation_box(cfg)
         self._act_space = gymnasium.spaces.Discrete(cfg.n_actions)
@@ -48,6 +62,21 @@ class WildfireAEC(AECEnv):
         self.truncations = {a: False for a in self.agents}
         self.infos = {a: {"duration": 0.0, "time": 0.0} for a in self.agents}
         self._run()
+
+    def render(self) -> np.ndarray | None:
+        """The state now: fires with their health and status, UAVs with their targets."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() without a render_mode: give one to the constructor")
+            return None
+        if self._canvas is None:
+            self._canvas = Canvas(self.render_mode)
+        draw(self._canvas.figure, frame_of_model(self.model), self.cfg)
+        return self._canvas.show()
+
+    def close(self) -> None:
+        if self._canvas is not None:
+            self._canvas.close()
+            self._canvas = None
 
     def observe(self, agent: str) -> np.ndarray:
         i = self.possible_agents.index(agent)
@@ -90,17 +119,25 @@ class WildfireAEC(AECEnv):
 def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
     """Bounds of an observation: own x, y (UAVs start uniformly on [-1, 1]^2 and fly straight
     between starts and fires, so they stay in the square that holds both); per observed fire its
-    distance (at most the square's diagonal), level (1), interest party size (0..N), status (0 or
-    1) and remaining health (0..T_health; with quirk Q3 it drains on, at most N UAVs until T_max);
-    the sojourn time (0..T_max)."""
+    distance (at most the square's diagonal), level (always 1; bounds 0..1, as a Box with equal
+    bounds draws PettingZoo's warning), interest party size (0..N), status (0 or 1) and remaining
+    health (0..T_health; with quirk Q3 it drains on, at most N UAVs until T_max); the sojourn time
+    (0..T_max)."""
     side = max(1.0, float(np.abs(fire_positions(cfg)).max()))
     lowest_health = cfg.t_health - cfg.n_agents * cfg.t_max if cfg.quirk_q3_unclamped_health else 0
-    per_fire_low = [0, 1, 0, 0, lowest_health]
+    per_fire_low = [0, 0, 0, 0, lowest_health]
     per_fire_high = [2 * np.sqrt(2) * side, 1, cfg.n_agents, 1, cfg.t_health]
     low = [-side, -side, *per_fire_low * cfg.n_observed, 0]
     high = [side, side, *per_fire_high * cfg.n_observed, cfg.t_max]
     return gymnasium.spaces.Box(np.array(low, float), np.array(high, float), dtype=np.float64)
 
 
-def env(cfg: WildfireConfig = WildfireConfig()) -> WildfireAEC:
-    return WildfireAEC(cfg)
+def raw_env(cfg: WildfireConfig | None = None, render_mode: str | None = None) -> WildfireAECEnv:
+    """The bare AEC environment."""
+    return WildfireAECEnv(cfg, render_mode)
+
+
+def env(cfg: WildfireConfig | None = None, render_mode: str | None = None) -> AECEnv:
+    """The AEC environment in PettingZoo's usual wrappers (actions checked, calls in order)."""
+    return wrappers.OrderEnforcingWrapper(wrappers.AssertOutOfBoundsWrapper(
+        raw_env(cfg, render_mode)))
