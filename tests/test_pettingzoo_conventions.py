@@ -15,12 +15,13 @@ from repro.core.errors import UsageError
 MODULES = ["repro.envs.wildfire.pettingzoo_env", "repro.envs.bus.pettingzoo_env"]
 
 
-@pytest.mark.parametrize("name", MODULES)
-def test_api_test_passes_without_warnings(name):
+@pytest.mark.parametrize("name, options", [(MODULES[0], {}), (MODULES[0], {"engine": "fast"}),
+                                           (MODULES[1], {})])
+def test_api_test_passes_without_warnings(name, options):
     module = importlib.import_module(name)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        api_test(module.env(), num_cycles=100)
+        api_test(module.env(**options), num_cycles=100)
     assert not [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
 
 

@@ -7,8 +7,12 @@ UAV's running macro-action is cut and rewarded; the episode is terminated if all
 truncated at T_max.
 
 ``env()`` is the environment in PettingZoo's usual wrappers, ``raw_env()`` the bare one (both take
-``cfg`` and ``render_mode``: "rgb_array", a picture as an array, or "human", in a window; see
-:mod:`repro.envs.wildfire.render`).
+``cfg``, ``render_mode``: "rgb_array", a picture as an array, or "human", in a window, see
+:mod:`repro.envs.wildfire.render`; and ``engine``). With ``engine="fast"`` the episode runs on the
+fast engine's rounds (:class:`repro.envs.wildfire.engine.WildfireBatch`), whose decisions are
+handed out one by one, with the same observations, rewards and durations as the SimPy model's
+(the default, ``"reference"``); the fast one is the faster for long episodes. ``observe`` of an
+agent not selected may then show a decision of the round that it has not been handed yet.
 """
 
 from __future__ import annotations
@@ -20,21 +24,114 @@ from pettingzoo.utils import wrappers
 
 from repro.core.canvas import RENDER_MODES, Canvas
 from repro.core.errors import require
-from repro.envs.wildfire.params import WildfireConfig, draw_episodes, fire_positions
+from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv
+from repro.envs.wildfire.params import EpisodeDraws, WildfireConfig, draw_episodes, fire_positions
 from repro.envs.wildfire.reference import WildfireModel
-from repro.envs.wildfire.render import draw, frame_of_model
+from repro.envs.wildfire.render import Frame, draw, frame_of_model, frame_of_state
+
+ENGINES = ("reference", "fast")
+"""What runs the AEC environment's episode."""
+
+
+class _ReferenceEpisode:
+    """One episode of the SimPy model, one decision at a time."""
+
+    def __init__(self, cfg: WildfireConfig, draws: EpisodeDraws):
+        self.model = WildfireModel(cfg, draws.starts[0], draws.holds[0])
+
+    def next_agent(self) -> int | None:
+        """Run to the next decision: its UAV, or None once the episode is over."""
+        m = self.model
+        m.advance()
+        return None if m.done else m.pending[0]
+
+    def act(self, i: int, action: int) -> None:
+        self.model.act(i, action)
+
+    def observation(self, i: int) -> np.ndarray:
+        return np.array(self.model.rec[self.model.current[i]]["obs"], dtype=np.float64)
+
+    def previous(self, i: int) -> tuple[float, float] | None:
+        """The reward and duration of the macro-action before UAV i's decision now, if any."""
+        m = self.model
+        prev = m.rec[m.current[i]]["prev"]
+        return None if prev < 0 else (m.rec[prev]["reward"], m.rec[prev]["duration"])
+
+    def last(self, i: int) -> tuple[float, float]:
+        """The reward and duration of UAV i's last macro-action, once the episode is over."""
+        rec = self.model.rec[self.model.current[i]]
+        return rec["reward"], rec["duration"]
+
+    def time(self) -> float:
+        return self.model.t_end if self.model.done else self.model.env.now
+
+    def all_out(self) -> bool:
+        return not any(self.model.alive)
+
+    def frame(self) -> Frame:
+        return frame_of_model(self.model)
+
+
+class _FastEpisode:
+    """One episode of the fast engine: each round's decisions handed out in order, the round's
+    actions given together."""
+
+    def __init__(self, cfg: WildfireConfig, draws: EpisodeDraws):
+        self.env = WildfireEnv(cfg)
+        self.batch = WildfireBatch(self.env, draws)
+        self.answers: list[int] = []
+        self.handed = np.full(cfg.n_agents, -1)  # each UAV's decision (log row) handed out last
+
+    def next_agent(self) -> int | None:
+        b = self.batch
+        if b.n_pending and len(self.answers) == b.n_pending:
+            b.act(np.array(self.answers, np.int64))
+            self.answers = []
+        if not b.n_pending:  # a live episode always waits on a decision
+            return None
+        row = b.first + len(self.answers)
+        i = int(b.log[row]["agent"])
+        self.previous_row, self.handed[i] = self.handed[i], row
+        return i
+
+    def act(self, i: int, action: int) -> None:
+        self.answers.append(action)
+
+    def observation(self, i: int) -> np.ndarray:
+        return self.batch.log[self.batch.states[0]["cur"][i]]["obs"].copy()
+
+    def previous(self, i: int) -> tuple[float, float] | None:
+        row = self.batch.log[self.previous_row] if self.previous_row >= 0 else None
+        return None if row is None else (float(row["rew"]), float(row["dur"]))
+
+    def last(self, i: int) -> tuple[float, float]:
+        row = self.batch.log[self.batch.states[0]["cur"][i]]
+        return float(row["rew"]), float(row["dur"])
+
+    def time(self) -> float:
+        s = self.batch.states[0]
+        return float(s["t_end"] if s["done"] else s["now"])
+
+    def all_out(self) -> bool:
+        return int(self.batch.states[0]["n_alive"]) == 0
+
+    def frame(self) -> Frame:
+        return frame_of_state(self.env, self.batch.states[0])
 
 
 class WildfireAECEnv(AECEnv):
     metadata = {"name": "wildfire_v0", "render_modes": list(RENDER_MODES),
                 "is_parallelizable": False, "render_fps": 4}
 
-    def __init__(self, cfg: WildfireConfig | None = None, render_mode: str | None = None):
+    def __init__(self, cfg: WildfireConfig | None = None, render_mode: str | None = None,
+                 engine: str = "reference"):
         super().__init__()
         cfg = cfg or WildfireConfig()
         cfg.validate()
         require(render_mode is None or render_mode in RENDER_MODES, "render_mode",
                 f"None or one of {', '.join(RENDER_MODES)}", render_mode)
+        require(engine in ENGINES, "engine", " or ".join(ENGINES), engine)
+        self._episode_type = _ReferenceEpisode if engine == "reference" else _FastEpisode
         self.cfg = cfg
         self.render_mode = render_mode
         self._canvas: Canvas | None = None
@@ -42,7 +139,6 @@ class WildfireAECEnv(AECEnv):
         self._obs_space = observation_box(cfg)
         self._act_space = gymnasium.spaces.Discrete(cfg.n_actions)
         self._seed_seq = np.random.SeedSequence()
-        self.model: WildfireModel | None = None
 
     def observation_space(self, agent: str) -> gymnasium.spaces.Box:
         return self._obs_space
@@ -54,7 +150,7 @@ class WildfireAECEnv(AECEnv):
         if seed is not None:
             self._seed_seq = np.random.SeedSequence(seed)
         draws = draw_episodes(self.cfg, 1, self._seed_seq.spawn(1)[0])
-        self.model = WildfireModel(self.cfg, draws.starts[0], draws.holds[0])
+        self._episode = self._episode_type(self.cfg, draws)
         self.agents = list(self.possible_agents)
         self.rewards = {a: 0.0 for a in self.agents}
         self._cumulative_rewards = {a: 0.0 for a in self.agents}
@@ -70,7 +166,7 @@ class WildfireAECEnv(AECEnv):
             return None
         if self._canvas is None:
             self._canvas = Canvas(self.render_mode)
-        draw(self._canvas.figure, frame_of_model(self.model), self.cfg)
+        draw(self._canvas.figure, self._episode.frame(), self.cfg)
         return self._canvas.show()
 
     def close(self) -> None:
@@ -79,8 +175,7 @@ class WildfireAECEnv(AECEnv):
             self._canvas = None
 
     def observe(self, agent: str) -> np.ndarray:
-        i = self.possible_agents.index(agent)
-        return np.array(self.model.rec[self.model.current[i]]["obs"], dtype=np.float64)
+        return self._episode.observation(self.possible_agents.index(agent))
 
     def step(self, action: int | None) -> None:
         agent = self.agent_selection
@@ -88,30 +183,28 @@ class WildfireAECEnv(AECEnv):
             self._was_dead_step(action)
             return
         self._cumulative_rewards[agent] = 0.0
-        self.model.act(self.possible_agents.index(agent), int(action))
+        self._episode.act(self.possible_agents.index(agent), int(action))
         self._run()
 
     def _run(self) -> None:
         """Advance to the next decision (or the end) and publish the rewards that it completes."""
-        m = self.model
-        m.advance()
+        ep = self._episode
+        i = ep.next_agent()
         self.rewards = {a: 0.0 for a in self.agents}
-        if m.done:
-            all_out = not any(m.alive)
-            for i, a in enumerate(self.possible_agents):
-                rec = m.rec[m.current[i]]
-                self.rewards[a] = rec["reward"]
-                self.infos[a] = {"duration": rec["duration"], "time": m.t_end}
+        if i is None:
+            all_out = ep.all_out()
+            for j, a in enumerate(self.possible_agents):
+                self.rewards[a], duration = ep.last(j)
+                self.infos[a] = {"duration": duration, "time": ep.time()}
                 self.terminations[a] = all_out
                 self.truncations[a] = not all_out
             self.agent_selection = self.agents[0]
         else:
-            i = m.pending[0]
             a = self.possible_agents[i]
-            prev = m.rec[m.current[i]]["prev"]
-            if prev >= 0:
-                self.rewards[a] = m.rec[prev]["reward"]
-                self.infos[a] = {"duration": m.rec[prev]["duration"], "time": m.env.now}
+            previous = ep.previous(i)
+            if previous is not None:
+                self.rewards[a], duration = previous
+                self.infos[a] = {"duration": duration, "time": ep.time()}
             self.agent_selection = a
         self._accumulate_rewards()
 
@@ -132,12 +225,14 @@ def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
     return gymnasium.spaces.Box(np.array(low, float), np.array(high, float), dtype=np.float64)
 
 
-def raw_env(cfg: WildfireConfig | None = None, render_mode: str | None = None) -> WildfireAECEnv:
+def raw_env(cfg: WildfireConfig | None = None, render_mode: str | None = None,
+            engine: str = "reference") -> WildfireAECEnv:
     """The bare AEC environment."""
-    return WildfireAECEnv(cfg, render_mode)
+    return WildfireAECEnv(cfg, render_mode, engine)
 
 
-def env(cfg: WildfireConfig | None = None, render_mode: str | None = None) -> AECEnv:
+def env(cfg: WildfireConfig | None = None, render_mode: str | None = None,
+        engine: str = "reference") -> AECEnv:
     """The AEC environment in PettingZoo's usual wrappers (actions checked, calls in order)."""
     return wrappers.OrderEnforcingWrapper(wrappers.AssertOutOfBoundsWrapper(
-        raw_env(cfg, render_mode)))
+        raw_env(cfg, render_mode, engine)))
