@@ -7,7 +7,9 @@ every pending decision, one :class:`DecisionBatch` whose ``episode`` column is t
 ``step(actions)`` answers every row of that batch, runs every episode until it is blocked on a
 decision again, and returns the new pending decisions and the :class:`Transitions`: the
 macro-actions that ended. An episode that ends is replaced in its slot by the next episode of the
-stream, whose first decisions are in the same returned batch.
+stream, whose first decisions are in the same returned batch; if the ended episode still has
+decisions pending (wildfire UAVs may observe at the very instant it ends, and the rollout records
+those decisions too), they are answered first and the slot restarts one step later.
 
 Driven with a policy, a vector env makes exactly the decisions, observations, rewards and
 durations of ``rollout`` for the same episodes: an engine's rounds (run every live episode until

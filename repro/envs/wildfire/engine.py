@@ -772,6 +772,8 @@ def _paths(rows, path_start, n_agents, obs, actions, rewards, durations, times):
 
 # --- Python side ---------------------------------------------------------------------------------
 
+_NO_ACTIONS = np.empty(0, np.int64)
+
 class WildfireBatch:
     """A batch of episodes advanced round by round: the one home of the round logic, which
     :meth:`WildfireEnv.simulate` loops over and the vector env (:mod:`.vector`) steps.
@@ -879,9 +881,6 @@ class WildfireBatch:
             episode_return=self.states["returns"].mean(axis=1),
             info={"decision_time": time, "end_time": self.states["t_end"].copy(),
                   "events": self.states["events"].copy()})
-
-
-_NO_ACTIONS = np.empty(0, np.int64)
 
 
 class WildfireEnv:

@@ -11,8 +11,9 @@ truncated at T_max.
 :mod:`repro.envs.wildfire.render`; and ``engine``). With ``engine="fast"`` the episode runs on the
 fast engine's rounds (:class:`repro.envs.wildfire.engine.WildfireBatch`), whose decisions are
 handed out one by one, with the same observations, rewards and durations as the SimPy model's
-(the default, ``"reference"``); the fast one is the faster for long episodes. ``observe`` of an
-agent not selected may then show a decision of the round that it has not been handed yet.
+(the default, ``"reference"``); once numba has compiled it (or loaded its cache: the first
+episode), it steps about twice as fast (the AEC's own bookkeeping then dominates). ``observe`` of
+an agent not selected may then show a decision of the round that it has not been handed yet.
 """
 
 from __future__ import annotations
