@@ -91,8 +91,12 @@ def test_steps_make_rollouts_decisions_with_a_stochastic_policy(name, config):
     assert got == want
 
 
-@pytest.mark.parametrize("name, config, n", [("wildfire", {"max_decisions": 30}, 10),
-                                             ("wildfire", {"dt": 1.0}, 60), ("bus", {}, 5)])
+@pytest.mark.parametrize("name, config, n", [
+    ("wildfire", {"max_decisions": 30}, 10),
+    ("wildfire", {"dt": 1.0}, 60),
+    # a long latency: episodes end while decisions are pending, their slots restart a step later
+    ("wildfire", {"decision_latency": 5.0, "max_decisions": 30}, 40),
+    ("bus", {}, 5)])
 def test_later_episodes_of_the_stream_are_rollouts_episodes(name, config, n):
     """With 3 envs, episodes 3.. run in restarted slots: still episode k of the stream (a limit
     on decisions: this policy makes UAVs stay in ED for millions of decisions)."""
@@ -101,8 +105,8 @@ def test_later_episodes_of_the_stream_are_rollouts_episodes(name, config, n):
                                                         n, 9))
     got = step_table(vec, lambda b, episode: by_obs(b.obs, vec.n_actions), n)
     assert got == want
-    if name == "wildfire":  # reported rows leave the decision log: it keeps its first size
-        assert len(want) > 4000 or n < 60
+    if n == 60:  # reported rows leave the decision log: it keeps its first size
+        assert len(want) > 4000
         assert len(vec._batch.log) == 1024
 
 
