@@ -14,7 +14,8 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: setup reproduce test lint claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
 	fig-bus-arrivals fig-bus-load wildfire-heuristics \
-	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour clean
+	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour render \
+	clean
 .DEFAULT_GOAL := help
 
 help:
@@ -85,6 +86,9 @@ bench-wildfire: $(STAMP) ## decisions/s of the fast and SimPy wildfire engines (
 
 wildfire-eval: $(STAMP) ## ADR of a heuristic wildfire policy (ARGS="--policy flowchart ...")
 	$(REPRO) wildfire-eval --seed $(SEED) $(ARGS)
+
+render: $(STAMP) ## GIF of one episode (ARGS="--env wildfire --policy flowchart --out episode.gif")
+	$(REPRO) render --seed $(SEED) $(ARGS)
 
 bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS="--env wildfire")
 	$(REPRO) bench-learn --scale $(SCALE) --seed $(SEED) $(ARGS)

@@ -40,6 +40,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
                            "frequencies of a long ED-trained policy vs the flowchart (C6, C7)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
     "train": ("repro.experiments.train", "train a shared policy with PS-TRPO and M-GAE"),
+    "render": ("repro.experiments.render", "an animation (GIF) of one episode of a policy"),
     "bench-learn": ("repro.experiments.bench_learn",
                     "seconds per training epoch: simulation vs update"),
 }

@@ -12,6 +12,7 @@ def test_bench_bus_smoke(tmp_path):
     assert main(["bench-bus", "--scale", "smoke", "--results-dir", str(tmp_path)]) == 0
     df = pd.read_csv(tmp_path / "bench_bus.csv")
     assert sorted(zip(df.engine, df.policy)) == [("fast", "mlp-32x32-tanh"), ("fast", "nohold"),
+                                                 ("fast-step-api", "mlp-32x32-tanh"),
                                                  ("reference", "mlp-32x32-tanh"),
                                                  ("reference", "nohold")]
     assert (df.decisions > df.episodes).all()

@@ -164,10 +164,11 @@ def test_git_commit_is_dirty_for_code_changes_not_for_outputs(tmp_path):
 # --- each scale has its own folders --------------------------------------------------------------
 
 def driver_commands() -> list[str]:
-    """Every command that writes results by default."""
+    """Every command that writes results by default (claims, bus-eval and render only read
+    theirs)."""
     from repro.cli import COMMANDS
-    return [n for n in COMMANDS
-            if "--results-dir" in _parser(n).format_help() and n not in ("claims", "bus-eval")]
+    return [n for n in COMMANDS if "--results-dir" in _parser(n).format_help()
+            and n not in ("claims", "bus-eval", "render")]
 
 
 def _parser(name: str):

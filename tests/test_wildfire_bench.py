@@ -14,8 +14,10 @@ def test_measure_reports_both_engines_and_policies():
     cfg = WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1)
     frame = measure(cfg, seed=4)
     assert sorted(zip(frame.engine, frame.policy)) == [
-        ("fast", "mlp-32x32-tanh"), ("fast", "random"),
+        ("fast", "mlp-32x32-tanh"), ("fast", "random"), ("fast-step-api", "mlp-32x32-tanh"),
         ("reference", "mlp-32x32-tanh"), ("reference", "random")]
+    steps = frame[frame.engine == "fast-step-api"].iloc[0]
+    assert frame.decisions[0] <= steps.decisions < frame.decisions[0] + 20 * 100
     assert (frame.decisions > frame.episodes).all()
     # one batch: the medians are the totals' rates
     np.testing.assert_allclose(frame.decisions_per_second * frame.wall_seconds, frame.decisions)
@@ -29,7 +31,7 @@ def test_measure_reports_both_engines_and_policies():
 def test_repeats_run_more_batches_of_other_episodes():
     one = measure(WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1), seed=4)
     three = measure(WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=3), seed=4)
-    assert three.episodes.tolist() == [60, 60, 6, 6] and (three.batches == 3).all()
+    assert three.episodes.tolist() == [60, 60, 6, 6, 60] and (three.batches == 3).all()
     assert (three.decisions != 3 * one.decisions).all()  # batches 2 and 3 draw other episodes
     assert np.isfinite(three.select_dtypes("number")).all().all()
 
@@ -68,11 +70,13 @@ def test_checkpoint_times_the_trained_policy_on_its_runs_environment(trained_run
                     trained=load_trained_run(trained_run / "wildfire" / "checkpoint.pt",
                                              "wildfire"))
     assert sorted(zip(frame.engine, frame.policy)) == [
-        ("fast", "checkpoint"), ("fast", "random"),
+        ("fast", "checkpoint"), ("fast", "random"), ("fast-step-api", "checkpoint"),
         ("reference", "checkpoint"), ("reference", "random")]
-    # the run's limit of 4 decisions per UAV holds in every episode of both engines
+    # the run's limit of 4 decisions per UAV holds in every episode of both engines (the step
+    # API runs more episodes)
     n_uavs = WildfireConfig().n_agents
-    assert (frame.decisions <= frame.episodes * n_uavs * 4).all()
+    rollouts = frame[frame.engine != "fast-step-api"]
+    assert (rollouts.decisions <= rollouts.episodes * n_uavs * 4).all()
     unlimited = measure(cfg, seed=4)
     assert (unlimited.decisions > unlimited.episodes * n_uavs * 4).all()
 

@@ -186,14 +186,16 @@ def test_observations_lie_in_the_pettingzoo_observation_space(cfg):
         assert np.all((ro.obs >= box.low) & (ro.obs <= box.high)), make.__name__
 
 
-def test_pettingzoo_rewards_match_the_reference():
-    """Driving the AEC env with an observation-driven policy reproduces the reference rollout of
-    the same episode: every agent's observations, rewards and durations, decision by decision."""
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_pettingzoo_rewards_match_the_reference(engine):
+    """Driving the AEC env (on either engine) with an observation-driven policy reproduces the
+    reference rollout of the same episode: every agent's observations, rewards and durations,
+    decision by decision."""
     from repro.envs.wildfire import make_reference_env
     from repro.envs.wildfire.pettingzoo_env import env as make
 
     policy = NearestPolicy(uniforms=lambda b: np.full((len(b), 2), 0.5))
-    e = make()
+    e = make(engine=engine)
     e.reset(seed=3)
     paths = {a: {"obs": [], "rewards": [], "durations": []} for a in e.possible_agents}
     for agent in e.agent_iter():

@@ -7,8 +7,10 @@ the user's) that provides the environment contract:
 - ``config_from_args(args) -> config``: its config (a dataclass) from the parsed options;
 - ``make_env(config) -> BatchEnv``: its fast engine (:class:`repro.core.rollout.BatchEnv`);
 - optionally ``make_reference_env(config)``: a plain reference model the engine is tested
-  against, and ``TRAIN_DEFAULTS``: training settings (``lam``, ``batch_episodes``, ``epochs``) that
-  differ from :class:`repro.learn.config.TrainConfig`'s.
+  against, ``make_vector_env(n_envs, seed, **config)``: the engine's step API
+  (:class:`repro.core.vector.VectorEnv`, see :func:`make_vector_env`), and ``TRAIN_DEFAULTS``:
+  training settings (``lam``, ``batch_episodes``, ``epochs``) that differ from
+  :class:`repro.learn.config.TrainConfig`'s.
 """
 
 from __future__ import annotations
@@ -16,7 +18,10 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
+import numpy as np
+
 from repro.core.errors import UsageError, require
+from repro.core.vector import VectorEnv
 
 BUILT_IN = ("toy", "wildfire", "bus")
 """The suite's own environments, named by their package under ``repro.envs``."""
@@ -47,3 +52,13 @@ def env_package(name: str) -> ModuleType:
 def train_defaults(module: ModuleType) -> dict:
     """The environment's own training defaults (``TRAIN_DEFAULTS``; none if it has none)."""
     return dict(getattr(module, "TRAIN_DEFAULTS", {}))
+
+
+def make_vector_env(name: str, n_envs: int, seed: int | np.random.SeedSequence = 0,
+                    **config) -> VectorEnv:
+    """The step API of environment ``name``'s fast engine: ``n_envs`` episodes of the stream of
+    ``seed`` at a time (see :mod:`repro.core.vector`); ``config``: fields of its config."""
+    module = env_package(name)
+    require(callable(getattr(module, "make_vector_env", None)), "--env",
+            "an environment with a step API (make_vector_env)", name)
+    return module.make_vector_env(n_envs, seed, **config)

@@ -9,6 +9,11 @@ A benchmark runs an environment's fast engine and its SimPy reference under two 
   of the scale it sees in training;
 - a cheap policy of the environment, which shows what the engine costs nearly alone.
 
+The fast engine's step API (``make_vector_env``, engine ``fast-step-api``) runs the first policy
+too (the network: no compiled form, one call per step), on as many envs as the fast engine's batch
+has episodes, stepped until it has made as many decisions per batch as those rollouts did (ended
+episodes restart, so the batch stays full).
+
 With ``--checkpoint PATH`` (a training run's ``checkpoint.pt``) the trained policy, with its own
 normaliser, takes the fresh network's place (policy ``checkpoint``), and both engines run that
 run's environment settings; the CSV is then ``bench_<env>_checkpoint.csv``. Trained policies can
@@ -36,7 +41,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Callable
 
 import numpy as np
@@ -49,7 +54,7 @@ from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
-from repro.envs import env_package, train_defaults
+from repro.envs import env_package, make_vector_env, train_defaults
 from repro.learn.config import TrainConfig
 from repro.learn.trained_policy import load_trained_run, policy_from_state
 
@@ -108,14 +113,37 @@ class _Timed:
 
 
 def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int) -> dict:
-    """Totals over the batches, and rates as medians over them."""
+    """A rollout of ``episodes`` per batch: totals over the batches, rates as medians."""
+    return _timed_batches(lambda timed, child: env.rollout(timed, episodes, child).n_decisions,
+                          policy, episodes, repeats, seed)
+
+
+def _time_steps(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int,
+                decisions: int) -> dict:
+    """The step API on ``episodes`` envs per batch, stepped until it has made ``decisions``."""
+    config = {f.name: getattr(env.cfg, f.name) for f in fields(env.cfg)}
+
+    def steps(timed: _Timed, child: np.random.SeedSequence) -> int:
+        vec = make_vector_env(env.name, episodes, child, **config)
+        batch, made = vec.reset(), 0
+        while made < decisions:
+            made += len(batch)
+            batch, _ = vec.step(timed(batch))
+        return made
+
+    return _timed_batches(steps, policy, episodes, repeats, seed)
+
+
+def _timed_batches(run: Callable[[_Timed, np.random.SeedSequence], int], policy: Policy,
+                   episodes: int, repeats: int, seed: int) -> dict:
+    """``run(policy, child)`` for the seed's children; totals over them, rates as medians."""
     timed = _Timed(policy)
     batches = []
     for child in np.random.SeedSequence(seed).spawn(repeats):
         policy_cpu = timed.cpu
         cpu, wall = time.process_time(), time.perf_counter()
-        rollout = env.rollout(timed, episodes, child)
-        batches.append((rollout.n_decisions, time.perf_counter() - wall,
+        n_decisions = run(timed, child)
+        batches.append((n_decisions, time.perf_counter() - wall,
                         time.process_time() - cpu, timed.cpu - policy_cpu))
     d, wall, cpu, policy_cpu = np.array(batches).T
     return dict(batch_episodes=episodes, batches=repeats, episodes=episodes * repeats,
@@ -154,6 +182,13 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
                 policy = make(env, np.random.default_rng(seed))
                 rows.append(dict(engine=engine, policy=name,
                                  **_time(env, policy, episodes, cfg.repeats, seed)))
+        # the step API on the fast engine with the first policy (the network), as many decisions
+        # per batch as its rollouts made
+        name, make = next(iter(policies.items()))
+        per_batch = rows[0]["decisions"] // cfg.repeats
+        rows.append(dict(engine="fast-step-api", policy=name,
+                         **_time_steps(fast, make(fast, np.random.default_rng(seed)),
+                                       cfg.fast_episodes, cfg.repeats, seed, per_batch)))
     frame = pd.DataFrame(rows)
     ref = frame[frame.engine == "reference"].set_index("policy")
     for column, rate in (("speedup_vs_reference", "decisions_per_cpu_second"),

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from repro.envs.bus.engine import BusEnv
 from repro.envs.bus.params import BusConfig
 from repro.envs.bus.reference import ReferenceBusEnv
+from repro.envs.bus.vector import BusVectorEnv
 
 TRAIN_DEFAULTS = dict(lam=2.0, batch_episodes=540, epochs=300)
 """Training settings of ``train --env bus``: the paper's lambda 2 and 540 episodes per epoch; the
@@ -65,10 +68,17 @@ def make_env(cfg: BusConfig | None = None) -> BusEnv:
     return BusEnv(cfg)
 
 
+def make_vector_env(n_envs: int, seed: int | np.random.SeedSequence = 0,
+                    **config) -> BusVectorEnv:
+    """The fast engine's step API (:mod:`repro.core.vector`) on ``n_envs`` episodes at a time
+    (``seed`` unused: the environment is deterministic); ``config``: :class:`BusConfig` fields."""
+    return BusVectorEnv(BusConfig(**config), n_envs, seed)
+
+
 def make_reference_env(cfg: BusConfig | None = None) -> ReferenceBusEnv:
     return ReferenceBusEnv(cfg)
 
 
 __all__ = ["BusConfig", "BusEnv", "ReferenceBusEnv", "SWITCH_FLAGS", "add_env_arguments",
            "add_switch_arguments", "config_from_args", "switches_from_args",
-           "make_env", "make_reference_env"]
+           "make_env", "make_reference_env", "make_vector_env"]

@@ -407,15 +407,37 @@ def _advance(actions, params, states, logs, obs, ids):
                 _schedule(s, s.now, DECISION, b)
         s.n_pending = 0
         _run_episode(p, s, logs[e])
-        for q in range(s.n_pending):
-            b = s.pending[q]
-            for i in range(OBS_DIM):
-                obs[rows, i] = s.obs[b, i]
-            obs[rows, 1] = _h_obs(p, s.obs[b, 1])
-            ids[EPISODE, rows] = e
-            ids[AGENT, rows] = b
-            ids[INDEX, rows] = s.n_dec[b] - 1
-            rows += 1
+        rows = _gather(p, s, e, obs, ids, rows)
+    return rows
+
+
+@jit
+def _gather(p, s, e, obs, ids, rows):
+    """Episode e's pending decisions into rows ``rows``, ... of ``obs`` and ``ids``; returns the
+    next free row."""
+    for q in range(s.n_pending):
+        b = s.pending[q]
+        for i in range(OBS_DIM):
+            obs[rows, i] = s.obs[b, i]
+        obs[rows, 1] = _h_obs(p, s.obs[b, 1])
+        ids[EPISODE, rows] = e
+        ids[AGENT, rows] = b
+        ids[INDEX, rows] = s.n_dec[b] - 1
+        rows += 1
+    return rows
+
+
+@jit
+def _start(params, states, logs, slots, obs, ids):
+    """Run the (freshly initialised) episodes ``slots`` until they are blocked, then gather the
+    pending decisions of every episode, in episode order as ``_advance`` does. Returns the number
+    of rows."""
+    p = params[0]
+    for e in slots:
+        _run_episode(p, states[e], logs[e])
+    rows = 0
+    for e in range(states.shape[0]):
+        rows = _gather(p, states[e], e, obs, ids, rows)
     return rows
 
 
@@ -425,17 +447,40 @@ class BusBatch:
     def __init__(self, cfg: BusConfig, n_episodes: int):
         require(n_episodes >= 1, "n_episodes", "an integer >= 1", n_episodes)
         self.cfg = cfg
-        e, n = n_episodes, cfg.n_buses
         self._params = params_record(cfg)
-        st = self._states = np.zeros(e, episode_dtype(cfg))
-        st["ticket"] = -1
-        st["departed"] = -1.0
-        # SimPy starts one process per bus with an URGENT initialisation event, in bus order.
-        st["n_ev"] = n
-        st["ev_kind"][:, :n] = INIT
-        st["ev_arg"][:, :n] = np.arange(n)[::-1]  # bus 0's last: the list is processed from its end
-        self._logs = np.empty(e, log_dtype(cfg))  # every row read back is written first
+        self._states = np.zeros(n_episodes, episode_dtype(cfg))
+        self._initialise(np.arange(n_episodes))
+        self._logs = np.empty(n_episodes, log_dtype(cfg))  # every row read back is written first
         self._decisions = _gathered(np.empty((0, OBS_DIM)), np.empty((3, 0), np.int64), 0)
+
+    def _initialise(self, slots: np.ndarray) -> None:
+        """The states of episodes ``slots`` at time 0, before any event."""
+        n, st = self.cfg.n_buses, self._states
+        st[slots] = np.zeros(1, st.dtype)
+        st["ticket"][slots] = -1
+        st["departed"][slots] = -1.0
+        # SimPy starts one process per bus with an URGENT initialisation event, in bus order.
+        st["n_ev"][slots] = n
+        st["ev_kind"][slots, :n] = INIT
+        st["ev_arg"][slots, :n] = np.arange(n)[::-1]  # bus 0's last: processed from the end
+
+    def restart(self, slots: np.ndarray) -> DecisionBatch:
+        """Start the ended episodes ``slots`` again from time 0 (the environment is
+        deterministic: every episode is the same) and run them until blocked; the pending
+        decisions of the batch, theirs included (only between rounds: the others' are
+        unchanged)."""
+        require(bool(self._states["done"][slots].all()), "restart", "of ended episodes", slots)
+        self._initialise(slots)
+        obs, ids = self._buffers()
+        rows = _start(self._params, self._states, self._logs, np.asarray(slots, np.int64), obs, ids)
+        self._decisions = _gathered(obs, ids, rows)
+        return self._decisions
+
+    def _buffers(self) -> tuple[np.ndarray, np.ndarray]:
+        """Fresh buffers for a round's pending decisions, handed to the policy as they are (it may
+        keep them): one row per bus of the batch at most."""
+        size = self._states.shape[0] * self.cfg.n_buses
+        return np.empty((size, OBS_DIM)), np.empty((3, size), np.int64)
 
     @property
     def done(self) -> np.ndarray:
@@ -455,10 +500,7 @@ class BusBatch:
                 len(actions))
         require(len(actions) == 0 or actions.dtype.kind in "iu", "actions", "integers",
                 actions.dtype)
-        # fresh buffers every round, handed to the policy as they are (it may keep them): one
-        # row per bus of the batch at most
-        size = self._states.shape[0] * self.cfg.n_buses
-        obs, ids = np.empty((size, OBS_DIM)), np.empty((3, size), np.int64)
+        obs, ids = self._buffers()
         rows = _advance(np.ascontiguousarray(actions, np.int64), self._params, self._states,
                         self._logs, obs, ids)
         if rows < 0:
@@ -466,6 +508,21 @@ class BusBatch:
                              "(a hold of a * T_hold)", actions.tolist())
         self._decisions = _gathered(obs, ids, rows)
         return self._decisions
+
+    def state(self, e: int) -> np.void:
+        """Episode e's state record (a copy), for pictures."""
+        return self._states[e].copy()
+
+    @property
+    def n_decisions(self) -> np.ndarray:
+        """(E, N) decisions so far of every bus of every episode."""
+        return self._states["n_dec"].astype(np.int64)
+
+    def macro_actions(self, episode: np.ndarray, agent: np.ndarray,
+                      index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The reward and duration of closed macro-actions (one per element of the arguments)."""
+        rows = self._logs["dec"][episode, agent, index]
+        return rows[:, D_REWARD], rows[:, D_DURATION]
 
     def decisions(self) -> DecisionBatch:
         """The pending decisions (those the last :meth:`advance` returned)."""

@@ -6,26 +6,41 @@ reward for that stretch is the undiscounted sum of the arrival rewards -nu_k (h 
 (each arrival rewards every agent); the rewards of arrivals before the first action (at reset) are
 paid with those of the first round, since AEC rewards follow steps. At the horizon all agents are
 truncated.
+
+``env()`` is the environment in PettingZoo's usual wrappers, ``raw_env()`` the bare one (both take
+``cfg`` and ``render_mode``: "rgb_array", a picture as an array, or "human", in a window; see
+:mod:`repro.envs.bus.render`).
 """
 
 from __future__ import annotations
 
+import gymnasium
 import numpy as np
 from gymnasium import spaces
 from pettingzoo import AECEnv
+from pettingzoo.utils import wrappers
 
+from repro.core.canvas import RENDER_MODES, Canvas
+from repro.core.errors import require
 from repro.envs.bus.engine import OBS_DIM, BusBatch
 from repro.envs.bus.params import BusConfig
+from repro.envs.bus.render import draw, frame_of_state
 
 
 class BusAECEnv(AECEnv):
-    metadata = {"name": "bus_corridor_v0", "render_modes": [], "is_parallelizable": False}
+    metadata = {"name": "bus_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": False,
+                "render_fps": 4}
 
-    def __init__(self, cfg: BusConfig | None = None):
+    def __init__(self, cfg: BusConfig | None = None, render_mode: str | None = None):
         super().__init__()
+        require(render_mode is None or render_mode in RENDER_MODES, "render_mode",
+                f"None or one of {', '.join(RENDER_MODES)}", render_mode)
         self.cfg = cfg or BusConfig()
+        self.render_mode = render_mode
+        self._canvas: Canvas | None = None
         self.possible_agents = [f"bus_{i}" for i in range(self.cfg.n_buses)]
-        high = np.array([self.cfg.n_stops - 1, np.inf, self.cfg.l_max, np.inf])
+        # a headway and the time since the bus's last action are within the episode
+        high = np.array([self.cfg.n_stops - 1, self.cfg.horizon, self.cfg.l_max, self.cfg.horizon])
         # B2 reports an unknown headway as -1
         low = np.array([0.0, -1.0 if self.cfg.b2_headway else 0.0, 0.0, 0.0])
         self.observation_spaces = {a: spaces.Box(low, high, dtype=np.float64)
@@ -88,8 +103,28 @@ class BusAECEnv(AECEnv):
         else:
             self._step_engine()
 
-    def render(self) -> None:
-        return None
+    def render(self) -> np.ndarray | None:
+        """The corridor now: the buses where they are, with their loads."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() without a render_mode: give one to the constructor")
+            return None
+        if self._canvas is None:
+            self._canvas = Canvas(self.render_mode)
+        draw(self._canvas.figure, frame_of_state(self.cfg, self._batch.state(0)), self.cfg)
+        return self._canvas.show()
 
     def close(self) -> None:
-        return None
+        if self._canvas is not None:
+            self._canvas.close()
+            self._canvas = None
+
+
+def raw_env(cfg: BusConfig | None = None, render_mode: str | None = None) -> BusAECEnv:
+    """The bare AEC environment."""
+    return BusAECEnv(cfg, render_mode)
+
+
+def env(cfg: BusConfig | None = None, render_mode: str | None = None) -> AECEnv:
+    """The AEC environment in PettingZoo's usual wrappers (actions checked, calls in order)."""
+    return wrappers.OrderEnforcingWrapper(wrappers.AssertOutOfBoundsWrapper(
+        raw_env(cfg, render_mode)))

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from repro.core.errors import require
 from repro.envs.wildfire.params import (QUIRKS, EpisodeDraws, WildfireConfig, draw_episodes,
                                         fire_positions)
@@ -84,6 +86,14 @@ def make_env(cfg: WildfireConfig):
     return WildfireEnv(cfg)
 
 
+def make_vector_env(n_envs: int, seed: int | np.random.SeedSequence, **config):
+    """The fast engine's step API (:mod:`repro.core.vector`) on ``n_envs`` episodes at a time of
+    the stream of ``seed``; ``config``: :class:`WildfireConfig` fields."""
+    from repro.envs.wildfire.vector import WildfireVectorEnv
+
+    return WildfireVectorEnv(WildfireConfig(**config), n_envs, seed)
+
+
 def make_reference_env(cfg: WildfireConfig):
     """The SimPy reference (same ``rollout`` signature, much slower)."""
     from repro.envs.wildfire.reference import ReferenceEnv
@@ -92,4 +102,5 @@ def make_reference_env(cfg: WildfireConfig):
 
 
 __all__ = ["WildfireConfig", "QUIRKS", "EpisodeDraws", "draw_episodes", "fire_positions",
-           "add_env_arguments", "config_from_args", "make_env", "make_reference_env"]
+           "add_env_arguments", "config_from_args", "make_env", "make_reference_env",
+           "make_vector_env"]

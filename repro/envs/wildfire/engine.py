@@ -558,13 +558,15 @@ def _macro_action_over(s, log, p, e, row, i, cut):
 # --- kernels -------------------------------------------------------------------------------------
 
 @jit
-def _setup(states, log, used, params, starts):
-    """Every field of every (uninitialised) state, then time 0: every UAV observes (in index
-    order), and the T_max clock starts (in the released order before, as the released code
-    creates it before running its processes)."""
+def _setup(states, log, used, params, starts, slots):
+    """Every field of the (uninitialised) states of episodes ``slots`` (their UAVs start at
+    ``starts``, in that order), then time 0: every UAV observes (in index order), and the T_max
+    clock starts (in the released order before, as the released code creates it before running
+    its processes)."""
     p = params[0]
     row = used[0]
-    for e in range(len(states)):
+    for j in range(len(slots)):
+        e = slots[j]
         s = states[e]
         s.now = 0.0
         s.t_end = np.nan
@@ -576,7 +578,7 @@ def _setup(states, log, used, params, starts):
         s.qu_0 = s.qu_n = s.qn_0 = s.qn_n = 0
         s.joins = 0
         for i in range(p.n_agents):
-            s.pos[i, 0], s.pos[i, 1] = starts[e, i, 0], starts[e, i, 1]
+            s.pos[i, 0], s.pos[i, 1] = starts[j, i, 0], starts[j, i, 1]
             s.flying[i] = False  # origin, goal, t_dep and length are set on take-off
             s.interest[i] = -1
             s.attacking[i] = -1
@@ -770,10 +772,115 @@ def _paths(rows, path_start, n_agents, obs, actions, rewards, durations, times):
 
 # --- Python side ---------------------------------------------------------------------------------
 
-def _grow(log: np.ndarray) -> np.ndarray:
-    bigger = np.empty(2 * len(log), log.dtype)
-    bigger[:len(log)] = log
-    return bigger
+_NO_ACTIONS = np.empty(0, np.int64)
+
+class WildfireBatch:
+    """A batch of episodes advanced round by round: the one home of the round logic, which
+    :meth:`WildfireEnv.simulate` loops over and the vector env (:mod:`.vector`) steps.
+
+    A round's new rows are contiguous in the log; all of them await an action, including
+    decisions superseded at once (interrupted within their latency), which the dynamics never
+    needed but the rollout records. So the policy reads views of the log: no gathering."""
+
+    def __init__(self, env: WildfireEnv, draws: EpisodeDraws):
+        e, n = draws.n_episodes, env.n_agents
+        self.env = env
+        self.holds = np.ascontiguousarray(draws.holds, np.float64)
+        self.states = np.empty(e, env.state_dtype)
+        self.log = np.empty(max(1024, 64 * e * n), env.log_dtype)
+        self.used = np.zeros(1, np.int64)  # rows written
+        self.live = np.concatenate([[e], np.arange(e)]).astype(np.int64)  # how many, then which
+        self.first = 0  # the first row without an action
+        _setup(self.states, self.log, self.used, env.params,
+               np.ascontiguousarray(draws.starts, np.float64), np.arange(e))
+        self._settle(self._advance(_NO_ACTIONS), _NO_ACTIONS)
+
+    @property
+    def n_pending(self) -> int:
+        return int(self.used[0]) - self.first
+
+    def pending(self) -> DecisionBatch:
+        """The decisions awaiting an action (views of the log, valid until the next round)."""
+        rows = self.log[self.first:self.used[0]]
+        return DecisionBatch(obs=rows["obs"], episode=rows["ep"], agent=rows["agent"],
+                             index=rows["idx"])
+
+    def act(self, actions: np.ndarray) -> None:
+        """Give every pending decision its action, and run every live episode until blocked."""
+        answer = np.asarray(actions)
+        if answer.shape != (self.n_pending,) or answer.dtype.kind not in "iu":
+            raise actions_error(answer, self.n_pending, self.env.n_actions)
+        # the range is checked in _advance
+        self._settle(self._advance(np.ascontiguousarray(answer, np.int64)), answer)
+
+    def act_compiled(self, compiled: tuple) -> None:
+        """Act as a compiled policy's call would, inside the kernel, on this small round and the
+        next ones as small (see ``_act_and_advance``)."""
+        env = self.env
+        status, self.first = _act_and_advance(self.states, self.live, self.log, self.used,
+                                              env.params, self.holds, self.first, *compiled)
+        self._settle(status, _NO_ACTIONS)
+
+    def _advance(self, given: np.ndarray) -> int:
+        status, self.first = _advance(self.states, self.live, self.log, self.used, self.env.params,
+                                      self.holds, given, self.first)
+        return status
+
+    def _settle(self, status: int, answer: np.ndarray) -> None:
+        """Finish a round the kernel left with ``status``: a full log grows and the round goes on
+        as one (it may be a part of a large one)."""
+        while status == GROW_LOG:
+            self._grow()
+            status = self._advance(_NO_ACTIONS)
+        if status == BAD_ACTION:
+            raise actions_error(answer, len(answer), self.env.n_actions)
+        if status == HEAP_FULL:
+            raise RuntimeError(f"event heap of {heap_capacity(self.env.cfg)} entries or queue of "
+                               f"{queue_capacity(self.env.cfg)} is full")
+
+    def _grow(self) -> None:
+        bigger = np.empty(2 * len(self.log), self.log.dtype)
+        bigger[:len(self.log)] = self.log
+        self.log = bigger
+
+    def restart(self, slots: np.ndarray, draws: EpisodeDraws) -> None:
+        """Start the episodes of ``draws`` in the ended episodes' ``slots`` (between rounds); their
+        first decisions join the pending ones."""
+        while self.used[0] + len(slots) * self.env.n_agents > len(self.log):
+            self._grow()
+        self.holds[slots] = draws.holds
+        _setup(self.states, self.log, self.used, self.env.params,
+               np.ascontiguousarray(draws.starts, np.float64), slots)
+        n_live = self.live[0]
+        self.live[1 + n_live:1 + n_live + len(slots)] = slots
+        self.live[0] = n_live + len(slots)
+
+    def drop(self, m: int) -> None:
+        """Forget the log's rows before row ``m``, which nobody reads again (the vector env has
+        reported them; no running decision's row is among them): row r becomes row r - m."""
+        used = int(self.used[0])
+        self.log[:used - m] = self.log[m:used]
+        self.used[0] = used - m
+        self.first -= m
+        self.states["cur"] -= m
+
+    def to_rollout(self) -> Rollout:
+        """The recorded decisions, once every episode has ended."""
+        e, n = len(self.states), self.env.n_agents
+        d = self.first
+        # every UAV observes at time 0, so every (episode, agent) path has a decision
+        path_start = np.zeros(e * n + 1, np.int64)
+        np.cumsum(self.states["n_dec"].reshape(-1), out=path_start[1:])
+        obs, time = np.empty((d, self.env.obs_dim)), np.empty(d)
+        actions, rewards, durations = np.empty(d, np.int64), np.empty(d), np.empty(d)
+        _paths(self.log[:d], path_start, n, obs, actions, rewards, durations, time)
+        return Rollout(
+            obs=obs, actions=actions, rewards=rewards, durations=durations, path_start=path_start,
+            path_episode=np.repeat(np.arange(e, dtype=np.int64), n),
+            path_agent=np.tile(np.arange(n, dtype=np.int64), e),
+            episode_return=self.states["returns"].mean(axis=1),
+            info={"decision_time": time, "end_time": self.states["t_end"].copy(),
+                  "events": self.states["events"].copy()})
 
 
 class WildfireEnv:
@@ -797,62 +904,15 @@ class WildfireEnv:
         return self.simulate(policy, draw_episodes(self.cfg, n_episodes, seed))
 
     def simulate(self, policy: Policy, draws: EpisodeDraws) -> Rollout:
-        """Run the episodes of ``draws`` (tests script start positions and hold durations)."""
-        e, n = draws.n_episodes, self.n_agents
-        holds = np.ascontiguousarray(draws.holds, np.float64)
-        states = np.empty(e, self.state_dtype)
-        log = np.empty(max(1024, 64 * e * n), self.log_dtype)
-        used = np.zeros(1, np.int64)
-        live = np.concatenate([[e], np.arange(e)]).astype(np.int64)  # how many, then which
-        _setup(states, log, used, self.params, np.ascontiguousarray(draws.starts, np.float64))
-        # A round's new rows are contiguous; all of them await an action, including decisions
-        # superseded at once (interrupted within their latency), which the dynamics never needed
-        # but the rollout records. So the policy reads views of the log: no gathering.
+        """Run the episodes of ``draws`` (tests script start positions and hold durations): one
+        policy call per round; the kernel itself acts on small rounds for a compiled policy."""
+        batch = WildfireBatch(self, draws)
         compiled = getattr(policy, "compiled", None)
         if compiled is not None and compiled.n_actions != self.n_actions:
             compiled = None  # the policy's call will meet the range check, and report it
-        first = 0  # the first row without an action
-        answer = given = np.empty(0, np.int64)  # the policy's answer for rows first, ...
-        act_here = False  # the kernel acts on the pending round (small; the policy compiled)
-        while True:
-            if act_here:
-                status, first = _act_and_advance(states, live, log, used, self.params, holds,
-                                                 first, *compiled)
+        while (n := batch.n_pending) > 0:
+            if compiled is not None and n <= MAX_ROWS:
+                batch.act_compiled(compiled)
             else:
-                status, first = _advance(states, live, log, used, self.params, holds, given, first)
-            if status == BAD_ACTION:
-                raise actions_error(answer, len(answer), self.n_actions)
-            given = given[:0]
-            act_here = False
-            if status == GROW_LOG:  # then the round may be a part of a large one: go on as one
-                log = _grow(log)
-                continue
-            if status == HEAP_FULL:
-                raise RuntimeError(f"event heap of {heap_capacity(self.cfg)} entries or queue of "
-                                   f"{queue_capacity(self.cfg)} is full")
-            end = int(used[0])
-            if end == first:
-                break
-            if compiled is not None and end - first <= MAX_ROWS:
-                act_here = True
-                continue
-            rows = log[first:end]
-            batch = DecisionBatch(obs=rows["obs"], episode=rows["ep"], agent=rows["agent"],
-                                  index=rows["idx"])
-            answer = np.asarray(policy(batch))
-            if answer.shape != (end - first,) or answer.dtype.kind not in "iu":
-                raise actions_error(answer, end - first, self.n_actions)
-            given = np.ascontiguousarray(answer, np.int64)  # the range: checked in _advance
-        # every UAV observes at time 0, so every (episode, agent) path has a decision
-        path_start = np.zeros(e * n + 1, np.int64)
-        np.cumsum(states["n_dec"].reshape(-1), out=path_start[1:])
-        obs, time = np.empty((first, self.obs_dim)), np.empty(first)
-        actions, rewards, durations = np.empty(first, np.int64), np.empty(first), np.empty(first)
-        _paths(log[:first], path_start, n, obs, actions, rewards, durations, time)
-        return Rollout(
-            obs=obs, actions=actions, rewards=rewards, durations=durations, path_start=path_start,
-            path_episode=np.repeat(np.arange(e, dtype=np.int64), n),
-            path_agent=np.tile(np.arange(n, dtype=np.int64), e),
-            episode_return=states["returns"].mean(axis=1),
-            info={"decision_time": time, "end_time": states["t_end"].copy(),
-                  "events": states["events"].copy()})
+                batch.act(policy(batch.pending()))
+        return batch.to_rollout()

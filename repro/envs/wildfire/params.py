@@ -271,16 +271,30 @@ class EpisodeDraws:
 
 def draw_episodes(cfg: WildfireConfig, n_episodes: int,
                   seed: int | np.random.SeedSequence) -> EpisodeDraws:
-    """The randomness of a batch of episodes in two vectorised draws (both engines use this).
+    """The randomness of a batch of episodes in two vectorised draws (both engines use this):
+    the first ``n_episodes`` of the seed's :class:`EpisodeStream`."""
+    return EpisodeStream(cfg, seed).draw(n_episodes)
+
+
+class EpisodeStream:
+    """The seed's episodes, drawn in batches in order.
 
     The seed's two spawned children drive one generator each: start positions (uniform on
-    [-1, 1]^2) and hold durations (Normal). Each fills its array episode by episode, so the draws
-    of episode e do not depend on ``n_episodes``: a batch is a prefix of any larger batch of the
-    same seed. One generator per batch, not per episode: creating a generator costs more than
-    simulating a short episode.
+    [-1, 1]^2) and hold durations (Normal). Each fills its array episode by episode, value by
+    value, so the draws of episode e do not depend on how the episodes before it were batched: a
+    batch of ``draw_episodes`` is a prefix of any larger one of the same seed, and the vector env
+    (``draw`` again and again) meets the same episodes. One generator per stream, not per
+    episode: creating a generator costs more than simulating a short episode.
     """
-    start_ss, hold_ss = children(seed, 2)
-    starts = np.random.default_rng(start_ss).uniform(-1.0, 1.0, size=(n_episodes, cfg.n_agents, 2))
-    holds = np.random.default_rng(hold_ss).normal(
-        cfg.hold_mean, cfg.hold_std, size=(n_episodes, cfg.n_agents, cfg.hold_table))
-    return EpisodeDraws(starts, holds)
+
+    def __init__(self, cfg: WildfireConfig, seed: int | np.random.SeedSequence):
+        self.cfg = cfg
+        self._starts, self._holds = (np.random.default_rng(ss) for ss in children(seed, 2))
+
+    def draw(self, n_episodes: int) -> EpisodeDraws:
+        """The stream's next ``n_episodes`` episodes."""
+        cfg = self.cfg
+        starts = self._starts.uniform(-1.0, 1.0, size=(n_episodes, cfg.n_agents, 2))
+        holds = self._holds.normal(cfg.hold_mean, cfg.hold_std,
+                                   size=(n_episodes, cfg.n_agents, cfg.hold_table))
+        return EpisodeDraws(starts, holds)

@@ -6,6 +6,15 @@ section 2.2) and its info
 holds the macro-action's ``duration`` and the simulation ``time``. When the episode ends every
 UAV's running macro-action is cut and rewarded; the episode is terminated if all fires are out,
 truncated at T_max.
+
+``env()`` is the environment in PettingZoo's usual wrappers, ``raw_env()`` the bare one (both take
+``cfg``, ``render_mode``: "rgb_array", a picture as an array, or "human", in a window, see
+:mod:`repro.envs.wildfire.render`; and ``engine``). With ``engine="fast"`` the episode runs on the
+fast engine's rounds (:class:`repro.envs.wildfire.engine.WildfireBatch`), whose decisions are
+handed out one by one, with the same observations, rewards and durations as the SimPy model's
+(the default, ``"reference"``); once numba has compiled it (or loaded its cache: the first
+episode), it steps about twice as fast (the AEC's own bookkeeping then dominates). ``observe`` of
+an agent not selected may then show a decision of the round that it has not been handed yet.
 """
 
 from __future__ import annotations
@@ -13,23 +22,125 @@ from __future__ import annotations
 import gymnasium
 import numpy as np
 from pettingzoo import AECEnv
+from pettingzoo.utils import wrappers
 
-from repro.envs.wildfire.params import WildfireConfig, draw_episodes, fire_positions
+from repro.core.canvas import RENDER_MODES, Canvas
+from repro.core.errors import require
+from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv
+from repro.envs.wildfire.params import EpisodeDraws, WildfireConfig, draw_episodes, fire_positions
 from repro.envs.wildfire.reference import WildfireModel
+from repro.envs.wildfire.render import Frame, draw, frame_of_model, frame_of_state
+
+ENGINES = ("reference", "fast")
+"""What runs the AEC environment's episode."""
 
 
-class WildfireAEC(AECEnv):
-    metadata = {"name": "wildfire_v0", "render_modes": [], "is_parallelizable": False}
+class _ReferenceEpisode:
+    """One episode of the SimPy model, one decision at a time."""
 
-    def __init__(self, cfg: WildfireConfig = WildfireConfig()):
+    def __init__(self, cfg: WildfireConfig, draws: EpisodeDraws):
+        self.model = WildfireModel(cfg, draws.starts[0], draws.holds[0])
+
+    def next_agent(self) -> int | None:
+        """Run to the next decision: its UAV, or None once the episode is over."""
+        m = self.model
+        m.advance()
+        return None if m.done else m.pending[0]
+
+    def act(self, i: int, action: int) -> None:
+        self.model.act(i, action)
+
+    def observation(self, i: int) -> np.ndarray:
+        return np.array(self.model.rec[self.model.current[i]]["obs"], dtype=np.float64)
+
+    def previous(self, i: int) -> tuple[float, float] | None:
+        """The reward and duration of the macro-action before UAV i's decision now, if any."""
+        m = self.model
+        prev = m.rec[m.current[i]]["prev"]
+        return None if prev < 0 else (m.rec[prev]["reward"], m.rec[prev]["duration"])
+
+    def last(self, i: int) -> tuple[float, float]:
+        """The reward and duration of UAV i's last macro-action, once the episode is over."""
+        rec = self.model.rec[self.model.current[i]]
+        return rec["reward"], rec["duration"]
+
+    def time(self) -> float:
+        return self.model.t_end if self.model.done else self.model.env.now
+
+    def all_out(self) -> bool:
+        return not any(self.model.alive)
+
+    def frame(self) -> Frame:
+        return frame_of_model(self.model)
+
+
+class _FastEpisode:
+    """One episode of the fast engine: each round's decisions handed out in order, the round's
+    actions given together."""
+
+    def __init__(self, cfg: WildfireConfig, draws: EpisodeDraws):
+        self.env = WildfireEnv(cfg)
+        self.batch = WildfireBatch(self.env, draws)
+        self.answers: list[int] = []
+        self.handed = np.full(cfg.n_agents, -1)  # each UAV's decision (log row) handed out last
+
+    def next_agent(self) -> int | None:
+        b = self.batch
+        if b.n_pending and len(self.answers) == b.n_pending:
+            b.act(np.array(self.answers, np.int64))
+            self.answers = []
+        if not b.n_pending:  # a live episode always waits on a decision
+            return None
+        row = b.first + len(self.answers)
+        i = int(b.log[row]["agent"])
+        self.previous_row, self.handed[i] = self.handed[i], row
+        return i
+
+    def act(self, i: int, action: int) -> None:
+        self.answers.append(action)
+
+    def observation(self, i: int) -> np.ndarray:
+        return self.batch.log[self.batch.states[0]["cur"][i]]["obs"].copy()
+
+    def previous(self, i: int) -> tuple[float, float] | None:
+        row = self.batch.log[self.previous_row] if self.previous_row >= 0 else None
+        return None if row is None else (float(row["rew"]), float(row["dur"]))
+
+    def last(self, i: int) -> tuple[float, float]:
+        row = self.batch.log[self.batch.states[0]["cur"][i]]
+        return float(row["rew"]), float(row["dur"])
+
+    def time(self) -> float:
+        s = self.batch.states[0]
+        return float(s["t_end"] if s["done"] else s["now"])
+
+    def all_out(self) -> bool:
+        return int(self.batch.states[0]["n_alive"]) == 0
+
+    def frame(self) -> Frame:
+        return frame_of_state(self.env, self.batch.states[0])
+
+
+class WildfireAECEnv(AECEnv):
+    metadata = {"name": "wildfire_v0", "render_modes": list(RENDER_MODES),
+                "is_parallelizable": False, "render_fps": 4}
+
+    def __init__(self, cfg: WildfireConfig | None = None, render_mode: str | None = None,
+                 engine: str = "reference"):
         super().__init__()
+        cfg = cfg or WildfireConfig()
         cfg.validate()
+        require(render_mode is None or render_mode in RENDER_MODES, "render_mode",
+                f"None or one of {', '.join(RENDER_MODES)}", render_mode)
+        require(engine in ENGINES, "engine", " or ".join(ENGINES), engine)
+        self._episode_type = _ReferenceEpisode if engine == "reference" else _FastEpisode
         self.cfg = cfg
+        self.render_mode = render_mode
+        self._canvas: Canvas | None = None
         self.possible_agents = [f"uav_{i}" for i in range(cfg.n_agents)]
         self._obs_space = observation_box(cfg)
         self._act_space = gymnasium.spaces.Discrete(cfg.n_actions)
         self._seed_seq = np.random.SeedSequence()
-        self.model: WildfireModel | None = None
 
     def observation_space(self, agent: str) -> gymnasium.spaces.Box:
         return self._obs_space
@@ -41,7 +152,7 @@ class WildfireAEC(AECEnv):
         if seed is not None:
             self._seed_seq = np.random.SeedSequence(seed)
         draws = draw_episodes(self.cfg, 1, self._seed_seq.spawn(1)[0])
-        self.model = WildfireModel(self.cfg, draws.starts[0], draws.holds[0])
+        self._episode = self._episode_type(self.cfg, draws)
         self.agents = list(self.possible_agents)
         self.rewards = {a: 0.0 for a in self.agents}
         self._cumulative_rewards = {a: 0.0 for a in self.agents}
@@ -50,9 +161,23 @@ class WildfireAEC(AECEnv):
         self.infos = {a: {"duration": 0.0, "time": 0.0} for a in self.agents}
         self._run()
 
+    def render(self) -> np.ndarray | None:
+        """The state now: fires with their health and status, UAVs with their targets."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() without a render_mode: give one to the constructor")
+            return None
+        if self._canvas is None:
+            self._canvas = Canvas(self.render_mode)
+        draw(self._canvas.figure, self._episode.frame(), self.cfg)
+        return self._canvas.show()
+
+    def close(self) -> None:
+        if self._canvas is not None:
+            self._canvas.close()
+            self._canvas = None
+
     def observe(self, agent: str) -> np.ndarray:
-        i = self.possible_agents.index(agent)
-        return np.array(self.model.rec[self.model.current[i]]["obs"], dtype=np.float64)
+        return self._episode.observation(self.possible_agents.index(agent))
 
     def step(self, action: int | None) -> None:
         agent = self.agent_selection
@@ -60,30 +185,28 @@ class WildfireAEC(AECEnv):
             self._was_dead_step(action)
             return
         self._cumulative_rewards[agent] = 0.0
-        self.model.act(self.possible_agents.index(agent), int(action))
+        self._episode.act(self.possible_agents.index(agent), int(action))
         self._run()
 
     def _run(self) -> None:
         """Advance to the next decision (or the end) and publish the rewards that it completes."""
-        m = self.model
-        m.advance()
+        ep = self._episode
+        i = ep.next_agent()
         self.rewards = {a: 0.0 for a in self.agents}
-        if m.done:
-            all_out = not any(m.alive)
-            for i, a in enumerate(self.possible_agents):
-                rec = m.rec[m.current[i]]
-                self.rewards[a] = rec["reward"]
-                self.infos[a] = {"duration": rec["duration"], "time": m.t_end}
+        if i is None:
+            all_out = ep.all_out()
+            for j, a in enumerate(self.possible_agents):
+                self.rewards[a], duration = ep.last(j)
+                self.infos[a] = {"duration": duration, "time": ep.time()}
                 self.terminations[a] = all_out
                 self.truncations[a] = not all_out
             self.agent_selection = self.agents[0]
         else:
-            i = m.pending[0]
             a = self.possible_agents[i]
-            prev = m.rec[m.current[i]]["prev"]
-            if prev >= 0:
-                self.rewards[a] = m.rec[prev]["reward"]
-                self.infos[a] = {"duration": m.rec[prev]["duration"], "time": m.env.now}
+            previous = ep.previous(i)
+            if previous is not None:
+                self.rewards[a], duration = previous
+                self.infos[a] = {"duration": duration, "time": ep.time()}
             self.agent_selection = a
         self._accumulate_rewards()
 
@@ -91,17 +214,27 @@ class WildfireAEC(AECEnv):
 def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
     """Bounds of an observation: own x, y (UAVs start uniformly on [-1, 1]^2 and fly straight
     between starts and fires, so they stay in the square that holds both); per observed fire its
-    distance (at most the square's diagonal), level (1), interest party size (0..N), status (0 or
-    1) and remaining health (0..T_health; with quirk Q3 it drains on, at most N UAVs until T_max);
-    the sojourn time (0..T_max)."""
+    distance (at most the square's diagonal), level (always 1; bounds 0..1, as a Box with equal
+    bounds draws PettingZoo's warning), interest party size (0..N), status (0 or 1) and remaining
+    health (0..T_health; with quirk Q3 it drains on, at most N UAVs until T_max); the sojourn time
+    (0..T_max)."""
     side = max(1.0, float(np.abs(fire_positions(cfg)).max()))
     lowest_health = cfg.t_health - cfg.n_agents * cfg.t_max if cfg.quirk_q3_unclamped_health else 0
-    per_fire_low = [0, 1, 0, 0, lowest_health]
+    per_fire_low = [0, 0, 0, 0, lowest_health]
     per_fire_high = [2 * np.sqrt(2) * side, 1, cfg.n_agents, 1, cfg.t_health]
     low = [-side, -side, *per_fire_low * cfg.n_observed, 0]
     high = [side, side, *per_fire_high * cfg.n_observed, cfg.t_max]
     return gymnasium.spaces.Box(np.array(low, float), np.array(high, float), dtype=np.float64)
 
 
-def env(cfg: WildfireConfig = WildfireConfig()) -> WildfireAEC:
-    return WildfireAEC(cfg)
+def raw_env(cfg: WildfireConfig | None = None, render_mode: str | None = None,
+            engine: str = "reference") -> WildfireAECEnv:
+    """The bare AEC environment."""
+    return WildfireAECEnv(cfg, render_mode, engine)
+
+
+def env(cfg: WildfireConfig | None = None, render_mode: str | None = None,
+        engine: str = "reference") -> AECEnv:
+    """The AEC environment in PettingZoo's usual wrappers (actions checked, calls in order)."""
+    return wrappers.OrderEnforcingWrapper(wrappers.AssertOutOfBoundsWrapper(
+        raw_env(cfg, render_mode, engine)))

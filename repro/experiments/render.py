@@ -1,0 +1,144 @@
+"""render: an animation of one episode of a policy, a GIF a person can watch.
+
+The episode runs on the environment's fast engine; its state is pictured (``repro.envs.<env>.
+render``) after every round of decisions, and the GIF shows ``--frames`` of those pictures evenly
+spaced in simulated time (the last one the episode's end). Wildfire policies: ``random``,
+``nearest``, ``flowchart`` (``repro.envs.wildfire.policies``), ``checkpoint PATH`` (a training
+run's ``checkpoint.pt``, on that run's environment settings); bus policies: ``nohold``,
+``authors``, ``thresholds``, ``mlp [RUN]`` (``repro.experiments.bus_policies``, reading
+``--results-dir`` as ``bus-eval`` does) and ``checkpoint PATH``. Bad input is one line, exit
+status 2, and nothing is written.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from repro.core.errors import require
+from repro.experiments import bus_policies
+from repro.learn.trained_policy import load_trained_run, policy_from_state, trained_env_config
+
+POLICIES = {"wildfire": ("random", "nearest", "flowchart", "checkpoint"),
+            "bus": (*bus_policies.POLICIES, "checkpoint")}
+"""Environment -> the policies it pictures."""
+WITH_PATH = {"checkpoint": "required", "mlp": "optional"}
+"""Policies that take a path after their name."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--env", default="wildfire", help="wildfire or bus")
+    p.add_argument("--policy", nargs="+", metavar="NAME [PATH]", default=None,
+                   help="the policy (see the module docstring); default random (wildfire), "
+                        "nohold (bus)")
+    p.add_argument("--out", required=True, help="the GIF to write (.gif)")
+    p.add_argument("--seed", type=int, default=0, help="the episode (wildfire) and the policy's "
+                                                       "random source")
+    p.add_argument("--frames", type=int, default=120, help="pictures in the animation, at most")
+    p.add_argument("--fps", type=int, default=8, help="pictures per second of the animation")
+    p.add_argument("--results-dir", default="results/paper",
+                   help="where the bus policies thresholds and mlp find their results")
+
+
+def run(args: argparse.Namespace) -> int:
+    require(args.env in POLICIES, "--env", "wildfire or bus", args.env)
+    name, *path = args.policy or [POLICIES[args.env][0]]
+    require(name in POLICIES[args.env], "--policy", f"one of {', '.join(POLICIES[args.env])} "
+            f"for --env {args.env}", name)
+    need = WITH_PATH.get(name)
+    require(len(path) <= (need is not None) and (need != "required" or path), "--policy",
+            f"{name} {'PATH' if need == 'required' else '[RUN]' if need else 'with no path'}",
+            " ".join([name, *path]))
+    out = Path(args.out)
+    require(out.suffix == ".gif", "--out", "a .gif file", args.out)
+    require(out.parent.is_dir(), "--out", "in an existing folder", args.out)
+    require(args.frames >= 2, "--frames", "an integer >= 2", args.frames)
+    require(args.fps >= 1, "--fps", "an integer >= 1", args.fps)
+    rng = np.random.default_rng(args.seed)
+    episode = _wildfire if args.env == "wildfire" else _bus
+    times, pictures, draw = episode(name, path[0] if path else None, args, rng)
+    shown = _animate(times, pictures, draw, args.frames, args.fps, out)
+    print(f"wrote {out}: {shown} pictures of an episode of "
+          f"{times[-1]:.1f} s ({args.env}, {name})")
+    return 0
+
+
+def _wildfire(name: str, path: str | None, args: argparse.Namespace, rng: np.random.Generator):
+    """The episode's pictures; returns (times, frames, draw)."""
+    from repro.envs.wildfire import WildfireConfig
+    from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv
+    from repro.envs.wildfire.params import draw_episodes
+    from repro.envs.wildfire.policies import POLICIES as HEURISTICS
+    from repro.envs.wildfire.render import draw, frame_of_state
+
+    if name == "checkpoint":
+        state = load_trained_run(path, "wildfire", "--policy")
+        cfg, policy = trained_env_config(state, WildfireConfig), policy_from_state(state, rng)
+    else:
+        cfg = WildfireConfig()
+        policy = HEURISTICS[name](rng, n_observed=cfg.n_observed)
+    env = WildfireEnv(cfg)
+    batch = WildfireBatch(env, draw_episodes(cfg, 1, args.seed))
+    frames = _run(lambda: frame_of_state(env, batch.states[0]),
+                  lambda: float(batch.states[0]["now"]), cfg.t_max / (100 * args.frames),
+                  lambda: batch.n_pending > 0, lambda: batch.act(policy(batch.pending())))
+    return [f.time for f in frames], frames, lambda fig, f: draw(fig, f, cfg)
+
+
+def _bus(name: str, path: str | None, args: argparse.Namespace, rng: np.random.Generator):
+    """The episode's pictures; returns (times, frames, draw)."""
+    from repro.envs.bus import BusConfig
+    from repro.envs.bus.engine import BusBatch
+    from repro.envs.bus.render import draw, frame_of_state
+
+    if name == "checkpoint":
+        state = load_trained_run(path, "bus", "--policy")
+        cfg, policy = trained_env_config(state, BusConfig), policy_from_state(state, rng)
+    else:
+        cfg = BusConfig()
+        policy = bus_policies.make_policy(name, cfg, results_dir=args.results_dir,
+                                          mlp_run=path)
+    batch = BusBatch(cfg, 1)
+    pending = [batch.advance(np.zeros(0, np.int64))]
+
+    def act() -> None:
+        pending[0] = batch.advance(policy(pending[0]))
+
+    frames = _run(lambda: frame_of_state(cfg, batch.state(0)), lambda: float(batch.state(0)["now"]),
+                  cfg.horizon / (4 * args.frames), lambda: len(pending[0]) > 0, act)
+    return [f.time for f in frames], frames, lambda fig, f: draw(fig, f, cfg)
+
+
+def _run(frame, now, spacing, pending, act) -> list:
+    """Round after round until the episode ends, a picture whenever ``spacing`` seconds of
+    simulated time passed since the last (and at the end): long episodes make many rounds."""
+    frames = [frame()]
+    while pending():
+        act()
+        if now() >= frames[-1].time + spacing or not pending():
+            frames.append(frame())
+    return frames
+
+
+def _animate(times: list[float], frames: list, draw, n: int, fps: int, out: Path) -> int:
+    """``n`` of ``frames`` evenly spaced in time (each the latest at its instant), as a GIF;
+    returns how many it shows."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.animation import FuncAnimation, PillowWriter
+    from matplotlib.figure import Figure
+
+    at = np.searchsorted(times, np.linspace(times[0], times[-1], n), side="right") - 1
+    at = np.unique(at)  # a long round holds the picture; no repeats
+    fig = Figure(figsize=(9, 4.5), dpi=80)
+    animation = FuncAnimation(fig, lambda k: draw(fig, frames[at[k]]), frames=len(at))
+    part = out.with_name(out.name + ".part.gif")  # the GIF appears whole, or not at all
+    try:
+        animation.save(part, writer=PillowWriter(fps=fps))
+        part.replace(out)
+    finally:
+        part.unlink(missing_ok=True)
+    return len(at)
