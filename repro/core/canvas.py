@@ -44,3 +44,27 @@ class Canvas:
             import matplotlib.pyplot as plt
 
             plt.close(self.figure)
+
+
+class Renders:
+    """A PettingZoo environment's ``render``: the environment provides ``render_mode`` (or None)
+    and ``_draw(figure)``, which draws its state now; the canvas is made at the first call."""
+
+    render_mode: str | None
+    _canvas: Canvas | None = None
+
+    def _draw(self, figure) -> None:
+        raise NotImplementedError
+
+    def render(self) -> np.ndarray | None:
+        """The picture of the state now (``"rgb_array"``), or it shown in a window (``"human"``)."""
+        if self.render_mode is None:
+            import gymnasium
+
+            gymnasium.logger.warn("render() without a render_mode: give one to the constructor")
+            return None
+        if self._canvas is None:
+            self._canvas = Canvas(self.render_mode)
+        self._draw(self._canvas.figure)
+        return self._canvas.show()
+

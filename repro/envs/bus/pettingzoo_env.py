@@ -14,20 +14,19 @@ truncated.
 
 from __future__ import annotations
 
-import gymnasium
 import numpy as np
 from gymnasium import spaces
 from pettingzoo import AECEnv
 from pettingzoo.utils import wrappers
 
-from repro.core.canvas import RENDER_MODES, Canvas
+from repro.core.canvas import RENDER_MODES, Canvas, Renders
 from repro.core.errors import require
 from repro.envs.bus.engine import OBS_DIM, BusBatch
 from repro.envs.bus.params import BusConfig
 from repro.envs.bus.render import draw, frame_of_state
 
 
-class BusAECEnv(AECEnv):
+class BusAECEnv(Renders, AECEnv):
     metadata = {"name": "bus_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": False,
                 "render_fps": 4}
 
@@ -103,15 +102,9 @@ class BusAECEnv(AECEnv):
         else:
             self._step_engine()
 
-    def render(self) -> np.ndarray | None:
+    def _draw(self, figure) -> None:
         """The corridor now: the buses where they are, with their loads."""
-        if self.render_mode is None:
-            gymnasium.logger.warn("render() without a render_mode: give one to the constructor")
-            return None
-        if self._canvas is None:
-            self._canvas = Canvas(self.render_mode)
-        draw(self._canvas.figure, frame_of_state(self.cfg, self._batch.state(0)), self.cfg)
-        return self._canvas.show()
+        draw(figure, frame_of_state(self.cfg, self._batch.state(0)), self.cfg)
 
     def close(self) -> None:
         if self._canvas is not None:

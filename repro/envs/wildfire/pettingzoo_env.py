@@ -24,7 +24,7 @@ import numpy as np
 from pettingzoo import AECEnv
 from pettingzoo.utils import wrappers
 
-from repro.core.canvas import RENDER_MODES, Canvas
+from repro.core.canvas import RENDER_MODES, Canvas, Renders
 from repro.core.errors import require
 from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv
 from repro.envs.wildfire.params import EpisodeDraws, WildfireConfig, draw_episodes, fire_positions
@@ -121,7 +121,7 @@ class _FastEpisode:
         return frame_of_state(self.env, self.batch.states[0])
 
 
-class WildfireAECEnv(AECEnv):
+class WildfireAECEnv(Renders, AECEnv):
     metadata = {"name": "wildfire_v0", "render_modes": list(RENDER_MODES),
                 "is_parallelizable": False, "render_fps": 4}
 
@@ -161,15 +161,9 @@ class WildfireAECEnv(AECEnv):
         self.infos = {a: {"duration": 0.0, "time": 0.0} for a in self.agents}
         self._run()
 
-    def render(self) -> np.ndarray | None:
+    def _draw(self, figure) -> None:
         """The state now: fires with their health and status, UAVs with their targets."""
-        if self.render_mode is None:
-            gymnasium.logger.warn("render() without a render_mode: give one to the constructor")
-            return None
-        if self._canvas is None:
-            self._canvas = Canvas(self.render_mode)
-        draw(self._canvas.figure, self._episode.frame(), self.cfg)
-        return self._canvas.show()
+        draw(figure, self._episode.frame(), self.cfg)
 
     def close(self) -> None:
         if self._canvas is not None:
