@@ -329,3 +329,25 @@ def test_heuristics_play_the_transfer_studys_test_episodes(tmp_path):
     assert adr["released", "nearest"] > adr["released", "random"] + 1.0
     before = (tmp_path / "wildfire_heuristics.csv").read_bytes()
     assert _main(argv) == 0 and (tmp_path / "wildfire_heuristics.csv").read_bytes() == before
+
+
+def test_an_ablation_trains_only_the_simulators_asked_with_the_quirks_asked_off(tmp_path):
+    """fig-transfer --no-quirk q3 --simulator ...: transfer_no_q3*, those simulators only, Q3 off
+    in training and test; claim C9 reports it."""
+    from repro.experiments.transfer import TransferConfig
+
+    argv = ["fig-transfer", "--scale", "smoke", "--no-quirk", "q3", "--simulator", "FS-1",
+            "--simulator", "FS-1 (T_health=2.9999)", "--results-dir", str(tmp_path / "r"),
+            "--figures-dir", str(tmp_path / "f"), "--runs-dir", str(tmp_path / "runs")]
+    assert _main(argv) == 0
+    summary = pd.read_csv(tmp_path / "r" / "transfer_no_q3_summary.csv")
+    assert list(summary.simulator) == ["FS-1", "FS-1 (T_health=2.9999)"]
+    cfg = TransferConfig(quirks_off=("q3",))
+    assert not cfg.test_simulator().quirk_q3_unclamped_health
+    assert cfg.test_simulator().quirk_q1_stale_attack
+    assert "Released semantics with Q3 off (1 policies each)" in claims._ablation_lines(
+        tmp_path / "r")
+    for bad in (["--no-quirk", "q9"], ["--simulator", "FS-2"]):
+        assert _main(["fig-transfer", "--scale", "smoke", *bad, "--results-dir",
+                      str(tmp_path / "bad")]) == 2
+    assert not (tmp_path / "bad").exists()

@@ -194,8 +194,22 @@ def check_c9(results: Path) -> Verdict:
     verdict, caveat = _at_most_partial(verdict, s)
     detail = f"FS-1 trained with T_health = 2.9999 vs 3.0, both tested on ED: {why}.{caveat}"
     detail += _corrected_line(results, c9_verdict, means=False)
+    detail += _ablation_lines(results)
     low, ref = s.loc[C9_PAIR[0]], s.loc[C9_PAIR[1]]
     return Verdict(f"{low['mean']:.3f} vs {ref['mean']:.3f}", verdict, detail, scale_of(path))
+
+
+def _ablation_lines(results: Path) -> str:
+    """C9 on the ablations that switch single quirks off (``fig-transfer --no-quirk Q``)."""
+    lines = []
+    for path in sorted(results.glob("transfer_no_*_summary.csv")):
+        s = pd.read_csv(path).set_index("simulator")
+        if set(C9_PAIR) <= set(s.index) and not made_before_released_semantics(path):
+            off = path.name.removeprefix("transfer_no_").removesuffix("_summary.csv")
+            verdict, why = c9_verdict(s)
+            lines.append(f" Released semantics with {off.replace('_no_', ', ').upper()} off "
+                         f"({int(s.n_policies.min())} policies each): {verdict}: {why}.")
+    return "".join(lines)
 
 
 def _corrected_line(results: Path, judge, means: bool) -> str:

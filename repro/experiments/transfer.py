@@ -77,6 +77,11 @@ class TransferConfig(Validated):
     corrected: bool = False
     """Train and test with quirks Q1-Q6 switched off (the paper's prose semantics; the released
     same-instant order stays)."""
+    quirks_off: tuple[str, ...] = ()
+    """Quirks switched off in every simulator, by short name ("q3"): an ablation between the
+    released semantics (none) and the corrected ones (all, ``corrected``)."""
+    only: tuple[str, ...] = ()
+    """Training simulators to run, by label ("FS-1"); empty: all of them."""
     n_boot: int = 2000
     """Bootstrap replicates of each simulator's CI."""
 
@@ -94,20 +99,27 @@ class TransferConfig(Validated):
         require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
         require(self.variant_t_health > 0, "variant_t_health", "> 0", self.variant_t_health)
         require(self.n_boot >= 1, "n_boot", "an integer >= 1", self.n_boot)
+        short = [q.split("_")[1] for q in QUIRKS]
+        require(set(self.quirks_off) <= set(short), "--no-quirk", "one of " + ", ".join(short),
+                list(self.quirks_off))
+        labels = list(self.simulators(every=True))
+        require(set(self.only) <= set(labels), "--simulator", "one of " + ", ".join(labels),
+                list(self.only))
 
     def quirks(self) -> dict[str, bool]:
         """The quirk switches of every simulator of the study (train and test alike)."""
-        return dict.fromkeys(QUIRKS, not self.corrected)
+        return {q: not self.corrected and q.split("_")[1] not in self.quirks_off for q in QUIRKS}
 
-    def simulators(self) -> dict[str, WildfireConfig]:
-        """Training simulators by label (the paper's figure order)."""
+    def simulators(self, every: bool = False) -> dict[str, WildfireConfig]:
+        """Training simulators by label (the paper's figure order): those of ``only``, or
+        ``every`` one."""
         sims = {"ED": WildfireConfig(**self.quirks())}
         for x in self.log10_dts:
             sims[fs_label(10.0 ** x)] = WildfireConfig(dt=10.0 ** x, **self.quirks())
         dt = 10.0 ** self.variant_log10_dt
         sims[f"{fs_label(dt)} (T_health={self.variant_t_health:g})"] = WildfireConfig(
             dt=dt, t_health=self.variant_t_health, **self.quirks())
-        return sims
+        return sims if every or not self.only else {k: v for k, v in sims.items() if k in self.only}
 
     def test_simulator(self) -> WildfireConfig:
         """ED with T_health = 3.0, the simulator every policy is tested on."""
@@ -115,8 +127,10 @@ class TransferConfig(Validated):
 
     @property
     def name(self) -> str:
-        """File stem of the results: transfer or transfer_corrected."""
-        return "transfer_corrected" if self.corrected else "transfer"
+        """File stem of the results: transfer, transfer_corrected, or transfer_no_q3 (say)."""
+        if self.corrected:
+            return "transfer_corrected"
+        return "_".join(("transfer", *(f"no_{q}" for q in sorted(self.quirks_off))))
 
 
 def fs_label(dt: float) -> str:
@@ -246,12 +260,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
     p.add_argument("--corrected", action="store_true",
                    help="quirks Q1-Q6 off (paper's prose); writes transfer_corrected*")
+    p.add_argument("--no-quirk", action="append", default=[], metavar="Q",
+                   help="switch quirk Q (q1..q6) off, repeatable: an ablation; writes "
+                        "transfer_no_<Q>*")
+    p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
+                   help="train and test only this simulator (e.g. FS-1), repeatable")
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
-                    corrected=args.corrected or None)
+                    corrected=args.corrected or None,
+                    quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
+                    only=tuple(args.simulator) or None)
     check_sweep_arguments(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
@@ -274,7 +295,9 @@ def run(args: argparse.Namespace) -> int:
                       seed=args.seed, wall_seconds=wall, extra=extra)
     write_result(results / f"{cfg.name}.csv", per_policy, prov)
     write_result(results / f"{cfg.name}_summary.csv", summary, prov)
-    semantics = "quirks Q1-Q6 corrected" if cfg.corrected else "released semantics (Q1-Q6 on)"
+    semantics = ("quirks Q1-Q6 corrected" if cfg.corrected else
+                 f"released semantics, {', '.join(cfg.quirks_off).upper()} off" if cfg.quirks_off
+                 else "released semantics (Q1-Q6 on)")
     plot(per_policy, summary, figures / cfg.name,
          f"Transfer to ED, {semantics}; {args.scale} scale: {cfg.seeds} policies x "
          f"{cfg.epochs} epochs x {cfg.batch_episodes} episodes")
