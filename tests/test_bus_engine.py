@@ -12,6 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from repro.core.errors import UsageError
+from repro.core.rollout import BadActions
 from repro.envs.bus import BusConfig, make_env, make_reference_env
 from repro.envs.bus.engine import drive
 from repro.envs.bus.metrics import (arrival_table, record_loads, time_to_regularity,
@@ -152,7 +153,7 @@ def test_bad_config_is_refused_naming_the_field(field, value):
 def test_bad_actions(make):
     batch = make(CFG).start(1)
     decisions = batch.advance(np.zeros(0, np.int64))
-    with pytest.raises(UsageError):
+    with pytest.raises(BadActions, match="integer actions in"):
         batch.advance(np.full(len(decisions), -1))
 
 

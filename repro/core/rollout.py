@@ -19,6 +19,26 @@ from typing import Any, Callable, Protocol
 import numpy as np
 
 
+class BadActions(ValueError):
+    """A policy's answer that is not one integer action in [0, n_actions) per pending decision:
+    every engine raises this, and nothing of the round is changed."""
+
+    def __init__(self, answer: np.ndarray, n: int, n_actions: int):
+        super().__init__(f"policy must return {n} integer actions in [0, {n_actions}), got "
+                         f"shape {answer.shape} dtype {answer.dtype}")
+
+
+def check_actions(actions: np.ndarray, n: int, n_actions: int,
+                  check_range: bool = True) -> np.ndarray:
+    """The policy's answer as (n,) int64 actions, or :class:`BadActions`. ``check_range=False``
+    leaves the range to a compiled kernel (numpy's min and max cost more than a small round)."""
+    a = np.asarray(actions)
+    if a.shape != (n,) or a.dtype.kind not in "iu" or (check_range and a.size and (
+            a.min() < 0 or a.max() >= n_actions)):
+        raise BadActions(a, n, n_actions)
+    return a.astype(np.int64)
+
+
 @dataclass(frozen=True)
 class DecisionBatch:
     """The decisions an engine needs now: one row per agent waiting to act."""

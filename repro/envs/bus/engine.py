@@ -79,8 +79,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from repro.core.errors import UsageError, require
-from repro.core.rollout import DecisionBatch, Policy, Rollout
+from repro.core.errors import require
+from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.bus.params import DECISION_LATENCY, BusConfig
 
 OBS_DIM = 4
@@ -495,17 +495,13 @@ class BusBatch:
     def advance(self, actions: np.ndarray) -> DecisionBatch:
         """Answer the pending decisions (one action per row of the last batch), run until blocked,
         and return the new pending decisions (empty once every episode has ended)."""
-        actions = np.asarray(actions)
-        require(len(actions) == len(self._decisions), "actions", "one action per pending decision",
-                len(actions))
-        require(len(actions) == 0 or actions.dtype.kind in "iu", "actions", "integers",
-                actions.dtype)
+        actions = check_actions(actions, len(self._decisions), self.cfg.n_actions,
+                                check_range=False)
         obs, ids = self._buffers()
-        rows = _advance(np.ascontiguousarray(actions, np.int64), self._params, self._states,
-                        self._logs, obs, ids)
-        if rows < 0:
-            raise UsageError("action", f"an integer in 0..{self.cfg.n_actions - 1} "
-                             "(a hold of a * T_hold)", actions.tolist())
+        rows = _advance(np.ascontiguousarray(actions), self._params, self._states, self._logs,
+                        obs, ids)
+        if rows < 0:  # an action out of range, found in the kernel
+            raise BadActions(actions, len(actions), self.cfg.n_actions)
         self._decisions = _gathered(obs, ids, rows)
         return self._decisions
 

@@ -28,7 +28,7 @@ import numpy as np
 import simpy
 
 from repro.core.errors import require
-from repro.core.rollout import DecisionBatch, Rollout
+from repro.core.rollout import DecisionBatch, Rollout, check_actions
 from repro.envs.bus.engine import OBS_DIM, BusEnv
 from repro.envs.bus.params import DECISION_LATENCY, BusConfig
 
@@ -189,11 +189,7 @@ class ReferenceBatch:
 
     def advance(self, actions: np.ndarray) -> DecisionBatch:
         waiting = [(ep, b, ev) for ep in self.episodes for b, ev in ep.pending]
-        require(len(actions) == len(waiting), "actions", "one action per pending decision",
-                len(actions))
-        require(all(0 <= int(a) < self.cfg.n_actions for a in actions), "action",
-                f"an integer in 0..{self.cfg.n_actions - 1} (a hold of a * T_hold)",
-                [int(a) for a in actions])
+        actions = check_actions(actions, len(waiting), self.cfg.n_actions)
         for (_, _, ev), a in zip(waiting, actions):
             ev.succeed(int(a))
         rows = []

@@ -51,10 +51,9 @@ import numpy as np
 from numba import njit
 
 from repro.core.policy_kernel import MAX_ROWS, act_row
-from repro.core.rollout import DecisionBatch, Policy, Rollout
+from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (OBS_PER_FIRE, EpisodeDraws, WildfireConfig, draw_episodes,
                                         fire_positions, fs_delay, rank_key)
-from repro.envs.wildfire.reference import actions_error
 
 URGENT, NORMAL = 0, 1
 """SimPy's priorities: an interrupt or a process start at time t comes before any timeout at t."""
@@ -807,11 +806,8 @@ class WildfireBatch:
 
     def act(self, actions: np.ndarray) -> None:
         """Give every pending decision its action, and run every live episode until blocked."""
-        answer = np.asarray(actions)
-        if answer.shape != (self.n_pending,) or answer.dtype.kind not in "iu":
-            raise actions_error(answer, self.n_pending, self.env.n_actions)
-        # the range is checked in _advance
-        self._settle(self._advance(np.ascontiguousarray(answer, np.int64)), answer)
+        answer = check_actions(actions, self.n_pending, self.env.n_actions, check_range=False)
+        self._settle(self._advance(np.ascontiguousarray(answer)), answer)  # range: in _advance
 
     def act_compiled(self, compiled: tuple) -> None:
         """Act as a compiled policy's call would, inside the kernel, on this small round and the
@@ -833,7 +829,7 @@ class WildfireBatch:
             self._grow()
             status = self._advance(_NO_ACTIONS)
         if status == BAD_ACTION:
-            raise actions_error(answer, len(answer), self.env.n_actions)
+            raise BadActions(answer, len(answer), self.env.n_actions)
         if status == HEAP_FULL:
             raise RuntimeError(f"event heap of {heap_capacity(self.env.cfg)} entries or queue of "
                                f"{queue_capacity(self.env.cfg)} is full")

@@ -55,7 +55,7 @@ import math
 import numpy as np
 import simpy
 
-from repro.core.rollout import DecisionBatch, Policy, Rollout
+from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episodes,
                                         fire_positions, fs_delay, rank_key)
 from repro.envs.wildfire.records import rollout_from_records
@@ -382,18 +382,3 @@ class ReferenceEnv:
             actions=col("action", np.int64), rewards=col("reward"), durations=col("duration"),
             agent_returns=np.array(returns).reshape(draws.n_episodes, self.n_agents),
             end_time=np.array(ends), events=np.array(events, dtype=np.int64))
-
-
-def check_actions(actions: np.ndarray, n: int, n_actions: int) -> np.ndarray:
-    """The policy's answer as (n,) int64 actions, or ValueError."""
-    a = np.asarray(actions)
-    if a.shape != (n,) or not np.issubdtype(a.dtype, np.integer) or (a.size and (
-            a.min() < 0 or a.max() >= n_actions)):
-        raise actions_error(a, n, n_actions)
-    return a.astype(np.int64)
-
-
-def actions_error(a: np.ndarray, n: int, n_actions: int) -> ValueError:
-    """The error for a policy answer ``a`` that is not (n,) integer actions in [0, n_actions)."""
-    return ValueError(f"policy must return {n} integer actions in [0, {n_actions}), got "
-                      f"shape {a.shape} dtype {a.dtype}")
