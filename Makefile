@@ -75,7 +75,7 @@ fig-bus-batch: $(STAMP) ## bus training curves over the batch size (C3; needs ta
 fig-bus-arrivals: $(STAMP) ## bus arrival times per policy (C5; needs table-thresholds, fig-bus-lambda)
 	$(REPRO) fig-bus-arrivals --scale $(SCALE) $(ARGS)
 
-fig-bus-load: $(STAMP) ## bus 4th-cycle loads per policy (C4, C5; needs table-thresholds, fig-bus-lambda)
+fig-bus-load: $(STAMP) ## bus loads at the paper's records per policy (C4, C5; needs table-thresholds, fig-bus-lambda)
 	$(REPRO) fig-bus-load --scale $(SCALE) $(ARGS)
 
 bench-bus: $(STAMP) ## episodes/s of the fast bus engine and its SimPy reference
