@@ -54,7 +54,7 @@ from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import Rollout
 from repro.envs.wildfire import WildfireConfig, fire_positions, make_env
-from repro.envs.wildfire.params import OBS_PER_FIRE
+from repro.envs.wildfire.params import DIST, INTEREST, OWN_X, OWN_Y, STATUS, fire_blocks
 from repro.envs.wildfire.policies import AT_FIRE_TOL, FlowchartPolicy
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_sweep)
@@ -118,14 +118,14 @@ def frequency_counts(rollout: Rollout, env: WildfireConfig) -> dict[str, int]:
     ``n_fly``); the same without stay flights (suffix ``_ex_stay``); and the stay flights
     (``stay_flight_events`` of ``n_decisions``). Counts of separate batches add up."""
     obs, act, k = rollout.obs, rollout.actions, env.n_observed
-    block = obs[:, 2:2 + OBS_PER_FIRE * k].reshape(len(obs), k, OBS_PER_FIRE)
+    block = fire_blocks(obs, k)
     rows = np.arange(len(obs))
-    at_live = (block[:, 0, 0] < AT_FIRE_TOL) & (block[:, 0, 3] > 0.5)
-    shared = block[:, 0, 2] - 1 >= 1
+    at_live = (block[:, 0, DIST] < AT_FIRE_TOL) & (block[:, 0, STATUS] > 0.5)
+    shared = block[:, 0, INTEREST] - 1 >= 1
     hold = act == k
     fly = ~hold
-    stay = fly & (block[rows, np.minimum(act, k - 1), 0] < AT_FIRE_TOL)
-    dist = np.linalg.norm(obs[:, None, :2] - fire_positions(env)[None], axis=2)
+    stay = fly & (block[rows, np.minimum(act, k - 1), DIST] < AT_FIRE_TOL)
+    dist = np.linalg.norm(obs[:, None, OWN_X:OWN_Y + 1] - fire_positions(env)[None], axis=2)
     order = np.argsort(dist, axis=1, kind="stable")
     target_cluster = order[rows, np.minimum(act, k - 1)] // FIRES_PER_CLUSTER
     closest = target_cluster == order[:, 0] // FIRES_PER_CLUSTER

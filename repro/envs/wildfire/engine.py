@@ -52,8 +52,9 @@ from numba import njit
 
 from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
-from repro.envs.wildfire.params import (OBS_PER_FIRE, EpisodeDraws, WildfireConfig, draw_episodes,
-                                        fire_positions, fs_delay, rank_key)
+from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
+                                        OWN_Y, STATUS, EpisodeDraws, WildfireConfig,
+                                        draw_episodes, fire_positions, fs_delay, rank_key)
 
 URGENT, NORMAL = 0, 1
 """SimPy's priorities: an interrupt or a process start at time t comes before any timeout at t."""
@@ -315,7 +316,7 @@ def _observe(s, p, r, row, e, i):
     sojourn = now - s.t_obs[i] if s.n_dec[i] > 0 else 0.0
     x, y = _position(s, p, i)
     o = r.obs
-    o[0], o[1] = x, y
+    o[OWN_X], o[OWN_Y] = x, y
     dist, key, order, party = s.fire_dist, s.fire_key, s.fire_order, s.fire_party
     for j in range(p.n_fires):  # insertion sort by (ranking key, index): lower index wins ties
         d = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
@@ -334,13 +335,13 @@ def _observe(s, p, r, row, e, i):
     for k in range(p.n_obs):
         best = order[k]
         s.rank[i, k] = best
-        base = 2 + OBS_PER_FIRE * k
-        o[base] = dist[best]
-        o[base + 1] = 1.0
-        o[base + 2] = party[best]
-        o[base + 3] = 1.0 if s.alive[best] else 0.0
-        o[base + 4] = _health_now(s, p, best)
-    o[2 + OBS_PER_FIRE * p.n_obs] = sojourn
+        base = FIRES + OBS_PER_FIRE * k
+        o[base + DIST] = dist[best]
+        o[base + LEVEL] = 1.0
+        o[base + INTEREST] = party[best]
+        o[base + STATUS] = 1.0 if s.alive[best] else 0.0
+        o[base + HEALTH] = _health_now(s, p, best)
+    o[FIRES + OBS_PER_FIRE * p.n_obs] = sojourn
     r.time = now
     r.ep = e
     r.agent = i

@@ -13,8 +13,25 @@ from repro.core.config import Validated
 from repro.core.errors import require
 from repro.core.rollout import children
 
+# The observation's layout, named once (the engines write it in this order; heuristics, wrappers
+# and drivers read it through these names).
+OWN_X, OWN_Y = 0, 1
+"""Columns of the UAV's own position."""
+FIRES = 2
+"""First column of the fires' blocks: one per observed fire, closest first."""
+DIST, LEVEL, INTEREST, STATUS, HEALTH = range(5)
+"""Offsets within a fire's block: distance, level, interest party size, status (1 alive),
+remaining health."""
 OBS_PER_FIRE = 5
-"""Per observed fire: distance, level, interest party size, status, remaining health."""
+"""Columns per fire."""
+SOJOURN = -1
+"""The last column: time since the current action started."""
+
+
+def fire_blocks(obs: np.ndarray, n_observed: int) -> np.ndarray:
+    """(M, n_observed, OBS_PER_FIRE) view of the fires' blocks of (M, obs_dim) observations."""
+    return obs[:, FIRES:FIRES + OBS_PER_FIRE * n_observed].reshape(len(obs), n_observed,
+                                                                   OBS_PER_FIRE)
 SAME_INSTANT_ORDERS = ("released", "scheduling")
 """Values of :attr:`WildfireConfig.same_instant_order`."""
 

@@ -27,7 +27,9 @@ from pettingzoo.utils import wrappers
 from repro.core.canvas import RENDER_MODES, Canvas, Renders
 from repro.core.errors import require
 from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv
-from repro.envs.wildfire.params import EpisodeDraws, WildfireConfig, draw_episodes, fire_positions
+from repro.envs.wildfire.params import (DIST, HEALTH, INTEREST, LEVEL, OWN_X, OWN_Y, SOJOURN,
+                                        STATUS, EpisodeDraws, WildfireConfig, draw_episodes,
+                                        fire_blocks, fire_positions)
 from repro.envs.wildfire.reference import WildfireModel
 from repro.envs.wildfire.render import Frame, draw, frame_of_model, frame_of_state
 
@@ -214,11 +216,16 @@ def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
     (0..T_max)."""
     side = max(1.0, float(np.abs(fire_positions(cfg)).max()))
     lowest_health = cfg.t_health - cfg.n_agents * cfg.t_max if cfg.quirk_q3_unclamped_health else 0
-    per_fire_low = [0, 0, 0, 0, lowest_health]
-    per_fire_high = [2 * np.sqrt(2) * side, 1, cfg.n_agents, 1, cfg.t_health]
-    low = [-side, -side, *per_fire_low * cfg.n_observed, 0]
-    high = [side, side, *per_fire_high * cfg.n_observed, cfg.t_max]
-    return gymnasium.spaces.Box(np.array(low, float), np.array(high, float), dtype=np.float64)
+    low, high = np.zeros(cfg.obs_dim), np.zeros(cfg.obs_dim)
+    low[[OWN_X, OWN_Y]], high[[OWN_X, OWN_Y]] = -side, side
+    low_fires, high_fires = fire_blocks(low[None], cfg.n_observed), fire_blocks(high[None],
+                                                                                cfg.n_observed)
+    low_fires[..., HEALTH] = lowest_health
+    for column, top in ((DIST, 2 * np.sqrt(2) * side), (LEVEL, 1), (INTEREST, cfg.n_agents),
+                        (STATUS, 1), (HEALTH, cfg.t_health)):
+        high_fires[..., column] = top
+    high[SOJOURN] = cfg.t_max
+    return gymnasium.spaces.Box(low, high, dtype=np.float64)
 
 
 def raw_env(cfg: WildfireConfig | None = None, render_mode: str | None = None,

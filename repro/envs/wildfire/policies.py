@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from repro.core.rollout import DecisionBatch
-from repro.envs.wildfire.params import OBS_PER_FIRE
+from repro.envs.wildfire.params import DIST, INTEREST, STATUS, fire_blocks
 
 N_UNIFORMS = 2
 """Random numbers a policy may use per decision."""
@@ -55,9 +55,9 @@ class HeuristicPolicy:
 
     def fires(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """(M, n_observed) per-fire columns of the observations, closest first."""
-        block = obs[:, 2:2 + OBS_PER_FIRE * self.n_observed].reshape(len(obs), self.n_observed,
-                                                                     OBS_PER_FIRE)
-        return dict(dist=block[..., 0], interest=block[..., 2], alive=block[..., 3] > 0.5)
+        block = fire_blocks(obs, self.n_observed)
+        return dict(dist=block[..., DIST], interest=block[..., INTEREST],
+                    alive=block[..., STATUS] > 0.5)
 
     def random_action(self, u: np.ndarray) -> np.ndarray:
         return np.minimum((u * (self.n_observed + 1)).astype(np.int64), self.n_observed)
