@@ -30,13 +30,14 @@ class BadActions(ValueError):
 
 def check_actions(actions: np.ndarray, n: int, n_actions: int,
                   check_range: bool = True) -> np.ndarray:
-    """The policy's answer as (n,) int64 actions, or :class:`BadActions`. ``check_range=False``
-    leaves the range to a compiled kernel (numpy's min and max cost more than a small round)."""
+    """The policy's answer as contiguous (n,) int64 actions (no copy when it is one already), or
+    :class:`BadActions`. ``check_range=False`` leaves the range to a compiled kernel (numpy's min
+    and max cost more than a small round)."""
     a = np.asarray(actions)
     if a.shape != (n,) or a.dtype.kind not in "iu" or (check_range and a.size and (
             a.min() < 0 or a.max() >= n_actions)):
         raise BadActions(a, n, n_actions)
-    return a.astype(np.int64)
+    return np.ascontiguousarray(a, dtype=np.int64)
 
 
 @dataclass(frozen=True)

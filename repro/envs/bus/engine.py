@@ -498,8 +498,7 @@ class BusBatch:
         actions = check_actions(actions, len(self._decisions), self.cfg.n_actions,
                                 check_range=False)
         obs, ids = self._buffers()
-        rows = _advance(np.ascontiguousarray(actions), self._params, self._states, self._logs,
-                        obs, ids)
+        rows = _advance(actions, self._params, self._states, self._logs, obs, ids)
         if rows < 0:  # an action out of range, found in the kernel
             raise BadActions(actions, len(actions), self.cfg.n_actions)
         self._decisions = _gathered(obs, ids, rows)

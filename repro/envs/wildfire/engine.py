@@ -808,7 +808,7 @@ class WildfireBatch:
     def act(self, actions: np.ndarray) -> None:
         """Give every pending decision its action, and run every live episode until blocked."""
         answer = check_actions(actions, self.n_pending, self.env.n_actions, check_range=False)
-        self._settle(self._advance(np.ascontiguousarray(answer)), answer)  # range: in _advance
+        self._settle(self._advance(answer), answer)  # the range is checked in _advance
 
     def act_compiled(self, compiled: tuple) -> None:
         """Act as a compiled policy's call would, inside the kernel, on this small round and the
