@@ -65,6 +65,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _trained(path: str, env_name: str, config_type: type, rng: np.random.Generator):
+    """The environment config and the policy of a trained run's checkpoint."""
+    state = load_trained_run(path, env_name, "--policy")
+    return trained_env_config(state, config_type), policy_from_state(state, rng)
+
+
 def _wildfire(name: str, path: str | None, args: argparse.Namespace, rng: np.random.Generator):
     """The episode's pictures; returns (times, frames, draw)."""
     from repro.envs.wildfire import WildfireConfig
@@ -74,8 +80,7 @@ def _wildfire(name: str, path: str | None, args: argparse.Namespace, rng: np.ran
     from repro.envs.wildfire.render import draw, frame_of_state
 
     if name == "checkpoint":
-        state = load_trained_run(path, "wildfire", "--policy")
-        cfg, policy = trained_env_config(state, WildfireConfig), policy_from_state(state, rng)
+        cfg, policy = _trained(path, "wildfire", WildfireConfig, rng)
     else:
         cfg = WildfireConfig()
         policy = HEURISTICS[name](rng, n_observed=cfg.n_observed)
@@ -94,8 +99,7 @@ def _bus(name: str, path: str | None, args: argparse.Namespace, rng: np.random.G
     from repro.envs.bus.render import draw, frame_of_state
 
     if name == "checkpoint":
-        state = load_trained_run(path, "bus", "--policy")
-        cfg, policy = trained_env_config(state, BusConfig), policy_from_state(state, rng)
+        cfg, policy = _trained(path, "bus", BusConfig, rng)
     else:
         cfg = BusConfig()
         policy = bus_policies.make_policy(name, cfg, results_dir=args.results_dir,

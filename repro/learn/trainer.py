@@ -189,7 +189,7 @@ class Trainer:
         epochs. Only ``epochs`` may differ from the folder's run (to extend or finish it); its
         config.json keeps the larger number."""
         assert self.out is not None
-        defaults = run_config(TrainConfig(), _default_like(self.env_config), self.env.name)
+        defaults = run_config(TrainConfig(), _saved_env_defaults(self.env_config), self.env.name)
         state = resume_state(self.out, self.run_config, defaults)
         epochs = 0 if state is None else int(state["epoch"])
         config = self.run_config
@@ -202,7 +202,7 @@ class Trainer:
         return epochs
 
 
-def _default_like(env_config: Any) -> Any:
+def _saved_env_defaults(env_config: Any) -> Any:
     """The settings a run recorded before they existed held (None for configs that are not
     dataclasses)."""
     return saved_defaults(type(env_config)) if dataclasses.is_dataclass(env_config) else None
@@ -238,6 +238,6 @@ def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str
     """Refuse (UsageError naming ``param`` and the first differing setting) a folder ``out`` that
     is neither new nor a run with these settings; only ``epochs`` may differ."""
     check_same_run(Path(out), run_config(cfg, env_config, env_name),
-                   run_config(TrainConfig(), _default_like(env_config), env_name), param)
+                   run_config(TrainConfig(), _saved_env_defaults(env_config), env_name), param)
 
 
