@@ -20,7 +20,7 @@ from repro.learn.policy import Sampler
 from repro.learn.config import train_config
 from repro.learn.run_folder import CHECKPOINT, load_checkpoint
 from repro.learn.trained_policy import policy_from_checkpoint
-from repro.learn.trainer import TIMING_COLUMNS, Trainer
+from repro.learn.trainer import PROGRESS_COLUMNS, TIMING_COLUMNS, Trainer
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -226,17 +226,32 @@ def test_out_folder_of_other_files_refused(tmp_path, capsys):
 
 
 def test_resume_of_a_run_older_than_a_setting(tmp_path):
-    """A run folder written before a setting existed resumes when the setting is at its default,
-    and not otherwise."""
+    """A run folder written before a setting existed resumes when the setting is at the value the
+    run had (``BEFORE_ADDED``: no decision limit; the default fvp_subsample), and not otherwise."""
     out = tmp_path / "run"
     opts = ["train", "--env", "wildfire", "--scale", "smoke", "--out", str(out)]
-    assert main([*opts, "--epochs", "1"]) == 0
+    assert main([*opts, "--epochs", "1", "--max-decisions", "0"]) == 0
     config = json.loads((out / "config.json").read_text())
     del config["env"]["max_decisions"], config["train"]["fvp_subsample"]
     (out / "config.json").write_text(json.dumps(config))
+    old = pd.read_csv(out / "progress.csv").drop(columns="truncated_episodes")  # before it existed
+    old.to_csv(out / "progress.csv", index=False)
+    assert main([*opts, "--epochs", "2"]) == 2  # the default limit, 1000
     assert main([*opts, "--epochs", "2", "--max-decisions", "50"]) == 2
-    assert main([*opts, "--epochs", "2"]) == 0
-    assert len(pd.read_csv(out / "progress.csv")) == 2
+    assert main([*opts, "--epochs", "2", "--max-decisions", "0"]) == 0
+    progress = pd.read_csv(out / "progress.csv")
+    assert list(progress.columns) == PROGRESS_COLUMNS and len(progress) == 2
+    assert progress.truncated_episodes.isna().tolist() == [True, False]  # unknown, then 0
+
+
+def test_episodes_cut_at_the_decision_limit_are_reported(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", "--env", "wildfire", "--scale", "smoke", "--out", str(out),
+                 "--max-decisions", "2"]) == 0
+    progress = pd.read_csv(out / "progress.csv")
+    assert (progress.truncated_episodes == progress.batch_episodes).all()
+    assert f"note: {progress.batch_episodes.sum()} of {progress.batch_episodes.sum()} training " \
+        "episodes ended at the decision limit" in capsys.readouterr().out
 
 
 def test_bench_learn_smoke(tmp_path):

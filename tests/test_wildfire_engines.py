@@ -137,15 +137,21 @@ def test_decision_limit_ends_the_episode(dt):
                                    fast.info["end_time"][fast.path_episode[p]], atol=1e-9)
 
 
-def test_stay_flight_loops_outlast_any_practical_limit():
+def test_stay_flight_loops_are_bounded_by_default():
     """A UAV that flies to the fire it is at makes 100,000 decisions in about a second of
-    simulated time: without a limit (the default) only T_max ends its loop."""
+    simulated time, and without a limit only T_max ends its loop; the default limit ends such an
+    episode at 1,000 decisions, reported truncated, while the nearest-fire heuristic's episodes
+    end by themselves."""
     cfg = WildfireConfig(max_decisions=100_000)
     limited = make_env(cfg).rollout(FlyToClosest(), 1, 5)
-    assert WildfireConfig().max_decisions is None
     assert np.diff(limited.path_start).max() == 100_000
     first_arrival = limited.info["decision_time"][1:][limited.durations[:-1] > 1e-3].max()
     assert limited.info["end_time"][0] - first_arrival < 100_000 * 1.01 * cfg.decision_latency
+    env = make_env(WildfireConfig())
+    looping = env.rollout(FlyToClosest(), 4, 5)
+    assert np.diff(looping.path_start).max() == 1000 and looping.truncated.all()
+    nearest = env.rollout(POLICIES["nearest"](np.random.default_rng(0)), 50, 5)
+    assert nearest.n_truncated == 0 and nearest.truncated.shape == (50,)
 
 
 def test_rollout_structure():
@@ -331,7 +337,7 @@ def test_records_must_come_in_index_order_along_each_path():
                     index=np.array(index), time=np.arange(n, dtype=float),
                     obs=np.zeros((n, 2)), actions=np.zeros(n, int), rewards=np.zeros(n),
                     durations=np.ones(n), agent_returns=np.zeros((1, 2)),
-                    end_time=np.zeros(1), events=np.zeros(1, int))
+                    end_time=np.zeros(1), events=np.zeros(1, int), truncated=np.zeros(1, bool))
 
     ro = rollout_from_records(**records([0, 0, 1, 1, 2]))
     assert ro.path_start.tolist() == [0, 3, 5] and ro.step_index().tolist() == [0, 1, 2, 0, 1]

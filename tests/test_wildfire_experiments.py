@@ -192,7 +192,7 @@ def test_sweep_refuses_finished_runs_made_with_other_settings(tmp_path, capsys):
     assert tree_snapshot(runs, res) == before
 
 
-def test_max_decisions_0_lifts_paper_scales_decision_limit():
+def test_max_decisions_0_lifts_the_decision_limit():
     import argparse
 
     from repro.experiments import wildfire_behaviour
@@ -203,7 +203,7 @@ def test_max_decisions_0_lifts_paper_scales_decision_limit():
     def limit(*argv: str) -> int | None:
         return wildfire_behaviour.config_from_args(parser.parse_args(argv)).max_decisions
 
-    assert limit("--scale", "paper") == 1000 and limit("--scale", "quick") is None
+    assert limit("--scale", "paper") == 1000 and limit("--scale", "quick") == 1000
     assert limit("--scale", "paper", "--max-decisions", "0") is None
     assert limit("--scale", "quick", "--max-decisions", "7") == 7
 

@@ -118,7 +118,7 @@ def test_cli_bad_input(args, tmp_path, monkeypatch, capsys):
 
 @pytest.mark.parametrize("argv, expected", [
     ([], dict(dt=None, t_health=3.0, quirk_q1_stale_attack=True,
-              quirk_q2_penalty_party_only=True, max_decisions=None)),
+              quirk_q2_penalty_party_only=True, max_decisions=1000)),
     (["--no-quirk-q1", "--no-quirk-q2", "--max-decisions", "0"],
      dict(quirk_q1_stale_attack=False, quirk_q2_penalty_party_only=False, max_decisions=None)),
     ([], dict(quirk_q3_unclamped_health=True, quirk_q4_latency_not_interrupted=True,

@@ -83,12 +83,21 @@ class Rollout:
     """(P,) agent of each path."""
     episode_return: np.ndarray
     """(E,) the environment's undiscounted return of each episode (defined by the environment)."""
+    truncated: np.ndarray | None = None
+    """(E,) bool: the episode was cut at the environment's bound on its length (the wildfire's
+    decision limit), not ended by its own dynamics. None: the environment has no such bound (its
+    episodes end at a horizon they reach in a bounded number of decisions)."""
     info: dict[str, Any] = field(default_factory=dict)
     """Engine-specific extras (for example event counts), never needed by the learner."""
 
     @property
     def n_decisions(self) -> int:
         return len(self.actions)
+
+    @property
+    def n_truncated(self) -> int:
+        """Episodes cut at the environment's bound on their length."""
+        return 0 if self.truncated is None else int(self.truncated.sum())
 
     @property
     def n_paths(self) -> int:
@@ -141,6 +150,9 @@ def concat(rollouts: list[Rollout]) -> Rollout:
         path_episode=np.concatenate(eps),
         path_agent=np.concatenate([r.path_agent for r in rollouts]),
         episode_return=np.concatenate([r.episode_return for r in rollouts]),
+        truncated=(None if all(r.truncated is None for r in rollouts) else np.concatenate(
+            [np.zeros(len(r.episode_return), bool) if r.truncated is None else r.truncated
+             for r in rollouts])),
     )
 
 

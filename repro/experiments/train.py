@@ -63,4 +63,8 @@ def run(args: argparse.Namespace) -> int:
              if len(frame) > cfg.epochs else "")
     print(f"{cfg.env}: {len(frame)} epochs{extra}, average return {last.average_return:.6g}, "
           f"average discounted return {last.average_discounted_return:.6g} -> {out}")
+    cut = frame.truncated_episodes.sum()
+    if cut > 0:
+        print(f"note: {cut:.0f} of {frame.batch_episodes.sum()} training episodes ended at the "
+              f"decision limit (column truncated_episodes of progress.csv; --max-decisions)")
     return 0

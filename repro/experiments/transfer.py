@@ -167,7 +167,8 @@ def test_env_seed(seed: int) -> int:
 def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
                       folders: list[Path], seed: int, *, n_jobs: int | None = 1,
                       scheduler: str | None = None) -> pd.DataFrame:
-    """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths).
+    """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths), and
+    the training and test episodes that ended at the decision limit.
     The policies are tested in parallel like a sweep (``map_tasks``); each has its own stream, so
     the numbers do not depend on where or in which order they run."""
     from repro.learn.run_folder import CHECKPOINT
@@ -177,28 +178,33 @@ def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
              for i, folder in enumerate(folders)]
     scores = map_tasks(score_policy, tasks, n_jobs=n_jobs, scheduler=scheduler)
     rows = []
-    for ((label, job), folder), (mean, err) in zip(zip(labelled, folders), scores):
+    for ((label, job), folder), (mean, err, test_cut) in zip(zip(labelled, folders), scores):
         curve = pd.read_csv(folder / "progress.csv")
         last = curve.average_discounted_return.iloc[-max(1, len(curve) // 10):]
         rows.append(dict(simulator=label, dt=job.env_config.dt or 0.0,  # 0 stands for ED
                          t_health=job.env_config.t_health, train_seed=job.train.seed,
                          epochs=len(curve), batch_episodes=job.train.batch_episodes,
                          test_episodes=cfg.test_episodes, adr_ed=mean, adr_ed_sem=err,
-                         train_adr_last=float(last.mean()), run=job.name))
+                         train_adr_last=float(last.mean()),
+                         max_decisions=job.env_config.max_decisions or 0,
+                         train_truncated=int(curve.truncated_episodes.sum()),
+                         test_truncated=test_cut, run=job.name))
     return pd.DataFrame(rows)
 
 
 def score_policy(env_cfg: WildfireConfig, checkpoint: bytes, episodes: int, env_seed: int,
-                policy_stream: np.random.SeedSequence) -> tuple[float, float]:
-    """ADR and its standard error of the policy of ``checkpoint`` (its bytes, so that a worker
-    without the client's disk can test it) on ``episodes`` episodes of ``env_cfg``."""
+                policy_stream: np.random.SeedSequence) -> tuple[float, float, int]:
+    """ADR, its standard error and the episodes cut at the decision limit, of the policy of
+    ``checkpoint`` (its bytes, so that a worker without the client's disk can test it) on
+    ``episodes`` episodes of ``env_cfg``."""
     from repro.learn.run_folder import load_checkpoint
     from repro.learn.trained_policy import policy_from_state
 
     env = make_env(env_cfg)
     policy = policy_from_state(load_checkpoint(io.BytesIO(checkpoint)),
                                np.random.default_rng(policy_stream))
-    return adr(evaluate(env, policy, episodes, env_seed, keep_obs=False), env.gamma)
+    rollout = evaluate(env, policy, episodes, env_seed, keep_obs=False)
+    return (*adr(rollout, env.gamma), rollout.n_truncated)
 
 
 def summarise(per_policy: pd.DataFrame, n_boot: int, seed: int) -> pd.DataFrame:

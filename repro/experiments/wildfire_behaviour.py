@@ -83,19 +83,16 @@ class BehaviourConfig(Validated):
     """Training episodes per epoch (paper: 600 to 1,200)."""
     test_episodes: int = 1000
     """ED episodes on which frequencies and ADRs are measured."""
-    max_decisions: int | None = None
+    max_decisions: int | None = WildfireConfig.max_decisions
     """Decision limit per UAV and episode in training and test (``WildfireConfig.max_decisions``);
-    None: no limit (docs/semantics.md section 3.7). Paper scale sets 1,000: its policies drift into
-    stay flights, and a 600-episode epoch of them needed more than 14.7 million decisions and ran
-    out of 24 GB of memory at epoch 302. Without stay flights a UAV cannot come near the limit: its
-    shortest moves, between fires of a cluster, take 1.3 s, so it decides at most about 200 times in
-    T_max."""
+    None: no limit (docs/semantics.md section 3.7). Long ED runs drift into stay flights: without
+    the limit a 600-episode epoch of them needed more than 14.7 million decisions and ran out of
+    24 GB of memory at epoch 302 of a paper-scale run."""
 
     SCALES: ClassVar[dict] = {
         "smoke": dict(seeds=1, epochs=2, batch_episodes=8, test_episodes=20),
         "quick": {},
-        "paper": dict(seeds=3, epochs=3000, batch_episodes=600, test_episodes=10000,
-                      max_decisions=1000),
+        "paper": dict(seeds=3, epochs=3000, batch_episodes=600, test_episodes=10000),
     }
 
     def validate(self) -> None:
@@ -185,24 +182,24 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
     def rng(i: int) -> np.random.Generator:
         return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_POLICY_STREAM, i)))
 
-    def observe(policy) -> tuple[dict[str, float], float, float]:
+    def observe(policy) -> tuple[dict[str, float], float, float, int]:
         """The policy's frequencies (counted per test batch, so that observations need not be
-        kept) and ADR with its standard error."""
+        kept), ADR with its standard error, and the episodes cut at the decision limit."""
         counts: list[dict[str, int]] = []
         rollout = evaluate(env, policy, cfg.test_episodes, env_seed, keep_obs=False,
                            on_batch=lambda batch: counts.append(frequency_counts(batch, env_cfg)))
         total = {key: sum(c[key] for c in counts) for key in counts[0]}
-        return shares(total), *adr(rollout, env.gamma)
+        return shares(total), *adr(rollout, env.gamma), rollout.n_truncated
 
     flowchart = FlowchartPolicy(rng(0), n_observed=env_cfg.n_observed)
-    flow_shares, flow_adr, flow_sem = observe(flowchart)
+    flow_shares, flow_adr, flow_sem, _ = observe(flowchart)
     rows = []
     for i, (job, folder) in enumerate(zip(jobs, folders), start=1):
         policy = policy_from_checkpoint(folder / CHECKPOINT, rng(i))
-        learned, learned_adr, learned_sem = observe(policy)
+        learned, learned_adr, learned_sem, cut = observe(policy)
         rows.append(dict(train_seed=job.train.seed, epochs=job.train.epochs,
                          batch_episodes=job.train.batch_episodes, test_episodes=cfg.test_episodes,
-                         max_decisions=cfg.max_decisions or 0,
+                         max_decisions=cfg.max_decisions or 0, test_truncated=cut,
                          **learned, adr_learned=learned_adr,
                          adr_learned_sem=learned_sem, adr_flowchart=flow_adr,
                          adr_flowchart_sem=flow_sem,
@@ -220,13 +217,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
     p.add_argument("--test-episodes", type=int, help="ED episodes measured per policy")
     p.add_argument("--max-decisions", type=int,
-                   help="decision limit per UAV and episode; 0: none (default: 1000 at paper "
-                        "scale, else none)")
+                   help="decision limit per UAV and episode; 0: none (default: "
+                        f"{BehaviourConfig.max_decisions})")
 
 
 def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
     """The validated config of the command line at its scale (UsageError if bad)."""
-    no_limit = args.max_decisions == 0  # asked for no limit (paper scale's default has one)
+    no_limit = args.max_decisions == 0  # asked for no limit (the default has one)
     cfg = for_scale(BehaviourConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
                     max_decisions=None if no_limit else args.max_decisions)

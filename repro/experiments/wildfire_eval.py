@@ -55,6 +55,10 @@ def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = T
     return concat(batches)
 
 
+def _cut(n_truncated: int) -> str:
+    return f"; {n_truncated} ended at the decision limit" if n_truncated else ""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", choices=tuple(POLICIES), required=True, help="heuristic policy")
     p.add_argument("--engine", choices=ENGINES, default="fast", help="fast (numba) or SimPy")
@@ -81,11 +85,13 @@ def run(args: argparse.Namespace) -> int:
                engine=args.engine, sim=cfg.label, t_health=cfg.t_health,
                **{f"quirk_{f.split('_')[1]}": getattr(cfg, f) for f in QUIRKS},
                same_instant_order=cfg.same_instant_order,
+               max_decisions=cfg.max_decisions or 0, truncated_episodes=rollout.n_truncated,
                seed=args.seed)
     if args.json:
         print(json.dumps(out, sort_keys=True))
     else:
         print(f"{args.policy} on {cfg.label} (T_health={cfg.t_health:g}, {args.engine}): "
               f"ADR {mean:.4f} +- {err:.4f} over {args.episodes} episodes "
-              f"({rollout.n_decisions} decisions, {seconds:.2f} s)")
+              f"({rollout.n_decisions} decisions, {seconds:.2f} s"
+              f"{_cut(rollout.n_truncated)})")
     return 0

@@ -39,7 +39,7 @@ import pandas as pd
 import torch
 
 from repro.core.errors import UsageError, require
-from repro.core.io import append_csv, write_bytes, write_json, write_text
+from repro.core.io import append_csv, write_bytes, write_csv, write_json, write_text
 
 CONFIG = "config.json"
 PROGRESS = "progress.csv"
@@ -170,10 +170,12 @@ def _rows(path: Path) -> int:
     return max(len(path.read_text().splitlines()) - 1, 0) if path.exists() else 0
 
 
-def restore(folder: Path, epochs: int, config: dict[str, Any]) -> list[dict[str, Any]]:
+def restore(folder: Path, epochs: int, config: dict[str, Any],
+            columns: list[str]) -> list[dict[str, Any]]:
     """Make ``folder`` the state an uninterrupted run has after ``epochs`` epochs: remove leftover
     temporary files, write ``config`` to config.json, cut progress.csv back to ``epochs`` rows
-    (a row appended after the last checkpoint, whole or cut short, goes). Returns those rows."""
+    (a row appended after the last checkpoint, whole or cut short, goes) in ``columns`` (a column
+    that a run recorded before it existed is left empty in its rows). Returns those rows."""
     for leftover in _leftovers(folder):
         leftover.unlink()
     write_json(folder / CONFIG, config)
@@ -184,7 +186,11 @@ def restore(folder: Path, epochs: int, config: dict[str, Any]) -> list[dict[str,
     lines = path.read_text().splitlines(keepends=True)
     if len(lines) != epochs + 1:
         write_text(path, "".join(lines[:epochs + 1]))
-    return pd.read_csv(path).to_dict("records")
+    table = pd.read_csv(path)
+    if list(table.columns) != columns:
+        table = table.reindex(columns=columns)
+        write_csv(path, table)
+    return table.to_dict("records")
 
 
 def append_row(folder: Path, row: dict[str, Any], columns: list[str]) -> None:

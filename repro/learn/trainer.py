@@ -112,7 +112,7 @@ class Trainer:
             surrogate_after=stats.surrogate_after, backtracks=stats.backtracks,
             accepted=int(stats.accepted), explained_variance=float(explained),
             baseline_loss=baseline_loss, batch_episodes=cfg.batch_episodes,
-            decisions=ro.n_decisions,
+            decisions=ro.n_decisions, truncated_episodes=ro.n_truncated,
             seconds_sim=t1 - t0, seconds_trpo=t2 - t1, seconds_baseline=t3 - t2,
             seconds_update=t3 - t1,
         )
@@ -196,7 +196,7 @@ class Trainer:
         if state is not None:
             saved = state["run_config"]["train"].get("epochs", 0)
             config = {**config, "train": {**config["train"], "epochs": max(saved, self.cfg.epochs)}}
-        self.rows = restore(self.out, epochs, config)
+        self.rows = restore(self.out, epochs, config, PROGRESS_COLUMNS)
         if state is not None:
             self.load_state_dict(state)
         return epochs
@@ -211,10 +211,12 @@ def _saved_env_defaults(env_config: Any) -> Any:
 PROGRESS_COLUMNS = [
     "epoch", "average_return", "average_discounted_return", "kl", "entropy", "surrogate_before",
     "surrogate_after", "backtracks", "accepted", "explained_variance", "baseline_loss",
-    "batch_episodes", "decisions", "seconds_sim", "seconds_trpo", "seconds_baseline",
-    "seconds_update", "seconds",
+    "batch_episodes", "decisions", "truncated_episodes", "seconds_sim", "seconds_trpo",
+    "seconds_baseline", "seconds_update", "seconds",
 ]
-"""The columns of progress.csv, one row per epoch. Timing (wall seconds): ``seconds_sim`` the
+"""The columns of progress.csv, one row per epoch. ``truncated_episodes``: the batch's episodes
+cut at the environment's bound on their length (``Rollout.truncated``; the wildfire's decision
+limit), so that a policy that drifts into it is seen. Timing (wall seconds): ``seconds_sim`` the
 rollout; ``seconds_trpo`` everything from the batch to the TRPO step's end (standardisation,
 baseline prediction, M-GAE, the step); ``seconds_baseline`` the normaliser's update, the
 standardisation in its new moments and the baseline's fit; ``seconds_update`` the last two

@@ -58,9 +58,10 @@ def add_env_arguments(parser: argparse.ArgumentParser) -> None:
                         default=WildfireConfig.ranking_resolution,
                         help="fires are ranked by distance rounded to this (m), ties to the "
                              "lower index; 0: exact distances")
-    parser.add_argument("--max-decisions", type=int,
-                        help="end an episode when a UAV's macro-action ends after this many of its "
-                             "decisions (not in the paper; default and 0: no limit)")
+    parser.add_argument("--max-decisions", type=int, default=WildfireConfig.max_decisions,
+                        help="end an episode (reported truncated) when a UAV's macro-action ends "
+                             "after this many of its decisions (not in the paper; default "
+                             "%(default)s; 0: no limit, as the released simulator)")
 
 
 def config_from_args(args: argparse.Namespace) -> WildfireConfig:

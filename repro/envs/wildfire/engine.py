@@ -124,7 +124,8 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
     return np.dtype([
         # what a round reads of every episode first, to tell whether it is blocked, is adjacent:
         # each episode's first visit of a round misses the cache
-        ("done", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8), ("events", i8),
+        ("done", np.bool_), ("truncated", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8),
+        ("events", i8),
         ("uwait", i8, n), ("act", i8, n),
         # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence; the
         # now-queues of URGENT and NORMAL events due now (see _push): keys, first, size
@@ -549,6 +550,7 @@ def _macro_action_over(s, log, p, e, row, i, cut):
         _land(s, p, i, cut)
     _close(s, log[s.cur[i]], i)
     if s.n_dec[i] == p.max_dec:  # 0 (no limit) never: n_dec >= 1 here
+        s.truncated = True
         _end(s, log, p)
         return row
     _observe(s, p, log[row], row, e, i)
@@ -572,6 +574,7 @@ def _setup(states, log, used, params, starts, slots):
         s.t_end = np.nan
         s.events = 0
         s.done = False
+        s.truncated = False
         s.n_alive = p.n_fires
         s.hn = 0
         s.seq = 0
@@ -876,6 +879,7 @@ class WildfireBatch:
             path_episode=np.repeat(np.arange(e, dtype=np.int64), n),
             path_agent=np.tile(np.arange(n, dtype=np.int64), e),
             episode_return=self.states["returns"].mean(axis=1),
+            truncated=self.states["truncated"].copy(),
             info={"decision_time": time, "end_time": self.states["t_end"].copy(),
                   "events": self.states["events"].copy()})
 

@@ -128,14 +128,16 @@ class WildfireConfig(Validated):
     the order they joined its interest party). "scheduling": each process waits on its own timeouts
     and the episode ends at once (the suite's order before issue 18). Not a quirk: the corrected
     semantics keep "released"."""
-    max_decisions: int | None = None
+    max_decisions: int | None = 1000
     """The episode also ends when a UAV's macro-action ends after its ``max_decisions``-th decision
-    (instead of that UAV deciding again), as at T_max: every running macro-action is cut. None: no
-    limit (docs/semantics.md section 3.7). Not in the paper; rllab's ``max_path_length``, which the
-    released sampler (``ed_dec_rollout``) applies to the longest agent path. Only a policy that
-    flies to the fire it is at, over and over, comes near a limit of a thousand: each such flight
-    takes no time, so the UAV decides again after the latency, up to T_max / 1e-5 s = 26 million
-    times an episode."""
+    (instead of that UAV deciding again), as at T_max: every running macro-action is cut, and the
+    episode is reported truncated (``Rollout.truncated``; the trainer's ``truncated_episodes``).
+    None: no limit, the released simulator (docs/semantics.md section 3.7). Not in the paper: it
+    bounds every episode, and so the memory of a batch, for any policy. Only a policy that flies
+    to the fire it is at, over and over, comes near it: each such flight takes no time, so the UAV
+    decides again after the latency, up to T_max / 1e-5 s = 26 million times an episode; without
+    such *stay flights* a UAV's shortest moves, between fires of a cluster, take 1.3 s, so it
+    decides at most about 200 times in T_max."""
     hold_table_size: int = 128
     """Hold durations pre-drawn per agent and episode, at least: :attr:`hold_table` adds more when
     T_max needs them. Used in order, cyclically; both engines index the table by the agent's hold
@@ -145,9 +147,10 @@ class WildfireConfig(Validated):
         quirk_q3_unclamped_health=False, quirk_q4_latency_not_interrupted=False,
         quirk_q5_discount_from_action_start=False, quirk_q6_short_flight_stays=False,
         fs_round_negative_delays=False, cut_flight_continues=False, ranking_resolution=0.0,
-        same_instant_order="scheduling")
+        same_instant_order="scheduling", max_decisions=None)
     """What runs recorded before these settings existed (issue 18) ran: the behaviour before the
-    released simulator's, so that such a run is not resumed as one of the released semantics."""
+    released simulator's, so that such a run is not resumed as one of the released semantics; and
+    no decision limit."""
 
     @classmethod
     def corrected(cls, **fields) -> WildfireConfig:

@@ -96,6 +96,7 @@ class WildfireModel:
         self.returns = np.zeros(n)
         self.pending: list[int] = []  # UAVs that observed and wait for their action
         self.done = False
+        self.truncated = False  # ended at the decision limit
         self.t_end = math.nan
         self.events = 0
         self.joins = 0
@@ -129,6 +130,7 @@ class WildfireModel:
     def _uav(self, i: int):
         while True:
             if self._decisions(i) == self.cfg.max_decisions:
+                self.truncated = True
                 self._end()
                 return
             self._observe(i)
@@ -358,7 +360,7 @@ class ReferenceEnv:
 
     def simulate(self, policy: Policy, draws: EpisodeDraws) -> Rollout:
         """Run the episodes of ``draws`` (tests script start positions and hold durations)."""
-        recs, returns, ends, events = [], [], [], []
+        recs, returns, ends, events, truncated = [], [], [], [], []
         for e in range(draws.n_episodes):
             model = WildfireModel(self.cfg, draws.starts[e], draws.holds[e])
             while True:
@@ -374,6 +376,7 @@ class ReferenceEnv:
             returns.append(model.returns)
             ends.append(model.t_end)
             events.append(model.events)
+            truncated.append(model.truncated)
         col = lambda key, dtype=float: np.array([r[key] for r in recs], dtype=dtype)  # noqa: E731
         return rollout_from_records(
             episode=col("episode", np.int64), agent=col("agent", np.int64),
@@ -381,4 +384,5 @@ class ReferenceEnv:
             obs=np.array([r["obs"] for r in recs]).reshape(len(recs), self.obs_dim),
             actions=col("action", np.int64), rewards=col("reward"), durations=col("duration"),
             agent_returns=np.array(returns).reshape(draws.n_episodes, self.n_agents),
-            end_time=np.array(ends), events=np.array(events, dtype=np.int64))
+            end_time=np.array(ends), events=np.array(events, dtype=np.int64),
+            truncated=np.array(truncated, dtype=bool))
