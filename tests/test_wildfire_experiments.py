@@ -351,3 +351,17 @@ def test_an_ablation_trains_only_the_simulators_asked_with_the_quirks_asked_off(
         assert _main(["fig-transfer", "--scale", "smoke", *bad, "--results-dir",
                       str(tmp_path / "bad")]) == 2
     assert not (tmp_path / "bad").exists()
+
+
+@pytest.mark.parametrize("cut, text", [
+    ((0, 0), "No episode reached the decision limit (1000 decisions per UAV)"),
+    ((30, 4), "cut 30 of 1,200 training episodes (2.5%) and 4 of 40 test episodes (10.0%)"),
+])
+def test_the_claims_say_how_many_episodes_the_decision_limit_cut(tmp_path, cut, text):
+    table = pd.DataFrame(dict(epochs=[3, 3], batch_episodes=200, test_episodes=20,
+                              max_decisions=1000, train_truncated=[cut[0], 0],
+                              test_truncated=[0, cut[1]]))
+    table.to_csv(tmp_path / "transfer.csv", index=False)
+    assert text in claims._cut_line(tmp_path / "transfer.csv")
+    table.drop(columns=["train_truncated", "test_truncated"]).to_csv(tmp_path / "old.csv")
+    assert claims._cut_line(tmp_path / "old.csv") == ""  # made before the columns existed

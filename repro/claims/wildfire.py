@@ -162,6 +162,7 @@ def check_c8(results: Path) -> Verdict:
     verdict, caveat = _at_most_partial(verdict, s)
     detail = (f"{int(s.n_policies.min())} policies per simulator, tested on ED (T_health = 3.0); "
               f"95% bootstrap CIs of the mean: {_cis(s)}. {why}.{caveat}")
+    detail += _cut_line(results / "transfer.csv")
     detail += _heuristics_line(results)
     detail += _corrected_line(results, c8_verdict, means=True)
     return Verdict(_means(s.drop(index=C9_PAIR[0])), verdict, detail, scale_of(path))
@@ -226,7 +227,24 @@ def _corrected_line(results: Path, judge, means: bool) -> str:
         return (f" Corrected semantics: not yet rerun since issue 18 (Q3-Q6 and the released order "
                 f"were added); before, with Q1, Q2 off, it read {verdict}: {shown}{why}.{caveat}")
     return (f" Corrected semantics (Q1-Q6 off; {scale_of(path)} scale): {verdict}: {shown}{why}."
-            f"{caveat}")
+            f"{caveat}{_cut_line(results / 'transfer_corrected.csv') if means else ''}")
+
+
+def _cut_line(per_policy: Path) -> str:
+    """How many training and test episodes the decision limit cut (docs/semantics.md section
+    3.7), when the per-policy table records it."""
+    t = pd.read_csv(per_policy) if per_policy.exists() else pd.DataFrame()
+    if not {"train_truncated", "test_truncated"} <= set(t.columns):
+        return ""
+    train = int((t.epochs * t.batch_episodes).sum())
+    test = int(t.test_episodes.sum())
+    cut_train, cut_test = int(t.train_truncated.sum()), int(t.test_truncated.sum())
+    if cut_train == cut_test == 0:
+        return (f" No episode reached the decision limit ({int(t.max_decisions.iloc[0])} "
+                f"decisions per UAV) in training or test.")
+    return (f" The decision limit ({int(t.max_decisions.iloc[0])} decisions per UAV) cut "
+            f"{cut_train:,} of {train:,} training episodes ({cut_train / train:.1%}) and "
+            f"{cut_test:,} of {test:,} test episodes ({cut_test / max(test, 1):.1%}).")
 
 
 BEHAVIOUR, TRANSFER = "wildfire_behaviour.csv", "transfer_summary.csv"
