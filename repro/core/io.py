@@ -166,6 +166,31 @@ def versions() -> dict[str, str]:
     return out
 
 
+def machine() -> dict[str, Any]:
+    """What the numbers may depend on beyond the code: training results are byte-identical on one
+    CPU model but not across CPUs, because torch picks its vectorised kernels (and so its rounding)
+    by what the CPU supports (docs/performance.md, "Determinism across machines")."""
+    out: dict[str, Any] = {"platform": platform.platform(), "cpus": os.cpu_count(),
+                           "cpu": cpu_model()}
+    torch = sys.modules.get("torch")  # not imported here: drivers without torch stay light
+    if torch is not None:
+        out["torch_cpu_capability"] = torch.backends.cpu.get_cpu_capability()
+    return out
+
+
+def cpu_model() -> str:
+    """The CPU's name with its family and model numbers (a VM's name alone is often generic)."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            fields = dict(line.split(":", 1) for line in f.read().split("\n\n")[0].splitlines()
+                          if ":" in line)
+    except OSError:
+        return platform.processor() or "unknown"
+    fields = {k.strip(): v.strip() for k, v in fields.items()}
+    return (f"{fields.get('model name', 'unknown')} (family {fields.get('cpu family', '?')}, "
+            f"model {fields.get('model', '?')})")
+
+
 def provenance(config: Any, *, command: str, scale: str | None, seed: int | None,
                wall_seconds: float, extra: dict[str, Any] | None = None) -> dict[str, Any]:
     """The sidecar content: what was run, on what, from which commit, and how long it took
@@ -180,7 +205,7 @@ def provenance(config: Any, *, command: str, scale: str | None, seed: int | None
         "config": to_dict(config) if hasattr(config, "__dataclass_fields__") else config,
         "git_commit": git_commit(),
         "versions": versions(),
-        "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
+        "machine": machine(),
         "wall_seconds": round(wall_seconds, 3),
         "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
