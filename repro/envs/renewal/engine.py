@@ -24,7 +24,6 @@ An event at time t is processed only if t < T (SimPy's ``run(until=T)`` stops be
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -32,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from repro.core.errors import require
+from repro.core.fixed_step import fs_step, fs_time
 from repro.core.rollout import children
 
 if TYPE_CHECKING:
@@ -43,7 +43,7 @@ TIE_AGENT = 1
 """Same-instant events in agent-index order (the time-stepped simulator's visiting order)."""
 TIE_ORDERS = {"scheduled": TIE_SCHEDULED, "agent": TIE_AGENT}
 
-NEVER = np.iinfo(np.int64).max
+NEVER = np.inf
 """Due step of an agent whose pre-drawn stream is used up."""
 
 
@@ -114,12 +114,6 @@ class Outcome:
 # --- Kernels -------------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _due_step(now: float, delay: float, dt: float) -> int:
-    """The fixed-step rounding rule: an event due at now + delay happens at step ceil(./dT)."""
-    return np.int64(math.ceil((now + delay) / dt))
-
-
-@njit(cache=True)
 def _take(delays, offsets, nxt, i):
     """Agent i's next pre-drawn delay (advancing its cursor), or -1.0 once its stream is used up."""
     j = nxt[i]
@@ -176,14 +170,6 @@ def _sift_down(ht, hb, ha, size, pos):
 
 
 @njit(cache=True)
-def _event_time(now, delay, dt):
-    """Exact (dt == 0) or rounded up to the dT grid."""
-    if dt == 0.0:
-        return now + delay
-    return _due_step(now, delay, dt) * dt
-
-
-@njit(cache=True)
 def _simulate_events(delays, offsets, duration, dt, tie_order):
     n = offsets.size - 1
     seq_agent = np.empty(delays.size, np.int64)
@@ -201,7 +187,7 @@ def _simulate_events(delays, offsets, duration, dt, tie_order):
     for i in range(n):
         d = _take(delays, offsets, nxt, i)
         if d >= 0.0:
-            ht[size] = _event_time(0.0, d, dt)
+            ht[size] = fs_time(0.0, d, dt)
             hb[size] = scheduled if tie_order == TIE_SCHEDULED else i
             ha[size] = i
             _sift_up(ht, hb, ha, size)
@@ -214,7 +200,7 @@ def _simulate_events(delays, offsets, duration, dt, tie_order):
         n_done = _act(i, t, count, score, seq_agent, seq_time, n_done)
         d = _take(delays, offsets, nxt, i)
         if d >= 0.0:  # the agent's next event replaces the root
-            ht[0] = _event_time(t, d, dt)
+            ht[0] = fs_time(t, d, dt)
             hb[0] = scheduled if tie_order == TIE_SCHEDULED else i
             scheduled += 1
         else:
@@ -232,10 +218,10 @@ def _simulate_steps(delays, offsets, duration, dt):
     count = np.zeros(n, np.int64)
     score = np.zeros(n, np.int64)
     nxt = offsets[:-1].copy()
-    due = np.empty(n, np.int64)
+    due = np.empty(n, np.float64)  # steps, integer-valued
     for i in range(n):
         d = _take(delays, offsets, nxt, i)
-        due[i] = NEVER if d < 0.0 else _due_step(0.0, d, dt)
+        due[i] = NEVER if d < 0.0 else fs_step(0.0, d, dt)
     n_done = 0
     steps = 0
     visits = 0
@@ -247,7 +233,7 @@ def _simulate_steps(delays, offsets, duration, dt):
             while due[i] <= k:  # a zero delay is due again in the same step, as in the heap
                 n_done = _act(i, now, count, score, seq_agent, seq_time, n_done)
                 d = _take(delays, offsets, nxt, i)
-                due[i] = NEVER if d < 0.0 else _due_step(now, d, dt)
+                due[i] = NEVER if d < 0.0 else fs_step(now, d, dt)
         steps += 1
         k += 1
     return seq_agent[:n_done], seq_time[:n_done], count, score, steps, visits

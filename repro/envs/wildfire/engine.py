@@ -50,11 +50,12 @@ import math
 import numpy as np
 from numba import njit
 
+from repro.core.fixed_step import fs_delay
 from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
                                         OWN_Y, STATUS, EpisodeDraws, WildfireConfig,
-                                        draw_episodes, fire_positions, fs_delay, rank_key)
+                                        draw_episodes, fire_positions, rank_key)
 
 URGENT, NORMAL = 0, 1
 """SimPy's priorities: an interrupt or a process start at time t comes before any timeout at t."""
@@ -92,7 +93,6 @@ SEQ_SHIFT = WHO_BITS + KIND_BITS
 # ``j`` fires.
 jit = njit(cache=True)
 
-fs_delay_nb = jit(fs_delay)
 rank_key_nb = jit(rank_key)
 
 
@@ -434,7 +434,7 @@ def _start_action(state, params, i, a, hold):
         state.t_dep[i] = now
         state.length[i] = length
         state.flying[i] = True
-        delay = fs_delay_nb(now, length / params.v_uav, params.dt, params.fs_round_negative_delays)
+        delay = fs_delay(now, length / params.v_uav, params.dt, params.fs_round_negative_delays)
     else:
         x, y = state.pos[i, 0], state.pos[i, 1]
         for j in range(params.n_fires):
@@ -448,7 +448,7 @@ def _start_action(state, params, i, a, hold):
                         _penalise(state, params, j)
                 break
         state.n_holds[i] += 1
-        delay = fs_delay_nb(now, hold, params.dt, params.fs_round_negative_delays)
+        delay = fs_delay(now, hold, params.dt, params.fs_round_negative_delays)
     state.uav_wait[i] = _push(state, delay, NORMAL, ACTION, i)
 
 
@@ -469,8 +469,8 @@ def _replan(state, params, j):
     if state.party[j] == 0:
         state.fire_wait[j] = -1  # idle until the party changes
     else:
-        delay = fs_delay_nb(state.now, state.health[j] / state.party[j], params.dt,
-                            params.fs_round_negative_delays)
+        delay = fs_delay(state.now, state.health[j] / state.party[j], params.dt,
+                         params.fs_round_negative_delays)
         state.fire_wait[j] = _push(state, delay, NORMAL, EXTINGUISH, j)
 
 

@@ -248,24 +248,6 @@ def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
     return np.concatenate(out)
 
 
-def fs_delay(now: float, delay: float, dt: float, round_negative: bool = True) -> float:
-    """The FS replacement of a delay scheduled at ``now``: its end is rounded up to the dT grid,
-    and the delay is at least 0.
-
-    ``dt <= 0`` stands for ED (no rounding). A negative delay (a fire whose health ran out before
-    its rounded extinguish event, re-planned at a party change) is rounded like any other if
-    ``round_negative`` (docs/semantics.md section 3.11, released code: to the grid point at or
-    before now when that is more than now + delay, so at once), else it first counts as 0 (rounded
-    up to the next grid point). Plain float arithmetic, so the numba engine compiles the same
-    operations; a float ceiling, because numba's ``math.ceil`` returns an int64, which overflows (to
-    a delay of 0) once the number of steps passes 2^63.
-    """
-    d = delay if round_negative else max(delay, 0.0)
-    if dt <= 0.0:
-        return max(d, 0.0)
-    return max(0.0, np.ceil((now + d) / dt) * dt - now)
-
-
 def rank_key(distance: float, resolution: float) -> float:
     """What fires are ranked by (ties to the lower index): the distance rounded to multiples of
     ``resolution``, or the distance itself if ``resolution`` is 0. Plain float arithmetic, so the

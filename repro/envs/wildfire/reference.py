@@ -55,9 +55,10 @@ import math
 import numpy as np
 import simpy
 
+from repro.core.fixed_step import fs_delay
 from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episodes,
-                                        fire_positions, fs_delay, rank_key)
+                                        fire_positions, rank_key)
 from repro.envs.wildfire.records import rollout_from_records
 
 class WildfireModel:
