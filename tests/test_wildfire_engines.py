@@ -315,21 +315,3 @@ def test_compiled_policy_with_other_actions_is_called_and_rejected():
     cfg = WildfireConfig()
     with pytest.raises(ValueError, match="integer actions in"):
         make_env(cfg).rollout(_sampler(cfg, 0, n_actions=cfg.n_actions + 3), 2, 0)
-
-
-def test_records_must_come_in_index_order_along_each_path():
-    """Paths may interleave; a path whose decisions come out of order is refused."""
-    from repro.envs.wildfire.records import rollout_from_records
-
-    def records(index):
-        n = len(index)
-        return dict(episode=np.zeros(n, int), agent=np.array([0, 1, 0, 1, 0]),
-                    index=np.array(index), time=np.arange(n, dtype=float),
-                    obs=np.zeros((n, 2)), actions=np.zeros(n, int), rewards=np.zeros(n),
-                    durations=np.ones(n), agent_returns=np.zeros((1, 2)),
-                    end_time=np.zeros(1), events=np.zeros(1, int), truncated=np.zeros(1, bool))
-
-    ro = rollout_from_records(**records([0, 0, 1, 1, 2]))
-    assert ro.path_start.tolist() == [0, 3, 5] and ro.step_index().tolist() == [0, 1, 2, 0, 1]
-    with pytest.raises(ValueError, match="index order"):
-        rollout_from_records(**records([0, 0, 2, 1, 1]))

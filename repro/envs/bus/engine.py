@@ -80,6 +80,7 @@ import numpy as np
 from numba import njit
 
 from repro.core.errors import require
+from repro.core.paths import path_layout
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.bus.params import DECISION_LATENCY, BusConfig
 
@@ -538,16 +539,14 @@ class BusBatch:
     def to_rollout(self) -> Rollout:
         require(bool(self.done.all()), "rollout", "taken after every episode has ended")
         n_dec = self._states["n_dec"]
-        e, n = n_dec.shape
-        lengths = n_dec.reshape(-1)
-        d = int(lengths.sum())
+        path_start, path_episode, path_agent = path_layout(n_dec)
+        d = int(path_start[-1])
         obs, rewards, durations = np.empty((d, OBS_DIM)), np.empty(d), np.empty(d)
         actions = np.empty(d, np.int64)
         _decisions(self._params, self._logs, n_dec, obs, actions, rewards, durations)
         return Rollout(
             obs=obs, actions=actions, rewards=rewards, durations=durations,
-            path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
-            path_episode=np.repeat(np.arange(e), n), path_agent=np.tile(np.arange(n), e),
+            path_start=path_start, path_episode=path_episode, path_agent=path_agent,
             episode_return=self.ep_return, info={"arrivals": _OnFirstUse(self.arrivals)})
 
 
