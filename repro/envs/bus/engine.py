@@ -3,8 +3,8 @@
 It is an exact transcription of the SimPy reference (``reference.py``), event by event. SimPy keeps
 a heap keyed by (time, priority, insertion id) and processes the smallest key first; this engine
 schedules exactly the events SimPy schedules, in the same order, and keeps them in a small array per
-episode sorted by that key, the next event last (at most 2 N events are ever scheduled, so shifting
-a few entries on insertion beats a heap). Neither the priority nor the id need be stored: the only
+episode sorted by that key, the next event last, not in the heap the other engines share
+(:mod:`repro.core.event_queue` says why). Neither the priority nor the id need be stored: the only
 URGENT events are the buses' initialisations, which are also inserted first, and (B5) the start of
 a service process, which SimPy processes right after the event that started it, so it is folded
 into that event; ordering by (time, insertion id) is therefore the same order; and a new event has

@@ -25,23 +25,22 @@ hundreds of thousands of decisions, whose rounds near the end hold one row or a 
 Speed. A rollout of the training batch (600 episodes, about 14,000 decisions and 32,000 events)
 takes about 50 rounds, so the per-event cost dominates. An episode's state is one numpy record (a
 row of a structured array, ``state_dtype``), and so are the parameters (``params_record``) and each
-decision's log row (``log_dtype``): numba hands a record to a function as a bare pointer, whereas
-an array, or every array of a tuple, costs a reference-count update per call. A round visits only
-the live episodes (a list it compacts), each once, and its first read of an episode misses the
-cache, so what tells whether the episode is blocked comes first in the record, and the record is
-small: the hold durations stay in the draws' array, a heap entry is 16 bytes (its time and one
-integer packing priority, sequence number, kind and subject, whose order is the order of
-(priority, sequence)), and the reward of a UAV's running decision accrues in the record. A log
-row is written when its decision is observed (observation, time, ids), gets its action at the
-next round, and is closed (reward, duration) by the UAV's next observation or the episode's end;
-the kernel never reads it back. An observation sorts the fires by distance once and counts the
-interest parties once. The policy reads views of the log's new rows; its answers are
-range-checked in the kernel (numpy's checks cost more than a small round's simulation). At the
-end the rows are placed into paths (:mod:`repro.core.paths`: a row's place is its path's start
-plus its decision number, no sort) and gathered by a compiled loop. The state and the log are
-allocated uninitialised: the kernels write every field before reading it. The hold durations are
-drawn for the whole batch up front (the committed random streams), which costs about a third of a
-rollout without the policy.
+decision's log row (``log_dtype``): numba hands a record to a function as a bare pointer, whereas an
+array, or every array of a tuple, costs a reference-count update per call. A round visits only the
+live episodes (a list it compacts), each once, and its first read of an episode misses the cache, so
+what tells whether the episode is blocked comes first in the record, and the record is small: the
+hold durations stay in the draws' array, a heap entry is 16 bytes (its time and one integer packing
+priority, sequence number, kind and subject, whose order is the order of (priority, sequence):
+:mod:`repro.core.event_queue`), and the reward of a UAV's running decision accrues in the record. A
+log row is written when its decision is observed (observation, time, ids), gets its action at the
+next round, and is closed (reward, duration) by the UAV's next observation or the episode's end; the
+kernel never reads it back. An observation sorts the fires by distance once and counts the interest
+parties once. The policy reads views of the log's new rows; its answers are range-checked in the
+kernel (numpy's checks cost more than a small round's simulation). At the end the rows are placed
+into paths (:mod:`repro.core.paths`: a row's place is its path's start plus its decision number, no
+sort) and gathered by a compiled loop. The state and the log are allocated uninitialised: the
+kernels write every field before reading it. The hold durations are drawn for the whole batch up
+front (the committed random streams), which costs about a third of a rollout without the policy.
 """
 
 from __future__ import annotations
@@ -51,6 +50,8 @@ import math
 import numpy as np
 from numba import njit
 
+from repro.core.event_queue import (NORMAL, URGENT, event_key, heap_pop, heap_push,
+                                    key_fields)
 from repro.core.fixed_step import fs_delay
 from repro.core.paths import path_layout, path_order
 from repro.core.policy_kernel import MAX_ROWS, act_row
@@ -59,8 +60,6 @@ from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OB
                                         OWN_Y, STATUS, EpisodeDraws, WildfireConfig,
                                         draw_episodes, fire_positions, rank_key)
 
-URGENT, NORMAL = 0, 1
-"""SimPy's priorities: an interrupt or a process start at time t comes before any timeout at t."""
 (LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK, ACT_START, INT_ACT, ACT_END, ANY_OF,
  BURN_FAIL, BURN_START, BURN_END, END_HOP) = range(14)
 """Event kinds: decision latency over, macro-action over, fire out, UAV process interrupted (its
@@ -81,13 +80,6 @@ def heap_capacity(cfg: WildfireConfig) -> int:
 def queue_capacity(cfg: WildfireConfig) -> int:
     """Events due now an episode's two now-queues hold each: at most a few per process."""
     return 2 * (cfg.n_agents + len(fire_positions(cfg))) + 8
-
-WHO_BITS, KIND_BITS, PRIO_SHIFT = 20, 4, 62
-"""A heap entry's integer key: priority << 62 | sequence << 24 | kind << 20 | who. Sequence numbers
-are unique within an episode, so comparing keys compares (priority, sequence) as SimPy does; the
-38 bits of the sequence outlast any episode, and who (an agent or fire index) must stay below
-2^20 (params check the number of UAVs)."""
-SEQ_SHIFT = WHO_BITS + KIND_BITS
 
 # Flags inside records are int8 (numba does not support nested boolean arrays); int32 counters and
 # indices keep the state record small. In the kernels ``state`` is an episode's state record,
@@ -136,8 +128,8 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         ("done", np.bool_), ("truncated", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8),
         ("events", i8),
         ("uav_wait", i8, n), ("act", i8, n),
-        # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence; the
-        # now-queues of URGENT and NORMAL events due now (see _push): keys, first, size
+        # the event heap (repro.core.event_queue): key and time; its size; the next sequence;
+        # the now-queues of URGENT and NORMAL events due now (see _push): keys, first, size
         ("heap_key", i8, heap_capacity(cfg)), ("heap_time", f8, heap_capacity(cfg)),
         ("heap_size", i4), ("next_seq", i8),
         ("urgent_queue", i8, queue_capacity(cfg)), ("urgent_head", i4), ("urgent_size", i4),
@@ -171,7 +163,7 @@ def log_dtype(obs_dim: int) -> np.dtype:
                      ("ep", i8), ("agent", i8), ("idx", i8)], align=True)
 
 
-# --- event heap ----------------------------------------------------------------------------------
+# --- event queue ----------------------------------------------------------------------------------
 
 @jit
 def _push(state, delay, prio, kind, who):
@@ -184,9 +176,10 @@ def _push(state, delay, prio, kind, who):
     seq = state.next_seq
     state.next_seq = seq + 1
     t = state.now + delay
-    key = (np.int64(prio) << PRIO_SHIFT) | (seq << SEQ_SHIFT) | (np.int64(kind) << WHO_BITS) | who
+    key = event_key(prio, seq, kind, who)
     if t != state.now:
-        _heap_insert(state, t, key)
+        heap_push(state.heap_time, state.heap_key, state.heap_size, t, key)
+        state.heap_size += 1
     elif prio == URGENT:
         tail = (state.urgent_head + state.urgent_size) % state.urgent_queue.shape[0]
         state.urgent_queue[tail] = key
@@ -196,22 +189,6 @@ def _push(state, delay, prio, kind, who):
         state.normal_queue[tail] = key
         state.normal_size += 1
     return seq
-
-
-@jit
-def _heap_insert(state, t, key):
-    n = state.heap_size
-    state.heap_size = n + 1
-    while n > 0:  # sift the new entry up, moving parents into the hole
-        parent = (n - 1) // 2
-        parent_time = state.heap_time[parent]
-        if parent_time < t or (parent_time == t and state.heap_key[parent] < key):
-            break
-        state.heap_time[n] = parent_time
-        state.heap_key[n] = state.heap_key[parent]
-        n = parent
-    state.heap_time[n] = t
-    state.heap_key[n] = key
 
 
 @jit
@@ -257,36 +234,9 @@ def _pop(state):
         state.normal_head = (state.normal_head + 1) % state.normal_queue.shape[0]
         state.normal_size -= 1
         return state.now, key
-    t0, k0 = state.heap_time[0], state.heap_key[0]
-    n = state.heap_size - 1
-    state.heap_size = n
-    t, key = state.heap_time[n], state.heap_key[n]  # the last entry sifts down from the root
-    i = 0
-    while True:
-        c = 2 * i + 1
-        if c >= n:
-            break
-        if c + 1 < n and (state.heap_time[c + 1] < state.heap_time[c] or
-                          (state.heap_time[c + 1] == state.heap_time[c] and
-                           state.heap_key[c + 1] < state.heap_key[c])):
-            c += 1
-        if t < state.heap_time[c] or (t == state.heap_time[c] and key < state.heap_key[c]):
-            break
-        state.heap_time[i] = state.heap_time[c]
-        state.heap_key[i] = state.heap_key[c]
-        i = c
-    state.heap_time[i] = t
-    state.heap_key[i] = key
-    return t0, k0
-
-
-@jit
-def _unpack(key):
-    """(sequence, kind, who) of a heap key."""
-    who = key & ((1 << WHO_BITS) - 1)
-    kind = (key >> WHO_BITS) & ((1 << KIND_BITS) - 1)
-    seq = (key >> SEQ_SHIFT) & ((np.int64(1) << (PRIO_SHIFT - SEQ_SHIFT)) - 1)
-    return seq, kind, who
+    first = heap_pop(state.heap_time, state.heap_key, state.heap_size)
+    state.heap_size -= 1
+    return first
 
 
 # --- model (mirrors reference.WildfireModel method by method) ------------------------------------
@@ -658,7 +608,7 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
         e = live[1 + q]
         state = states[e]
         while not state.done:
-            seq, kind, who = _unpack(_next_key(state))
+            seq, kind, who = key_fields(_next_key(state))
             if kind == LATENCY and seq == state.uav_wait[who] and state.act[who] < 0:
                 break  # the policy has not decided yet
             if row >= len(log):
@@ -671,7 +621,7 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                 status = HEAP_FULL
                 break
             t, key = _pop(state)
-            seq, kind, who = _unpack(key)
+            seq, kind, who = key_fields(key)
             state.now = t
             state.events += 1
             if kind == LATENCY:

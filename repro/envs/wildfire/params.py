@@ -11,6 +11,7 @@ import numpy as np
 
 from repro.core.config import Validated
 from repro.core.errors import require
+from repro.core.event_queue import MAX_WHO
 from repro.core.rollout import children
 
 # The observation's layout, named once (the engines write it in this order; heuristics, wrappers
@@ -159,8 +160,8 @@ class WildfireConfig(Validated):
         return cls(**{**dict.fromkeys(QUIRKS, False), **fields})
 
     def validate(self) -> None:
-        # the fast engine's event keys hold an agent index in 20 bits
-        require(isinstance(self.n_agents, numbers.Integral) and 1 <= self.n_agents < 2**20,
+        # the fast engine's event keys hold an agent index up to MAX_WHO = 2^20 - 1
+        require(isinstance(self.n_agents, numbers.Integral) and 1 <= self.n_agents <= MAX_WHO,
                 "--n-agents", "an integer from 1 to 2^20 - 1", self.n_agents)
         require(self.t_health > 0 and math.isfinite(self.t_health), "--t-health", "a number > 0",
                 self.t_health)
