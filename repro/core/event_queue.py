@@ -24,7 +24,10 @@ Who uses what, and why:
 - the bus engine: not this heap but an array kept sorted by insertion (``_schedule`` in
   ``repro/envs/bus/engine.py``). At most 2 N (12) events are pending and a new event has the
   largest insertion number, so it is placed by shifting the few events that come later, and
-  neither priority nor sequence need be stored; the next event is the array's last entry.
+  neither priority nor sequence need be stored; the next event is the array's last entry. With
+  this heap instead (tried for issue 25, six alternating runs of ``bench-bus`` each) the engine
+  made 3-4% fewer decisions per CPU second with the learner's policy, in ``rollout`` and the step
+  API, and 3% more with No Holding: training's case decides.
 """
 
 from __future__ import annotations
