@@ -116,12 +116,12 @@ class Outcome:
 # --- Kernels -------------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _take(delays, offsets, nxt, i):
+def _take(delays, offsets, next_draw, i):
     """Agent i's next pre-drawn delay (advancing its cursor), or -1.0 once its stream is used up."""
-    j = nxt[i]
+    j = next_draw[i]
     if j == offsets[i + 1]:
         return -1.0
-    nxt[i] = j + 1
+    next_draw[i] = j + 1
     return delays[j]
 
 
@@ -149,14 +149,14 @@ def _simulate_events(delays, offsets, duration, dt, tie_order):
     seq_time = np.empty(delays.size, np.float64)
     count = np.zeros(n, np.int64)
     score = np.zeros(n, np.int64)
-    nxt = offsets[:-1].copy()
+    next_draw = offsets[:-1].copy()
     # the heap (repro.core.event_queue) holds each agent's one pending event
     times = np.empty(n, np.float64)
     keys = np.empty(n, np.int64)
     size = 0
     scheduled = 0
     for i in range(n):
-        d = _take(delays, offsets, nxt, i)
+        d = _take(delays, offsets, next_draw, i)
         if d >= 0.0:
             heap_push(times, keys, size, fs_time(0.0, d, dt), _key(i, scheduled, tie_order))
             size += 1
@@ -166,7 +166,7 @@ def _simulate_events(delays, offsets, duration, dt, tie_order):
         t = times[0]
         i = key_fields(keys[0])[2]
         n_done = _act(i, t, count, score, seq_agent, seq_time, n_done)
-        d = _take(delays, offsets, nxt, i)
+        d = _take(delays, offsets, next_draw, i)
         if d >= 0.0:  # the agent's next event replaces it
             heap_replace_first(times, keys, size, fs_time(t, d, dt), _key(i, scheduled, tie_order))
             scheduled += 1
@@ -183,10 +183,10 @@ def _simulate_steps(delays, offsets, duration, dt):
     seq_time = np.empty(delays.size, np.float64)
     count = np.zeros(n, np.int64)
     score = np.zeros(n, np.int64)
-    nxt = offsets[:-1].copy()
+    next_draw = offsets[:-1].copy()
     due = np.empty(n, np.float64)  # steps, integer-valued
     for i in range(n):
-        d = _take(delays, offsets, nxt, i)
+        d = _take(delays, offsets, next_draw, i)
         due[i] = NEVER if d < 0.0 else fs_step(0.0, d, dt)
     n_done = 0
     steps = 0
@@ -198,7 +198,7 @@ def _simulate_steps(delays, offsets, duration, dt):
             visits += 1
             while due[i] <= k:  # a zero delay is due again in the same step, as in the heap
                 n_done = _act(i, now, count, score, seq_agent, seq_time, n_done)
-                d = _take(delays, offsets, nxt, i)
+                d = _take(delays, offsets, next_draw, i)
                 due[i] = NEVER if d < 0.0 else fs_step(now, d, dt)
         steps += 1
         k += 1
