@@ -67,7 +67,9 @@ class WildfireConfig(Validated):
     decision_latency: float = 1e-5
     """Time between an observation and the action it leads to (s); never rounded to the grid."""
     at_fire_tol: float = 1e-3
-    """A hold joins the parties of the first fire (by index) closer than this (m)."""
+    """The simulator's "at a fire" distance (m; the released code's): a hold joins the parties of
+    the first fire (by index) closer than this, and Q6 uses it too. Observers of decisions use a
+    looser one, ``policies.OBSERVED_AT_FIRE_TOL``, which says why."""
     n_observed: int = 5
     """Fires in an observation (the closest ones) and fly actions (one per observed fire)."""
     cluster_radius: float = 1.0
