@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from repro.core.errors import UsageError
 from repro.core.rollout import BadActions
 from repro.envs.bus import BusConfig, make_env, make_reference_env
-from repro.envs.bus.engine import drive
+from repro.envs.bus.engine import run_to_end
 from repro.envs.bus.metrics import (arrival_table, record_loads, time_to_regularity,
                                     time_to_uniform)
 from repro.envs.bus.params import SWITCHES
@@ -183,7 +183,7 @@ def test_time_to_uniform():
     assert np.isnan(time_to_uniform(df.assign(h_min=2.0), 6.0))
 
 
-def test_drive_stops_when_all_done():
+def test_run_to_end_stops_when_all_done():
     batch = make_env(CFG).start(2)
-    drive(batch, no_holding)
+    run_to_end(batch, no_holding)
     assert batch.done.all() and len(batch.decisions()) == 0

@@ -99,16 +99,6 @@ def test_engines_agree_with_many_uavs(n_agents):
     assert_same(ref, fast)
 
 
-def test_fs_rounding_does_not_overflow_at_huge_step_counts():
-    """numba's math.ceil returns an int64, which wrapped to a delay of 0 past 2^63 steps."""
-    from repro.envs.wildfire.engine import fs_delay_nb
-    from repro.envs.wildfire.params import fs_delay
-
-    for now, delay, dt in [(100.0, 3.0, 1e-17), (0.5, 2.0, 1e-300), (7.0, 0.4, 1.0)]:
-        assert fs_delay_nb(now, delay, dt) == fs_delay(now, delay, dt)
-        assert fs_delay(now, delay, dt) >= delay - 1e-9
-
-
 class FlyToClosest:
     """Always action 0: once at a fire, every flight is to that fire, takes no time, and the UAV
     decides again after the latency (the regime long ED training drifts into)."""
@@ -325,21 +315,3 @@ def test_compiled_policy_with_other_actions_is_called_and_rejected():
     cfg = WildfireConfig()
     with pytest.raises(ValueError, match="integer actions in"):
         make_env(cfg).rollout(_sampler(cfg, 0, n_actions=cfg.n_actions + 3), 2, 0)
-
-
-def test_records_must_come_in_index_order_along_each_path():
-    """Paths may interleave; a path whose decisions come out of order is refused."""
-    from repro.envs.wildfire.records import rollout_from_records
-
-    def records(index):
-        n = len(index)
-        return dict(episode=np.zeros(n, int), agent=np.array([0, 1, 0, 1, 0]),
-                    index=np.array(index), time=np.arange(n, dtype=float),
-                    obs=np.zeros((n, 2)), actions=np.zeros(n, int), rewards=np.zeros(n),
-                    durations=np.ones(n), agent_returns=np.zeros((1, 2)),
-                    end_time=np.zeros(1), events=np.zeros(1, int), truncated=np.zeros(1, bool))
-
-    ro = rollout_from_records(**records([0, 0, 1, 1, 2]))
-    assert ro.path_start.tolist() == [0, 3, 5] and ro.step_index().tolist() == [0, 1, 2, 0, 1]
-    with pytest.raises(ValueError, match="index order"):
-        rollout_from_records(**records([0, 0, 2, 1, 1]))

@@ -9,7 +9,7 @@ import pytest
 from repro.core.rollout import DecisionBatch
 from repro.envs.wildfire import (EpisodeDraws, WildfireConfig, fire_positions, make_env,
                                  make_reference_env)
-from repro.envs.wildfire.params import SAME_INSTANT_ORDERS, fs_delay
+from repro.envs.wildfire.params import SAME_INSTANT_ORDERS
 
 ENGINES = {"reference": make_reference_env, "fast": make_env}
 HOLD = 5
@@ -57,14 +57,6 @@ def test_fire_layout():
         np.testing.assert_allclose(d[np.triu_indices(3, 1)], 0.02)
     rot = np.array([[-0.5, -np.sqrt(3) / 2], [np.sqrt(3) / 2, -0.5]])
     np.testing.assert_allclose(f[:3] @ rot.T, f[3:6], atol=1e-12)
-
-
-def test_fs_delay_rounds_up_to_the_grid():
-    assert fs_delay(1e-5, 3.0, 1.0) + 1e-5 == pytest.approx(4.0, abs=1e-12)
-    assert fs_delay(1e-5, 2.9999, 1.0) + 1e-5 == pytest.approx(3.0, abs=1e-12)
-    assert fs_delay(2.0, 1.0, 1.0) == 1.0  # already on the grid
-    assert fs_delay(0.5, -0.1, 1.0) == 0.5  # negative delays count as 0
-    assert fs_delay(0.5, 0.25, 0.0) == 0.25  # ED
 
 
 @pytest.mark.parametrize("engine", ENGINES)

@@ -8,7 +8,8 @@ a) pair of every agent is classified (docs/semantics.md section 6.3). With the o
 section 3.6, fire j = the j-th closest observed fire, d_j its distance, s_j its status, I_j its
 interest party size:
 
-- *at a live fire*: d_1 < AT_FIRE_TOL and s_1 = 1 (the UAV sits on its closest fire, which burns);
+- *at a live fire*: d_1 < OBSERVED_AT_FIRE_TOL and s_1 = 1 (the UAV sits on its closest fire,
+  which burns);
 - *other interest*: I_1 - 1 >= 1. The observer is in the interest party of the fire it sits at (it
   flew to it or held at it, see ``repro.envs.wildfire.policies``), so I_1 - 1 UAVs are others;
 - ``hold_shared`` = P(a = hold | at a live fire, other interest);
@@ -18,15 +19,15 @@ interest party size:
   fly action). The target is identified by ranking all nine fires by distance from the UAV's
   observed position, as the engine does; clusters are the blocks of three of ``fire_positions``.
 
-*Stay flights*: a fly action to a fire closer than AT_FIRE_TOL, that is, to the fire the UAV is at.
-It takes no time (in ED; a UAV cut off just short of the fire flies the rest, under 0.07 s), so the
-UAV decides again after the 1e-5 s latency. docs/semantics.md section 6.3 counts them among the fly
-actions, as above. Learned ED policies make many (about half of the decisions of the quick-scale
-policy, 92% of a paper-scale run's at epoch 316), which swamps ``fly_rank_1`` and ``hold_alone``. So
-every frequency is also given without them (suffix ``_ex_stay``), and ``stay_flight`` is their share
-of all decisions. The flowchart's own frequencies are measured the same way
-(``wildfire_behaviour_flowchart.csv``): its ``_ex_stay`` values are the paper's policy, as the
-flowchart encodes it, without stay flights.
+*Stay flights*: a fly action to a fire closer than OBSERVED_AT_FIRE_TOL, that is, to the fire the
+UAV is at. It takes no time (in ED; a UAV cut off just short of the fire flies the rest, under
+0.07 s), so the UAV decides again after the 1e-5 s latency. docs/semantics.md section 6.3 counts
+them among the fly actions, as above. Learned ED policies make many (about half of the decisions of
+the quick-scale policy, 92% of a paper-scale run's at epoch 316), which swamps ``fly_rank_1`` and
+``hold_alone``. So every frequency is also given without them (suffix ``_ex_stay``), and
+``stay_flight`` is their share of all decisions. The flowchart's own frequencies are measured the
+same way (``wildfire_behaviour_flowchart.csv``): its ``_ex_stay`` values are the paper's policy, as
+the flowchart encodes it, without stay flights.
 
 C7: the ``flowchart`` policy (``repro.envs.wildfire.policies.FlowchartPolicy``, the paper's
 probabilities) and each learned policy are tested on the same ED episodes;
@@ -55,7 +56,7 @@ from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import Rollout
 from repro.envs.wildfire import WildfireConfig, fire_positions, make_env
 from repro.envs.wildfire.params import DIST, INTEREST, OWN_X, OWN_Y, STATUS, fire_blocks
-from repro.envs.wildfire.policies import AT_FIRE_TOL, FlowchartPolicy
+from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL, FlowchartPolicy
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -117,11 +118,11 @@ def frequency_counts(rollout: Rollout, env: WildfireConfig) -> dict[str, int]:
     obs, act, k = rollout.obs, rollout.actions, env.n_observed
     block = fire_blocks(obs, k)
     rows = np.arange(len(obs))
-    at_live = (block[:, 0, DIST] < AT_FIRE_TOL) & (block[:, 0, STATUS] > 0.5)
+    at_live = (block[:, 0, DIST] < OBSERVED_AT_FIRE_TOL) & (block[:, 0, STATUS] > 0.5)
     shared = block[:, 0, INTEREST] - 1 >= 1
     hold = act == k
     fly = ~hold
-    stay = fly & (block[rows, np.minimum(act, k - 1), DIST] < AT_FIRE_TOL)
+    stay = fly & (block[rows, np.minimum(act, k - 1), DIST] < OBSERVED_AT_FIRE_TOL)
     dist = np.linalg.norm(obs[:, None, OWN_X:OWN_Y + 1] - fire_positions(env)[None], axis=2)
     order = np.argsort(dist, axis=1, kind="stable")
     target_cluster = order[rows, np.minimum(act, k - 1)] // FIRES_PER_CLUSTER

@@ -24,7 +24,16 @@ class TrainConfig(Validated):
     batch_episodes: int = 50
     """Whole episodes simulated per epoch (the paper counts batches in episodes)."""
     lam: float = 1.0
-    """M-GAE lambda: advantages discount deltas by exp(-gamma lam dt) per macro-action."""
+    """M-GAE's lambda (the paper's lambda), any number >= 0. An advantage weights the residual of a
+    decision made tau seconds later by e^{-gamma lam tau}, the paper's
+
+        A^{M-GAE(gamma, lambda)}_k = sum_l exp(-gamma lam (T_{k+l} - T_k)) delta_{k+l}
+
+    (docs/semantics.md section 5.3): lam scales the continuous-time discount rate, so values above
+    1 are meaningful (later residuals weigh less than in the return; the bus trains with 2). It is
+    not GAE's per-step lambda_d: with every duration 1 s, lambda_d = e^{-gamma (lam - 1)}. Named
+    ``lam`` as ``lambda`` is Python's keyword; the name is serialised (config.json, run names such
+    as ``lam2_batch540_seed0``, ``--lam``), so it stays."""
     max_kl: float = 0.01
     """TRPO max step: bound on the mean KL between consecutive policies."""
     hidden: tuple[int, ...] = (32, 32)

@@ -7,6 +7,7 @@ For one agent's path with rewards r_k, durations dt_k and baseline values V_k = 
     A_k     = sum_l exp(-gamma lam (T_{k+l} - T_k)) delta_{k+l},   T_k = dt_0 + ... + dt_{k-1}
     R_k     = sum_l exp(-gamma (T_{k+l} - T_k)) r_{k+l} + exp(-gamma (T_n - T_k)) V_n
 
+``lam`` is the paper's lambda (:attr:`repro.learn.config.TrainConfig.lam`), which may exceed 1.
 R_k (the discounted return-to-go) is the baseline's regression target. With every dt_k = 1 this is
 standard GAE with discrete discount gamma_d = e^-gamma and gamma_d lambda_d = e^-(gamma lam), i.e.
 lambda_d = e^-(gamma (lam - 1)); in particular lam = 1 gives lambda_d = 1 in both conventions.

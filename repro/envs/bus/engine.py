@@ -3,8 +3,8 @@
 It is an exact transcription of the SimPy reference (``reference.py``), event by event. SimPy keeps
 a heap keyed by (time, priority, insertion id) and processes the smallest key first; this engine
 schedules exactly the events SimPy schedules, in the same order, and keeps them in a small array per
-episode sorted by that key, the next event last (at most 2 N events are ever scheduled, so shifting
-a few entries on insertion beats a heap). Neither the priority nor the id need be stored: the only
+episode sorted by that key, the next event last, not in the heap the other engines share
+(:mod:`repro.core.event_queue` says why). Neither the priority nor the id need be stored: the only
 URGENT events are the buses' initialisations, which are also inserted first, and (B5) the start of
 a service process, which SimPy processes right after the event that started it, so it is folded
 into that event; ordering by (time, insertion id) is therefore the same order; and a new event has
@@ -74,12 +74,13 @@ buffer per stop.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
-from typing import Any
+from typing import Protocol
 
 import numpy as np
 from numba import njit
 
 from repro.core.errors import require
+from repro.core.paths import path_layout
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.bus.params import DECISION_LATENCY, BusConfig
 
@@ -153,291 +154,292 @@ def log_dtype(cfg: BusConfig) -> np.dtype:
 
 
 @jit
-def _schedule(s, t, kind, arg):
+def _schedule(state, t, kind, arg):
     """Insert an event behind every event of time <= t (it has the largest insertion id)."""
-    i = s.n_ev
-    if i == s.ev_time.shape[0]:
+    i = state.n_ev
+    if i == state.ev_time.shape[0]:
         raise RuntimeError("bus engine: more than 2 N events scheduled at once")
-    while i > 0 and s.ev_time[i - 1] <= t:
-        s.ev_time[i] = s.ev_time[i - 1]
-        s.ev_kind[i] = s.ev_kind[i - 1]
-        s.ev_arg[i] = s.ev_arg[i - 1]
+    while i > 0 and state.ev_time[i - 1] <= t:
+        state.ev_time[i] = state.ev_time[i - 1]
+        state.ev_kind[i] = state.ev_kind[i - 1]
+        state.ev_arg[i] = state.ev_arg[i - 1]
         i -= 1
-    s.ev_time[i] = t
-    s.ev_kind[i] = kind
-    s.ev_arg[i] = arg
-    s.n_ev += 1
+    state.ev_time[i] = t
+    state.ev_kind[i] = kind
+    state.ev_arg[i] = arg
+    state.n_ev += 1
 
 
 @jit
-def _grant_stop(s, k, t):
+def _grant_stop(state, k, t):
     """If stop k is free, grant it to the bus that requested it first (a GRANT event at t)."""
-    if s.busy[k]:
+    if state.busy[k]:
         return
     first = -1
-    for b in range(s.stop.shape[0]):
-        if s.ticket[b] >= 0 and s.stop[b] == k and (first < 0 or s.ticket[b] < s.ticket[first]):
+    for b in range(state.stop.shape[0]):
+        if (state.ticket[b] >= 0 and state.stop[b] == k
+                and (first < 0 or state.ticket[b] < state.ticket[first])):
             first = b
     if first >= 0:
-        s.ticket[first] = -1
-        s.busy[k] = 1
-        _schedule(s, t, GRANT, first)
+        state.ticket[first] = -1
+        state.busy[k] = 1
+        _schedule(state, t, GRANT, first)
 
 
 @jit
-def _headway(p, s, b, t):
+def _headway(params, state, b, t):
     """h (s) of bus b getting its stop at t (-1: unknown, under B2). Buses cannot overtake (FIFO
     stops, one travel time for all), so the latest departure from the stop is that of the bus
     ahead, B2's reference, whenever that bus has left the stop in this lap."""
-    dep = s.departed[s.stop[b]]
-    if not p.b2:
+    dep = state.departed[state.stop[b]]
+    if not params.b2:
         return t - max(dep, 0.0)  # the episode start if nobody has left yet
-    if s.n_dec[b] == 0 or dep < 0.0:
+    if state.n_dec[b] == 0 or dep < 0.0:
         return -1.0
     return t - dep
 
 
 @jit
-def _reward(p, k, h, visit):
+def _reward(params, k, h, visit):
     """The reward of an arrival at stop k with headway h (s) at the bus's visit-th stop visit."""
-    if not p.b1:
-        d = h / 60.0 - p.headway
-        return -p.rate[k] * (d * d)  # as the reference: the correctly rounded square
+    if not params.b1:
+        d = h / 60.0 - params.headway
+        return -params.rate[k] * (d * d)  # as the reference: the correctly rounded square
     if h <= 0.0 or visit <= 2:
         return 0.0
-    d = h - p.headway_s
-    return -p.rate_s[k] * (d * d)
+    d = h - params.headway_s
+    return -params.rate_s[k] * (d * d)
 
 
 @jit
-def _arrive(p, s, log, b, t):
+def _arrive(params, state, log, b, t):
     """Bus b gets its stop: headway, reward every agent; observe now, or (B5, after the first visit)
     two same-instant steps later, when the released bus's service process and its wait end."""
-    k = s.stop[b]
-    h = _headway(p, s, b, t)
-    s.h[b] = h
-    r = _reward(p, k, h, s.n_dec[b] + 1)
-    s.ret += r
-    for j in range(s.buffer.shape[0]):
-        s.buffer[j] += np.exp(-p.gamma * (t - s.anchor[j])) * r
-    if p.b5 and s.n_dec[b] > 0 and not _alone_at(s, t):
-        _schedule(s, t, SERVED, b)
+    k = state.stop[b]
+    h = _headway(params, state, b, t)
+    state.h[b] = h
+    reward = _reward(params, k, h, state.n_dec[b] + 1)
+    state.ret += reward
+    for j in range(state.buffer.shape[0]):
+        state.buffer[j] += np.exp(-params.gamma * (t - state.anchor[j])) * reward
+    if params.b5 and state.n_dec[b] > 0 and not _alone_at(state, t):
+        _schedule(state, t, SERVED, b)
     else:
-        _observe(p, s, log, b, t)
+        _observe(params, state, log, b, t)
 
 
 @jit
-def _observe(p, s, log, b, t):
+def _observe(params, state, log, b, t):
     """Bus b observes: close its previous macro-action, await a decision."""
-    log.order[s.n_arr] = b
-    s.n_arr += 1
-    n = s.n_dec[b]
+    log.order[state.n_arr] = b
+    state.n_arr += 1
+    n = state.n_dec[b]
     if n > 0:
-        _close(s, log, b, t)
-    s.obs[b, 0] = s.stop[b]
-    s.obs[b, 1] = s.h[b]
-    s.obs[b, 2] = s.load[b]
-    s.obs[b, 3] = t - s.anchor[b]
-    s.t_obs[b] = t
-    if not p.b5:
-        s.anchor[b] = t
-    s.started[b] = 0
-    s.n_dec[b] = n + 1
-    s.pending[s.n_pending] = b
-    s.n_pending += 1
+        _close(state, log, b, t)
+    state.obs[b, 0] = state.stop[b]
+    state.obs[b, 1] = state.h[b]
+    state.obs[b, 2] = state.load[b]
+    state.obs[b, 3] = t - state.anchor[b]
+    state.t_obs[b] = t
+    if not params.b5:
+        state.anchor[b] = t
+    state.started[b] = 0
+    state.n_dec[b] = n + 1
+    state.pending[state.n_pending] = b
+    state.n_pending += 1
 
 
 @jit
-def _close(s, log, b, t):
+def _close(state, log, b, t):
     """Record bus b's running macro-action, ending at t, and empty its reward buffer."""
-    row = log.dec[b, s.n_dec[b] - 1]
+    row = log.dec[b, state.n_dec[b] - 1]
     for i in range(OBS_DIM):
-        row[i] = s.obs[b, i]
-    row[D_ACTION] = s.action[b]
-    row[D_REWARD] = s.buffer[b]
-    row[D_DURATION] = t - s.anchor[b]
-    row[D_TIME] = s.t_obs[b]
-    s.buffer[b] = 0.0
+        row[i] = state.obs[b, i]
+    row[D_ACTION] = state.action[b]
+    row[D_REWARD] = state.buffer[b]
+    row[D_DURATION] = t - state.anchor[b]
+    row[D_TIME] = state.t_obs[b]
+    state.buffer[b] = 0.0
 
 
 @jit
-def _h_obs(p, h):
+def _h_obs(params, h):
     """The observed headway: seconds under B2, else minutes."""
-    return h if p.b2 else h / 60.0
+    return h if params.b2 else h / 60.0
 
 
 @jit
-def _round(p, x):
-    return np.int64(np.rint(x) if p.b4 else np.floor(x + 0.5))
+def _round(params, x):
+    return np.int64(np.rint(x) if params.b4 else np.floor(x + 0.5))
 
 
 @jit
-def _alight_board(p, k, load, h, visit, t):
+def _alight_board(params, k, load, h, visit, t):
     """Passengers alighting U and boarding B at stop k, given the load and headway h (s) at the
     bus's visit-th stop visit, its service starting at t."""
-    u = _round(p, p.alight[k] * load)
-    if p.b3:
-        bd = _round(p, p.rate_s[k] * (h if visit > 2 else t))
+    u = _round(params, params.alight[k] * load)
+    if params.b3:
+        bd = _round(params, params.rate_s[k] * (h if visit > 2 else t))
     else:
-        bd = _round(p, p.rate[k] * (h / 60.0))
-    return u, min(bd, p.l_max - (load - u))
+        bd = _round(params, params.rate[k] * (h / 60.0))
+    return u, min(bd, params.l_max - (load - u))
 
 
 @jit
-def _serve(p, s, b, t):
+def _serve(params, state, b, t):
     """The action starts: alight, board, and dwell plus hold (a DWELL event; under B5 the hold is
     a timeout of its own after the dwell's)."""
-    if p.b5:
-        s.anchor[b] = t
-    s.started[b] = 1
-    load = s.load[b]
-    u, bd = _alight_board(p, s.stop[b], load, s.h[b], s.n_dec[b], t)
-    s.load[b] = load - u + bd
-    dwell = max(p.t_a * u, p.t_b * bd)
-    if p.b5:
-        if dwell == 0.0 and _alone_at(s, t):
-            _hold(p, s, b, t)
+    if params.b5:
+        state.anchor[b] = t
+    state.started[b] = 1
+    load = state.load[b]
+    u, bd = _alight_board(params, state.stop[b], load, state.h[b], state.n_dec[b], t)
+    state.load[b] = load - u + bd
+    dwell = max(params.t_a * u, params.t_b * bd)
+    if params.b5:
+        if dwell == 0.0 and _alone_at(state, t):
+            _hold(params, state, b, t)
         else:
-            _schedule(s, t + dwell, DWELL, b)
+            _schedule(state, t + dwell, DWELL, b)
     else:
-        _schedule(s, t + (dwell + s.action[b] * p.t_hold), DWELL, b)
+        _schedule(state, t + (dwell + state.action[b] * params.t_hold), DWELL, b)
 
 
 @jit
-def _alone_at(s, t):
+def _alone_at(state, t):
     """No event is scheduled at t (the current time): an event scheduled now at t would be the
     next one processed, so it may be processed at once (same order, fewer steps)."""
-    return s.n_ev == 0 or s.ev_time[s.n_ev - 1] > t
+    return state.n_ev == 0 or state.ev_time[state.n_ev - 1] > t
 
 
 @jit
-def _hold(p, s, b, t):
+def _hold(params, state, b, t):
     """B5: the dwell's timeout is over; the hold's timeout (HOLD), or leave at once if it is 0."""
-    hold = s.action[b] * p.t_hold
-    if hold == 0.0 and _alone_at(s, t):
-        _depart(p, s, b, t)
+    hold = state.action[b] * params.t_hold
+    if hold == 0.0 and _alone_at(state, t):
+        _depart(params, state, b, t)
     else:
-        _schedule(s, t + hold, HOLD, b)
+        _schedule(state, t + hold, HOLD, b)
 
 
 @jit
-def _depart(p, s, b, t):
+def _depart(params, state, b, t):
     """Leave the stop, free it, travel on."""
-    k = s.stop[b]
-    s.departed[k] = t
-    s.busy[k] = 0
-    _schedule(s, t, RELEASE, k)
-    _schedule(s, t + p.rt, TRAVEL, b)
+    k = state.stop[b]
+    state.departed[k] = t
+    state.busy[k] = 0
+    _schedule(state, t, RELEASE, k)
+    _schedule(state, t + params.rt, TRAVEL, b)
 
 
 @jit
-def _end_episode(p, s, log):
+def _end_episode(params, state, log):
     """Cut every running macro-action at the horizon (one whose action has not started yet, under
     B5, lasts 0 s, as in the released code)."""
-    s.done = True
-    for b in range(s.n_dec.shape[0]):
-        if s.n_dec[b] > 0:
-            _close(s, log, b, p.horizon if s.started[b] else s.anchor[b])
+    state.done = True
+    for b in range(state.n_dec.shape[0]):
+        if state.n_dec[b] > 0:
+            _close(state, log, b, params.horizon if state.started[b] else state.anchor[b])
 
 
 @jit
-def _run_episode(p, s, log):
+def _run_episode(params, state, log):
     """Process the episode's events until it is blocked on decisions or reaches the horizon."""
-    n_stop = s.busy.shape[0]
+    n_stop = state.busy.shape[0]
     while True:
-        t = s.ev_time[s.n_ev - 1] if s.n_ev > 0 else np.inf
-        if s.n_pending > 0 and t > s.now:
+        t = state.ev_time[state.n_ev - 1] if state.n_ev > 0 else np.inf
+        if state.n_pending > 0 and t > state.now:
             return  # blocked on decisions
-        if t >= p.horizon:  # includes inf: nothing scheduled
-            _end_episode(p, s, log)
+        if t >= params.horizon:  # includes inf: nothing scheduled
+            _end_episode(params, state, log)
             return
-        s.n_ev -= 1
-        kind = s.ev_kind[s.n_ev]
-        arg = s.ev_arg[s.n_ev]
-        s.now = t
+        state.n_ev -= 1
+        kind = state.ev_kind[state.n_ev]
+        arg = state.ev_arg[state.n_ev]
+        state.now = t
         if kind == INIT or kind == TRAVEL:  # request a stop (the next one after a trip)
             if kind == TRAVEL:
-                s.stop[arg] = (s.stop[arg] + 1) % n_stop
-            s.ticket[arg] = s.next_ticket
-            s.next_ticket += 1
-            _grant_stop(s, s.stop[arg], t)  # a request triggers the queue at once
+                state.stop[arg] = (state.stop[arg] + 1) % n_stop
+            state.ticket[arg] = state.next_ticket
+            state.next_ticket += 1
+            _grant_stop(state, state.stop[arg], t)  # a request triggers the queue at once
         elif kind == RELEASE:
-            _grant_stop(s, arg, t)
+            _grant_stop(state, arg, t)
         elif kind == GRANT:
-            _arrive(p, s, log, arg, t)
+            _arrive(params, state, log, arg, t)
         elif kind == SERVED:
-            _schedule(s, t, WAITED, arg)
+            _schedule(state, t, WAITED, arg)
         elif kind == WAITED:
-            _observe(p, s, log, arg, t)
+            _observe(params, state, log, arg, t)
         elif kind == DECISION or kind == LATENCY:
-            _serve(p, s, arg, t)
-        elif kind == DWELL and p.b5:
-            _hold(p, s, arg, t)
+            _serve(params, state, arg, t)
+        elif kind == DWELL and params.b5:
+            _hold(params, state, arg, t)
         else:  # DWELL without B5, HOLD: depart
-            _depart(p, s, arg, t)
+            _depart(params, state, arg, t)
 
 
 @jit
-def _advance(actions, params, states, logs, obs, ids):
+def _advance(actions, params_array, states, logs, obs, ids):
     """Deliver the actions of the pending decisions, run every episode until it is blocked, and
     gather the new pending decisions into the first rows of ``obs`` and ``ids``.
 
     ``actions`` answer the previous round's rows in order (episode, then arrival order). Returns the
     number of new rows, or -1 if an action is out of range (nothing is changed then).
     """
-    p = params[0]
+    params = params_array[0]
     for i in range(actions.shape[0]):
-        if actions[i] < 0 or actions[i] >= p.n_actions:
+        if actions[i] < 0 or actions[i] >= params.n_actions:
             return -1
     row = 0
     rows = 0
     for e in range(states.shape[0]):
-        s = states[e]
-        if s.done:
+        state = states[e]
+        if state.done:
             continue
-        for q in range(s.n_pending):
-            b = s.pending[q]
-            s.action[b] = actions[row]
+        for q in range(state.n_pending):
+            b = state.pending[q]
+            state.action[b] = actions[row]
             row += 1
             # B5: the DECISION events would be the instant's last, each scheduling its latency
             # timeout and nothing else; so the timeouts are scheduled at once, in the same order
-            if p.b5:
-                _schedule(s, s.now + p.latency, LATENCY, b)
+            if params.b5:
+                _schedule(state, state.now + params.latency, LATENCY, b)
             else:
-                _schedule(s, s.now, DECISION, b)
-        s.n_pending = 0
-        _run_episode(p, s, logs[e])
-        rows = _gather(p, s, e, obs, ids, rows)
+                _schedule(state, state.now, DECISION, b)
+        state.n_pending = 0
+        _run_episode(params, state, logs[e])
+        rows = _gather(params, state, e, obs, ids, rows)
     return rows
 
 
 @jit
-def _gather(p, s, e, obs, ids, rows):
+def _gather(params, state, e, obs, ids, rows):
     """Episode e's pending decisions into rows ``rows``, ... of ``obs`` and ``ids``; returns the
     next free row."""
-    for q in range(s.n_pending):
-        b = s.pending[q]
+    for q in range(state.n_pending):
+        b = state.pending[q]
         for i in range(OBS_DIM):
-            obs[rows, i] = s.obs[b, i]
-        obs[rows, 1] = _h_obs(p, s.obs[b, 1])
+            obs[rows, i] = state.obs[b, i]
+        obs[rows, 1] = _h_obs(params, state.obs[b, 1])
         ids[EPISODE, rows] = e
         ids[AGENT, rows] = b
-        ids[INDEX, rows] = s.n_dec[b] - 1
+        ids[INDEX, rows] = state.n_dec[b] - 1
         rows += 1
     return rows
 
 
 @jit
-def _start(params, states, logs, slots, obs, ids):
+def _start(params_array, states, logs, slots, obs, ids):
     """Run the (freshly initialised) episodes ``slots`` until they are blocked, then gather the
     pending decisions of every episode, in episode order as ``_advance`` does. Returns the number
     of rows."""
-    p = params[0]
+    params = params_array[0]
     for e in slots:
-        _run_episode(p, states[e], logs[e])
+        _run_episode(params, states[e], logs[e])
     rows = 0
     for e in range(states.shape[0]):
-        rows = _gather(p, states[e], e, obs, ids, rows)
+        rows = _gather(params, states[e], e, obs, ids, rows)
     return rows
 
 
@@ -530,24 +532,23 @@ class BusBatch:
         require(bool(self.done.all()), "arrivals", "taken after every episode has ended")
         d = int(self._states["n_arr"].sum())
         time, h = np.empty(d), np.empty(d)
-        ints = np.empty((6, d), np.int64)
-        d = _arrivals(self._params, self._states, self._logs, time, h, ints)
-        return dict(episode=ints[0, :d], time=time[:d], bus=ints[1, :d], stop=ints[2, :d],
-                    h=h[:d], load=ints[3, :d], alight=ints[4, :d], board=ints[5, :d])
+        episode, bus, stop, load, alight, board = np.empty((6, d), np.int64)
+        d = _arrivals(self._params, self._states, self._logs, episode, time, bus, stop, h, load,
+                      alight, board)
+        return dict(episode=episode[:d], time=time[:d], bus=bus[:d], stop=stop[:d], h=h[:d],
+                    load=load[:d], alight=alight[:d], board=board[:d])
 
     def to_rollout(self) -> Rollout:
         require(bool(self.done.all()), "rollout", "taken after every episode has ended")
         n_dec = self._states["n_dec"]
-        e, n = n_dec.shape
-        lengths = n_dec.reshape(-1)
-        d = int(lengths.sum())
+        path_start, path_episode, path_agent = path_layout(n_dec)
+        d = int(path_start[-1])
         obs, rewards, durations = np.empty((d, OBS_DIM)), np.empty(d), np.empty(d)
         actions = np.empty(d, np.int64)
         _decisions(self._params, self._logs, n_dec, obs, actions, rewards, durations)
         return Rollout(
             obs=obs, actions=actions, rewards=rewards, durations=durations,
-            path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
-            path_episode=np.repeat(np.arange(e), n), path_agent=np.tile(np.arange(n), e),
+            path_start=path_start, path_episode=path_episode, path_agent=path_agent,
             episode_return=self.ep_return, info={"arrivals": _OnFirstUse(self.arrivals)})
 
 
@@ -581,10 +582,10 @@ def _gathered(obs: np.ndarray, ids: np.ndarray, rows: int) -> DecisionBatch:
 
 
 @jit
-def _decisions(params, logs, n_dec, obs, actions, rewards, durations):
+def _decisions(params_array, logs, n_dec, obs, actions, rewards, durations):
     """Every closed macro-action's row into the rollout's columns, path by path (a compiled loop:
     numpy's boolean-mask indexing took a quarter of a rollout)."""
-    p = params[0]
+    params = params_array[0]
     o = 0
     for e in range(logs.shape[0]):
         dec = logs[e].dec
@@ -593,7 +594,7 @@ def _decisions(params, logs, n_dec, obs, actions, rewards, durations):
                 row = dec[b, i]
                 for w in range(OBS_DIM):
                     obs[o, w] = row[w]
-                obs[o, 1] = _h_obs(p, row[1])
+                obs[o, 1] = _h_obs(params, row[1])
                 actions[o] = np.int64(row[D_ACTION])
                 rewards[o] = row[D_REWARD]
                 durations[o] = row[D_DURATION]
@@ -601,36 +602,45 @@ def _decisions(params, logs, n_dec, obs, actions, rewards, durations):
 
 
 @jit
-def _arrivals(params, states, logs, time, h, ints):
+def _arrivals(params_array, states, logs, episode, time, bus, stop, h, load, alight, board):
     """Every served visit's fields, from the macro-action its observation started (the bus's next
-    one, in order): ``ints`` rows episode, bus, stop, load, U and B (as ``_serve`` computed them).
-    A last decision whose action never started (B5, at the horizon) served nobody: left out.
-    Returns the number of rows."""
-    p = params[0]
+    one, in order), into the rows of the arrival table's columns (see ``BusBatch.arrivals``; U
+    and B as ``_serve`` computed them). A last decision whose action never started (B5, at the
+    horizon) served nobody: left out. Returns the number of rows."""
+    params = params_array[0]
     o = 0
     for e in range(logs.shape[0]):
-        log, s = logs[e], states[e]
+        log, state = logs[e], states[e]
         seen = np.zeros(log.dec.shape[0], np.int64)
-        for i in range(s.n_arr):
+        for i in range(state.n_arr):
             b = log.order[i]
             row = log.dec[b, seen[b]]
             seen[b] += 1
-            if seen[b] == s.n_dec[b] and not s.started[b]:
+            if seen[b] == state.n_dec[b] and not state.started[b]:
                 continue
-            k, load, h_s = np.int64(row[0]), np.int64(row[2]), row[1]
+            k, load_at_arrival, h_s = np.int64(row[0]), np.int64(row[2]), row[1]
+            episode[o] = e
             time[o] = row[D_TIME]
-            h[o] = np.nan if p.b2 and h_s == -1.0 else h_s / 60.0
-            ints[0, o] = e
-            ints[1, o] = b
-            ints[2, o] = k
-            ints[3, o] = load
-            start = row[D_TIME] + p.latency if p.b5 else row[D_TIME]
-            ints[4, o], ints[5, o] = _alight_board(p, k, load, h_s, seen[b], start)
+            bus[o] = b
+            stop[o] = k
+            h[o] = np.nan if params.b2 and h_s == -1.0 else h_s / 60.0
+            load[o] = load_at_arrival
+            start = row[D_TIME] + params.latency if params.b5 else row[D_TIME]
+            alight[o], board[o] = _alight_board(params, k, load_at_arrival, h_s, seen[b], start)
             o += 1
     return o
 
 
-def drive(batch: Any, policy: Policy) -> None:
+class RoundBatch(Protocol):
+    """A batch of episodes advanced round by round: :class:`BusBatch`, or the SimPy reference's
+    (``BusEnv.batch_type``)."""
+
+    def advance(self, actions: np.ndarray) -> DecisionBatch: ...
+
+    def to_rollout(self) -> Rollout: ...
+
+
+def run_to_end(batch: RoundBatch, policy: Policy) -> None:
     """Run a batch (fast or reference) to the end: one policy call per round."""
     decisions = batch.advance(np.zeros(0, np.int64))
     while len(decisions):
@@ -642,7 +652,7 @@ class BusEnv:
 
     name = "bus"
     obs_dim = OBS_DIM
-    batch_type: type = BusBatch
+    batch_type: type[RoundBatch] = BusBatch
     """The batch class that simulates; the SimPy reference swaps in its own."""
 
     def __init__(self, cfg: BusConfig | None = None):
@@ -651,12 +661,12 @@ class BusEnv:
         self.n_agents = self.cfg.n_buses
         self.gamma = self.cfg.gamma
 
-    def start(self, n_episodes: int):
+    def start(self, n_episodes: int) -> RoundBatch:
         return self.batch_type(self.cfg, n_episodes)
 
     def rollout(self, policy: Policy, n_episodes: int,
                 seed: int | np.random.SeedSequence = 0) -> Rollout:
         """The environment is deterministic, so ``seed`` is unused (only the policy is random)."""
         batch = self.start(n_episodes)
-        drive(batch, policy)
+        run_to_end(batch, policy)
         return batch.to_rollout()

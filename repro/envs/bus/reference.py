@@ -28,6 +28,7 @@ import numpy as np
 import simpy
 
 from repro.core.errors import require
+from repro.core.paths import path_layout
 from repro.core.rollout import DecisionBatch, Rollout, check_actions
 from repro.envs.bus.engine import OBS_DIM, BusEnv
 from repro.envs.bus.params import DECISION_LATENCY, BusConfig
@@ -214,15 +215,14 @@ class ReferenceBatch:
         eps = self.episodes
         n = self.cfg.n_buses
         paths = [(ep, b) for ep in eps for b in range(n)]
-        lengths = [len(ep.actions[b]) for ep, b in paths]
+        path_start, path_episode, path_agent = path_layout(
+            np.array([len(ep.actions[b]) for ep, b in paths]).reshape(len(eps), n))
         return Rollout(
             obs=np.array([o for ep, b in paths for o in ep.obs[b]], float).reshape(-1, OBS_DIM),
             actions=np.array([a for ep, b in paths for a in ep.actions[b]], np.int64),
             rewards=np.array([r for ep, b in paths for r in ep.rewards[b]], float),
             durations=np.array([d for ep, b in paths for d in ep.durations[b]], float),
-            path_start=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
-            path_episode=np.repeat(np.arange(len(eps)), n),
-            path_agent=np.tile(np.arange(n), len(eps)),
+            path_start=path_start, path_episode=path_episode, path_agent=path_agent,
             episode_return=np.array([ep.episode_return for ep in eps]),
             info={"arrivals": self.arrivals()})
 

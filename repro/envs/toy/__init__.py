@@ -30,6 +30,7 @@ import numpy as np
 
 from repro.core.config import Validated
 from repro.core.errors import require
+from repro.core.paths import path_layout
 from repro.core.rollout import DecisionBatch, Policy, Rollout, episode_streams
 
 TRAIN_DEFAULTS = dict(lam=1.0, batch_episodes=50, epochs=40)
@@ -106,14 +107,13 @@ class ToyEnv:
         ends[ee, aa, count - 1] = np.minimum(next_t, horizon)
         valid = np.arange(k_max)[None, None, :] < count[..., None]
         obs_c = contexts[valid]
+        path_start, path_episode, path_agent = path_layout(count)
         return Rollout(
             obs=np.eye(N_CONTEXTS)[obs_c],
             actions=actions[valid],
             rewards=rewards[valid],
             durations=(ends - starts)[valid],
-            path_start=np.concatenate([[0], np.cumsum(count.ravel())]).astype(np.int64),
-            path_episode=ee.ravel().astype(np.int64),
-            path_agent=aa.ravel().astype(np.int64),
+            path_start=path_start, path_episode=path_episode, path_agent=path_agent,
             episode_return=ep_return,
         )
 

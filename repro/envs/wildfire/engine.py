@@ -25,22 +25,22 @@ hundreds of thousands of decisions, whose rounds near the end hold one row or a 
 Speed. A rollout of the training batch (600 episodes, about 14,000 decisions and 32,000 events)
 takes about 50 rounds, so the per-event cost dominates. An episode's state is one numpy record (a
 row of a structured array, ``state_dtype``), and so are the parameters (``params_record``) and each
-decision's log row (``log_dtype``): numba hands a record to a function as a bare pointer, whereas
-an array, or every array of a tuple, costs a reference-count update per call. A round visits only
-the live episodes (a list it compacts), each once, and its first read of an episode misses the
-cache, so what tells whether the episode is blocked comes first in the record, and the record is
-small: the hold durations stay in the draws' array, a heap entry is 16 bytes (its time and one
-integer packing priority, sequence number, kind and subject, whose order is the order of
-(priority, sequence)), and the reward of a UAV's running decision accrues in the record. A log
-row is written when its decision is observed (observation, time, ids), gets its action at the
-next round, and is closed (reward, duration) by the UAV's next observation or the episode's end;
-the kernel never reads it back. An observation sorts the fires by distance once and counts the
-interest parties once. The policy reads views of the log's new rows; its answers are
-range-checked in the kernel (numpy's checks cost more than a small round's simulation). At the
-end a compiled loop places the rows into paths: a row's place is its path's start plus its
-decision number (no sort). The state and the log are allocated uninitialised: the kernels write
-every field before reading it. The hold durations are drawn for the whole batch up front (the
-committed random streams), which costs about a third of a rollout without the policy.
+decision's log row (``log_dtype``): numba hands a record to a function as a bare pointer, whereas an
+array, or every array of a tuple, costs a reference-count update per call. A round visits only the
+live episodes (a list it compacts), each once, and its first read of an episode misses the cache, so
+what tells whether the episode is blocked comes first in the record, and the record is small: the
+hold durations stay in the draws' array, a heap entry is 16 bytes (its time and one integer packing
+priority, sequence number, kind and subject, whose order is the order of (priority, sequence):
+:mod:`repro.core.event_queue`), and the reward of a UAV's running decision accrues in the record. A
+log row is written when its decision is observed (observation, time, ids), gets its action at the
+next round, and is closed (reward, duration) by the UAV's next observation or the episode's end; the
+kernel never reads it back. An observation sorts the fires by distance once and counts the interest
+parties once. The policy reads views of the log's new rows; its answers are range-checked in the
+kernel (numpy's checks cost more than a small round's simulation). At the end the rows are placed
+into paths (:mod:`repro.core.paths`: a row's place is its path's start plus its decision number, no
+sort) and gathered by a compiled loop. The state and the log are allocated uninitialised: the
+kernels write every field before reading it. The hold durations are drawn for the whole batch up
+front (the committed random streams), which costs about a third of a rollout without the policy.
 """
 
 from __future__ import annotations
@@ -50,14 +50,16 @@ import math
 import numpy as np
 from numba import njit
 
+from repro.core.event_queue import (NORMAL, URGENT, event_key, heap_pop, heap_push,
+                                    key_fields)
+from repro.core.fixed_step import fs_delay
+from repro.core.paths import path_layout, path_order
 from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
                                         OWN_Y, STATUS, EpisodeDraws, WildfireConfig,
-                                        draw_episodes, fire_positions, fs_delay, rank_key)
+                                        draw_episodes, fire_positions, rank_key)
 
-URGENT, NORMAL = 0, 1
-"""SimPy's priorities: an interrupt or a process start at time t comes before any timeout at t."""
 (LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK, ACT_START, INT_ACT, ACT_END, ANY_OF,
  BURN_FAIL, BURN_START, BURN_END, END_HOP) = range(14)
 """Event kinds: decision latency over, macro-action over, fire out, UAV process interrupted (its
@@ -79,32 +81,31 @@ def queue_capacity(cfg: WildfireConfig) -> int:
     """Events due now an episode's two now-queues hold each: at most a few per process."""
     return 2 * (cfg.n_agents + len(fire_positions(cfg))) + 8
 
-WHO_BITS, KIND_BITS, PRIO_SHIFT = 20, 4, 62
-"""A heap entry's integer key: priority << 62 | sequence << 24 | kind << 20 | who. Sequence numbers
-are unique within an episode, so comparing keys compares (priority, sequence) as SimPy does; the
-38 bits of the sequence outlast any episode, and who (an agent or fire index) must stay below
-2^20 (params check the number of UAVs)."""
-SEQ_SHIFT = WHO_BITS + KIND_BITS
-
 # Flags inside records are int8 (numba does not support nested boolean arrays); int32 counters and
-# indices keep the state record small.
+# indices keep the state record small. In the kernels ``state`` is an episode's state record,
+# ``params`` the parameters' record, ``record`` a log row; ``e`` indexes episodes, ``i`` UAVs and
+# ``j`` fires.
 jit = njit(cache=True)
 
-fs_delay_nb = jit(fs_delay)
 rank_key_nb = jit(rank_key)
 
 
 def params_record(cfg: WildfireConfig) -> np.ndarray:
-    """The (1,) structured array of the kernels' parameters."""
+    """The (1,) structured array of the kernels' parameters, named as the config's fields
+    (``released_order``: the released same-instant order; ``latency``: the decision latency)."""
     fires = fire_positions(cfg)
     rec = np.zeros(1, np.dtype([
-        ("n_agents", np.int64), ("n_fires", np.int64), ("n_obs", np.int64), ("v", np.float64),
-        ("dt", np.float64), ("latency", np.float64), ("tol", np.float64), ("gamma", np.float64),
-        ("r_ext", np.float64), ("r_pen", np.float64), ("t_health", np.float64),
-        ("t_max", np.float64), ("max_dec", np.int64), ("rank_res", np.float64),
-        ("q1", np.bool_), ("q2", np.bool_), ("q3", np.bool_), ("q4", np.bool_), ("q5", np.bool_),
-        ("q6", np.bool_), ("released", np.bool_), ("round_neg", np.bool_),
-        ("cut_goes_on", np.bool_),
+        ("n_agents", np.int64), ("n_fires", np.int64), ("n_observed", np.int64),
+        ("v_uav", np.float64), ("dt", np.float64), ("latency", np.float64),
+        ("at_fire_tol", np.float64), ("gamma", np.float64), ("r_ext", np.float64),
+        ("r_pen", np.float64), ("t_health", np.float64), ("t_max", np.float64),
+        ("max_decisions", np.int64), ("ranking_resolution", np.float64),
+        ("quirk_q1_stale_attack", np.bool_), ("quirk_q2_penalty_party_only", np.bool_),
+        ("quirk_q3_unclamped_health", np.bool_), ("quirk_q4_latency_not_interrupted", np.bool_),
+        ("quirk_q5_discount_from_action_start", np.bool_),
+        ("quirk_q6_short_flight_stays", np.bool_),
+        ("released_order", np.bool_), ("fs_round_negative_delays", np.bool_),
+        ("cut_flight_continues", np.bool_),
         ("fires", np.float64, fires.shape)], align=True))
     rec[0] = (cfg.n_agents, len(fires), cfg.n_observed, cfg.v_uav, cfg.dt or 0.0,
               cfg.decision_latency, cfg.at_fire_tol, cfg.gamma, cfg.r_ext, cfg.r_pen,
@@ -126,12 +127,13 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # each episode's first visit of a round misses the cache
         ("done", np.bool_), ("truncated", np.bool_), ("n_alive", i4), ("now", f8), ("t_end", f8),
         ("events", i8),
-        ("uwait", i8, n), ("act", i8, n),
-        # the event heap: packed key (see WHO_BITS) and time; its size; the next sequence; the
-        # now-queues of URGENT and NORMAL events due now (see _push): keys, first, size
-        ("hkey", i8, heap_capacity(cfg)), ("ht", f8, heap_capacity(cfg)), ("hn", i4),
-        ("seq", i8), ("qu", i8, queue_capacity(cfg)), ("qu_0", i4), ("qu_n", i4),
-        ("qn", i8, queue_capacity(cfg)), ("qn_0", i4), ("qn_n", i4),
+        ("uav_wait", i8, n), ("act", i8, n),
+        # the event heap (repro.core.event_queue): key and time; its size; the next sequence;
+        # the now-queues of URGENT and NORMAL events due now (see _push): keys, first, size
+        ("heap_key", i8, heap_capacity(cfg)), ("heap_time", f8, heap_capacity(cfg)),
+        ("heap_size", i4), ("next_seq", i8),
+        ("urgent_queue", i8, queue_capacity(cfg)), ("urgent_head", i4), ("urgent_size", i4),
+        ("normal_queue", i8, queue_capacity(cfg)), ("normal_head", i4), ("normal_size", i4),
         # UAV motion
         ("pos", f8, (n, 2)), ("origin", f8, (n, 2)), ("goal", f8, (n, 2)), ("t_dep", f8, n),
         ("length", f8, n), ("flying", i1, n),
@@ -139,14 +141,14 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # it): its log row, time and discounted reward so far
         ("interest", i4, n), ("attacking", i4, n), ("in_party", i1, n), ("n_holds", i4, n),
         ("rank", i4, (n, cfg.n_observed)), ("n_dec", i4, n), ("returns", f8, n),
-        ("cur", i8, n), ("t_obs", f8, n), ("rew", f8, n), ("t_disc", f8, n),
+        ("running_row", i8, n), ("t_obs", f8, n), ("rew", f8, n), ("t_disc", f8, n),
         # when the UAV joined its interest party (a counter: the party's order); whether it waits
         # its latency; whether its action sub-process is alive (released order), and whether the
         # action ended by an interrupt
         ("joined", i8, n), ("joins", i8), ("in_lat", i1, n), ("acting", i1, n), ("cut", i1, n),
         # fires; whether the burn sub-process is alive (released order)
         ("alive", i1, k), ("health", f8, k), ("t_update", f8, k), ("party", i4, k),
-        ("fwait", i8, k), ("burning", i1, k),
+        ("fire_wait", i8, k), ("burning", i1, k),
         # scratch of an observation: the observing UAV's distance to every fire and its ranking
         # key, the fires in ranking order, the size of every fire's interest party
         ("fire_dist", f8, k), ("fire_key", f8, k), ("fire_order", i4, k), ("fire_party", i4, k),
@@ -161,116 +163,80 @@ def log_dtype(obs_dim: int) -> np.dtype:
                      ("ep", i8), ("agent", i8), ("idx", i8)], align=True)
 
 
-# --- event heap ----------------------------------------------------------------------------------
+# --- event queue ----------------------------------------------------------------------------------
 
 @jit
-def _push(s, delay, prio, kind, who):
+def _push(state, delay, prio, kind, who):
     """Schedule an event ``delay`` after now (SimPy: time now + delay); return its sequence.
 
     An event due now goes to the now-queue of its priority, in order, not the heap: every event
     the heap holds for now was scheduled earlier (sequence numbers grow), so SimPy's order at
     now is the URGENT queue, then the heap's events due now (all NORMAL timeouts), then the NORMAL
     queue. The released order's hops and the interrupts all take the queues."""
-    seq = s.seq
-    s.seq = seq + 1
-    t = s.now + delay
-    key = (np.int64(prio) << PRIO_SHIFT) | (seq << SEQ_SHIFT) | (np.int64(kind) << WHO_BITS) | who
-    if t != s.now:
-        _heap_insert(s, t, key)
+    seq = state.next_seq
+    state.next_seq = seq + 1
+    t = state.now + delay
+    key = event_key(prio, seq, kind, who)
+    if t != state.now:
+        heap_push(state.heap_time, state.heap_key, state.heap_size, t, key)
+        state.heap_size += 1
     elif prio == URGENT:
-        s.qu[(s.qu_0 + s.qu_n) % s.qu.shape[0]] = key
-        s.qu_n += 1
+        tail = (state.urgent_head + state.urgent_size) % state.urgent_queue.shape[0]
+        state.urgent_queue[tail] = key
+        state.urgent_size += 1
     else:
-        s.qn[(s.qn_0 + s.qn_n) % s.qn.shape[0]] = key
-        s.qn_n += 1
+        tail = (state.normal_head + state.normal_size) % state.normal_queue.shape[0]
+        state.normal_queue[tail] = key
+        state.normal_size += 1
     return seq
 
 
 @jit
-def _heap_insert(s, t, key):
-    n = s.hn
-    s.hn = n + 1
-    while n > 0:  # sift the new entry up, moving parents into the hole
-        parent = (n - 1) // 2
-        pt = s.ht[parent]
-        if pt < t or (pt == t and s.hkey[parent] < key):
-            break
-        s.ht[n] = pt
-        s.hkey[n] = s.hkey[parent]
-        n = parent
-    s.ht[n] = t
-    s.hkey[n] = key
-
-
-@jit
-def _next_anyway(s, prio):
+def _next_anyway(state, prio):
     """Whether an event pushed now with priority ``prio`` would be the next one: then a hop can
     run at once instead (the released order's chains of hops mostly do, in ED)."""
-    if s.qu_n > 0:
+    if state.urgent_size > 0:
         return False
-    return prio == URGENT or (s.qn_n == 0 and (s.hn == 0 or s.ht[0] > s.now))
+    return prio == URGENT or (state.normal_size == 0 and
+                              (state.heap_size == 0 or state.heap_time[0] > state.now))
 
 
 @jit
-def _next_source(s):
+def _next_source(state):
     """Where the next event is: 0 the URGENT now-queue, 1 the heap, 2 the NORMAL now-queue."""
-    if s.qu_n > 0:
+    if state.urgent_size > 0:
         return 0
-    if s.qn_n > 0 and (s.hn == 0 or s.ht[0] != s.now):
+    if state.normal_size > 0 and (state.heap_size == 0 or state.heap_time[0] != state.now):
         return 2
     return 1
 
 
 @jit
-def _next_key(s):
+def _next_key(state):
     """The key of the next event."""
-    src = _next_source(s)
-    return s.qu[s.qu_0] if src == 0 else s.qn[s.qn_0] if src == 2 else s.hkey[0]
-
-
-@jit
-def _pop(s):
-    """Remove the next event; return its time and key."""
-    src = _next_source(s)
+    src = _next_source(state)
     if src == 0:
-        key = s.qu[s.qu_0]
-        s.qu_0 = (s.qu_0 + 1) % s.qu.shape[0]
-        s.qu_n -= 1
-        return s.now, key
-    if src == 2:
-        key = s.qn[s.qn_0]
-        s.qn_0 = (s.qn_0 + 1) % s.qn.shape[0]
-        s.qn_n -= 1
-        return s.now, key
-    t0, k0 = s.ht[0], s.hkey[0]
-    n = s.hn - 1
-    s.hn = n
-    t, key = s.ht[n], s.hkey[n]  # the last entry sifts down from the root
-    i = 0
-    while True:
-        c = 2 * i + 1
-        if c >= n:
-            break
-        if c + 1 < n and (s.ht[c + 1] < s.ht[c] or
-                          (s.ht[c + 1] == s.ht[c] and s.hkey[c + 1] < s.hkey[c])):
-            c += 1
-        if t < s.ht[c] or (t == s.ht[c] and key < s.hkey[c]):
-            break
-        s.ht[i] = s.ht[c]
-        s.hkey[i] = s.hkey[c]
-        i = c
-    s.ht[i] = t
-    s.hkey[i] = key
-    return t0, k0
+        return state.urgent_queue[state.urgent_head]
+    return state.normal_queue[state.normal_head] if src == 2 else state.heap_key[0]
 
 
 @jit
-def _unpack(key):
-    """(sequence, kind, who) of a heap key."""
-    who = key & ((1 << WHO_BITS) - 1)
-    kind = (key >> WHO_BITS) & ((1 << KIND_BITS) - 1)
-    seq = (key >> SEQ_SHIFT) & ((np.int64(1) << (PRIO_SHIFT - SEQ_SHIFT)) - 1)
-    return seq, kind, who
+def _pop(state):
+    """Remove the next event; return its time and key."""
+    src = _next_source(state)
+    if src == 0:
+        key = state.urgent_queue[state.urgent_head]
+        state.urgent_head = (state.urgent_head + 1) % state.urgent_queue.shape[0]
+        state.urgent_size -= 1
+        return state.now, key
+    if src == 2:
+        key = state.normal_queue[state.normal_head]
+        state.normal_head = (state.normal_head + 1) % state.normal_queue.shape[0]
+        state.normal_size -= 1
+        return state.now, key
+    first = heap_pop(state.heap_time, state.heap_key, state.heap_size)
+    state.heap_size -= 1
+    return first
 
 
 # --- model (mirrors reference.WildfireModel method by method) ------------------------------------
@@ -281,48 +247,49 @@ def _dist(ax, ay, bx, by):
 
 
 @jit
-def _health_now(s, p, j):
-    left = s.health[j] - s.party[j] * (s.now - s.t_update[j])
-    if p.q3:
+def _health_now(state, params, j):
+    left = state.health[j] - state.party[j] * (state.now - state.t_update[j])
+    if params.quirk_q3_unclamped_health:
         return left
-    return max(0.0, left) if s.alive[j] else 0.0
+    return max(0.0, left) if state.alive[j] else 0.0
 
 
 @jit
-def _close(s, r, i):
-    """UAV i's running decision (log row r) ends now."""
-    r.rew = s.rew[i]
-    r.dur = s.now - s.t_obs[i]
+def _close(state, record, i):
+    """UAV i's running decision (its log row ``record``) ends now."""
+    record.rew = state.rew[i]
+    record.dur = state.now - state.t_obs[i]
 
 
 @jit
-def _position(s, p, i):
+def _position(state, params, i):
     """Where UAV i is now: on its flight's segment, or where it landed."""
-    if not s.flying[i]:
-        return s.pos[i, 0], s.pos[i, 1]
-    length = s.length[i]
-    if p.q6 and length < p.tol:
-        return s.origin[i, 0], s.origin[i, 1]
+    if not state.flying[i]:
+        return state.pos[i, 0], state.pos[i, 1]
+    length = state.length[i]
+    if params.quirk_q6_short_flight_stays and length < params.at_fire_tol:
+        return state.origin[i, 0], state.origin[i, 1]
     if length == 0:
-        return s.goal[i, 0], s.goal[i, 1]
-    frac = min(1.0, p.v * (s.now - s.t_dep[i]) / length)
-    return (s.origin[i, 0] + frac * (s.goal[i, 0] - s.origin[i, 0]),
-            s.origin[i, 1] + frac * (s.goal[i, 1] - s.origin[i, 1]))
+        return state.goal[i, 0], state.goal[i, 1]
+    frac = min(1.0, params.v_uav * (state.now - state.t_dep[i]) / length)
+    return (state.origin[i, 0] + frac * (state.goal[i, 0] - state.origin[i, 0]),
+            state.origin[i, 1] + frac * (state.goal[i, 1] - state.origin[i, 1]))
 
 
 @jit
-def _observe(s, p, r, row, e, i):
-    """UAV i observes into log row r (number ``row``) and waits the decision latency."""
-    now = s.now
-    sojourn = now - s.t_obs[i] if s.n_dec[i] > 0 else 0.0
-    x, y = _position(s, p, i)
-    o = r.obs
+def _observe(state, params, record, row, e, i):
+    """UAV i observes into the log row ``record`` (number ``row``) and waits its decision
+    latency."""
+    now = state.now
+    sojourn = now - state.t_obs[i] if state.n_dec[i] > 0 else 0.0
+    x, y = _position(state, params, i)
+    o = record.obs
     o[OWN_X], o[OWN_Y] = x, y
-    dist, key, order, party = s.fire_dist, s.fire_key, s.fire_order, s.fire_party
-    for j in range(p.n_fires):  # insertion sort by (ranking key, index): lower index wins ties
-        d = _dist(x, y, p.fires[j, 0], p.fires[j, 1])
+    dist, key, order, party = state.fire_dist, state.fire_key, state.fire_order, state.fire_party
+    for j in range(params.n_fires):  # insertion sort by (ranking key, index): lower index wins ties
+        d = _dist(x, y, params.fires[j, 0], params.fires[j, 1])
         dist[j] = d
-        kj = rank_key_nb(d, p.rank_res)
+        kj = rank_key_nb(d, params.ranking_resolution)
         key[j] = kj
         at = j
         while at > 0 and key[order[at - 1]] > kj:
@@ -330,404 +297,410 @@ def _observe(s, p, r, row, e, i):
             at -= 1
         order[at] = j
         party[j] = 0
-    for a in range(p.n_agents):
-        if s.interest[a] >= 0:
-            party[s.interest[a]] += 1
-    for k in range(p.n_obs):
+    for a in range(params.n_agents):
+        if state.interest[a] >= 0:
+            party[state.interest[a]] += 1
+    for k in range(params.n_observed):
         best = order[k]
-        s.rank[i, k] = best
+        state.rank[i, k] = best
         base = FIRES + OBS_PER_FIRE * k
         o[base + DIST] = dist[best]
         o[base + LEVEL] = 1.0
         o[base + INTEREST] = party[best]
-        o[base + STATUS] = 1.0 if s.alive[best] else 0.0
-        o[base + HEALTH] = _health_now(s, p, best)
-    o[FIRES + OBS_PER_FIRE * p.n_obs] = sojourn
-    r.time = now
-    r.ep = e
-    r.agent = i
-    r.idx = s.n_dec[i]
-    s.n_dec[i] += 1
-    s.cur[i] = row
-    s.act[i] = -1
-    s.t_obs[i] = now
-    if not p.q5:
-        s.t_disc[i] = now
-    s.rew[i] = 0.0
-    s.in_lat[i] = True
-    s.uwait[i] = _push(s, p.latency, NORMAL, LATENCY, i)
+        o[base + STATUS] = 1.0 if state.alive[best] else 0.0
+        o[base + HEALTH] = _health_now(state, params, best)
+    o[FIRES + OBS_PER_FIRE * params.n_observed] = sojourn
+    record.time = now
+    record.ep = e
+    record.agent = i
+    record.idx = state.n_dec[i]
+    state.n_dec[i] += 1
+    state.running_row[i] = row
+    state.act[i] = -1
+    state.t_obs[i] = now
+    if not params.quirk_q5_discount_from_action_start:
+        state.t_disc[i] = now
+    state.rew[i] = 0.0
+    state.in_lat[i] = True
+    state.uav_wait[i] = _push(state, params.latency, NORMAL, LATENCY, i)
 
 
 @jit
-def _accrue(s, p, i, r):
-    s.rew[i] += math.exp(-p.gamma * (s.now - s.t_disc[i])) * r
-    s.returns[i] += r
+def _accrue(state, params, i, reward):
+    state.rew[i] += math.exp(-params.gamma * (state.now - state.t_disc[i])) * reward
+    state.returns[i] += reward
 
 
 @jit
-def _party_change(s, p, j, delta):
-    if not s.alive[j]:
+def _party_change(state, params, j, delta):
+    if not state.alive[j]:
         return
-    now = s.now
-    s.health[j] = s.health[j] - s.party[j] * (now - s.t_update[j])
-    s.t_update[j] = now
-    s.party[j] += delta
-    if not p.released:
-        _push(s, 0.0, URGENT, INT_FIRE, j)
-    elif s.burning[j]:  # else it ended at this instant: the fire goes out all the same
-        _push(s, 0.0, URGENT, INT_FIRE, j)
+    now = state.now
+    state.health[j] = state.health[j] - state.party[j] * (now - state.t_update[j])
+    state.t_update[j] = now
+    state.party[j] += delta
+    if not params.released_order:
+        _push(state, 0.0, URGENT, INT_FIRE, j)
+    elif state.burning[j]:  # else it ended at this instant: the fire goes out all the same
+        _push(state, 0.0, URGENT, INT_FIRE, j)
 
 
 @jit
-def _penalise(s, p, j):
-    if s.party[j] < 2:
+def _penalise(state, params, j):
+    if state.party[j] < 2:
         return
-    for i in range(p.n_agents):
-        member = s.in_party[i] and s.attacking[i] == j
-        if member or not p.q2:
-            _accrue(s, p, i, p.r_pen)
+    for i in range(params.n_agents):
+        member = state.in_party[i] and state.attacking[i] == j
+        if member or not params.quirk_q2_penalty_party_only:
+            _accrue(state, params, i, params.r_pen)
 
 
 @jit
-def _join_interest(s, i, j):
-    s.interest[i] = j
-    s.joined[i] = s.joins
-    s.joins += 1
+def _join_interest(state, i, j):
+    state.interest[i] = j
+    state.joined[i] = state.joins
+    state.joins += 1
 
 
 @jit
-def _start_action(s, p, i, a, hold):
+def _start_action(state, params, i, a, hold):
     """UAV i starts action a; ``hold`` is its next hold duration (used if a holds)."""
-    now = s.now
-    if p.q5:
-        s.t_disc[i] = now
-    _land(s, p, i, True)  # a cut flight that went on until now
-    s.interest[i] = -1
-    if a < p.n_obs:
-        target = s.rank[i, a]
-        _join_interest(s, i, target)
-        if s.in_party[i]:
-            s.in_party[i] = False
-            _party_change(s, p, s.attacking[i], -1)
-        if not p.q1:
-            s.attacking[i] = -1
-        ox, oy = s.pos[i, 0], s.pos[i, 1]
-        gx, gy = p.fires[target, 0], p.fires[target, 1]
+    now = state.now
+    if params.quirk_q5_discount_from_action_start:
+        state.t_disc[i] = now
+    _land(state, params, i, True)  # a cut flight that went on until now
+    state.interest[i] = -1
+    if a < params.n_observed:
+        target = state.rank[i, a]
+        _join_interest(state, i, target)
+        if state.in_party[i]:
+            state.in_party[i] = False
+            _party_change(state, params, state.attacking[i], -1)
+        if not params.quirk_q1_stale_attack:
+            state.attacking[i] = -1
+        ox, oy = state.pos[i, 0], state.pos[i, 1]
+        gx, gy = params.fires[target, 0], params.fires[target, 1]
         length = _dist(ox, oy, gx, gy)
-        s.origin[i, 0], s.origin[i, 1] = ox, oy
-        s.goal[i, 0], s.goal[i, 1] = gx, gy
-        s.t_dep[i] = now
-        s.length[i] = length
-        s.flying[i] = True
-        d = fs_delay_nb(now, length / p.v, p.dt, p.round_neg)
+        state.origin[i, 0], state.origin[i, 1] = ox, oy
+        state.goal[i, 0], state.goal[i, 1] = gx, gy
+        state.t_dep[i] = now
+        state.length[i] = length
+        state.flying[i] = True
+        delay = fs_delay(now, length / params.v_uav, params.dt, params.fs_round_negative_delays)
     else:
-        x, y = s.pos[i, 0], s.pos[i, 1]
-        for j in range(p.n_fires):
-            if _dist(x, y, p.fires[j, 0], p.fires[j, 1]) < p.tol:
-                _join_interest(s, i, j)
-                if s.attacking[i] != j:
-                    s.attacking[i] = j
-                    if s.alive[j]:
-                        s.in_party[i] = True
-                        _party_change(s, p, j, 1)
-                        _penalise(s, p, j)
+        x, y = state.pos[i, 0], state.pos[i, 1]
+        for j in range(params.n_fires):
+            if _dist(x, y, params.fires[j, 0], params.fires[j, 1]) < params.at_fire_tol:
+                _join_interest(state, i, j)
+                if state.attacking[i] != j:
+                    state.attacking[i] = j
+                    if state.alive[j]:
+                        state.in_party[i] = True
+                        _party_change(state, params, j, 1)
+                        _penalise(state, params, j)
                 break
-        s.n_holds[i] += 1
-        d = fs_delay_nb(now, hold, p.dt, p.round_neg)
-    s.uwait[i] = _push(s, d, NORMAL, ACTION, i)
+        state.n_holds[i] += 1
+        delay = fs_delay(now, hold, params.dt, params.fs_round_negative_delays)
+    state.uav_wait[i] = _push(state, delay, NORMAL, ACTION, i)
 
 
 @jit
-def _land(s, p, i, cut):
+def _land(state, params, i, cut):
     """The flight ends now: at its goal if it finished, else where it got to."""
-    if not s.flying[i]:
+    if not state.flying[i]:
         return
-    if cut or (p.q6 and s.length[i] < p.tol):
-        s.pos[i, 0], s.pos[i, 1] = _position(s, p, i)
+    if cut or (params.quirk_q6_short_flight_stays and state.length[i] < params.at_fire_tol):
+        state.pos[i, 0], state.pos[i, 1] = _position(state, params, i)
     else:
-        s.pos[i, 0], s.pos[i, 1] = s.goal[i, 0], s.goal[i, 1]
-    s.flying[i] = False
+        state.pos[i, 0], state.pos[i, 1] = state.goal[i, 0], state.goal[i, 1]
+    state.flying[i] = False
 
 
 @jit
-def _replan(s, p, j):
-    if s.party[j] == 0:
-        s.fwait[j] = -1  # idle until the party changes
+def _replan(state, params, j):
+    if state.party[j] == 0:
+        state.fire_wait[j] = -1  # idle until the party changes
     else:
-        d = fs_delay_nb(s.now, s.health[j] / s.party[j], p.dt, p.round_neg)
-        s.fwait[j] = _push(s, d, NORMAL, EXTINGUISH, j)
+        delay = fs_delay(state.now, state.health[j] / state.party[j], params.dt,
+                         params.fs_round_negative_delays)
+        state.fire_wait[j] = _push(state, delay, NORMAL, EXTINGUISH, j)
 
 
 @jit
-def _interrupt(s, p, i):
+def _interrupt(state, params, i):
     """A fire UAV i is interested in went out."""
-    if s.in_lat[i]:
-        if not p.q4:
-            _push(s, 0.0, URGENT, INT_UAV, i)  # drop the pending decision
-    elif not p.released:
-        _push(s, 0.0, URGENT, INT_UAV, i)
-    elif s.acting[i]:  # else it ended at this instant: the UAV will observe
-        _push(s, 0.0, URGENT, INT_ACT, i)
+    if state.in_lat[i]:
+        if not params.quirk_q4_latency_not_interrupted:
+            _push(state, 0.0, URGENT, INT_UAV, i)  # drop the pending decision
+    elif not params.released_order:
+        _push(state, 0.0, URGENT, INT_UAV, i)
+    elif state.acting[i]:  # else it ended at this instant: the UAV will observe
+        _push(state, 0.0, URGENT, INT_ACT, i)
 
 
 @jit
-def _extinguish(s, p, j):
-    s.alive[j] = False
-    s.n_alive -= 1
-    for i in range(p.n_agents):
-        _accrue(s, p, i, p.r_ext)
-    if p.released:  # in the order they joined the interest party
+def _extinguish(state, params, j):
+    state.alive[j] = False
+    state.n_alive -= 1
+    for i in range(params.n_agents):
+        _accrue(state, params, i, params.r_ext)
+    if params.released_order:  # in the order they joined the interest party
         last = np.int64(-1)
         while True:
             nxt, first = -1, np.int64(0)
-            for i in range(p.n_agents):
-                if s.interest[i] == j and s.joined[i] > last and (nxt < 0 or s.joined[i] < first):
-                    nxt, first = i, s.joined[i]
+            for i in range(params.n_agents):
+                if (state.interest[i] == j and state.joined[i] > last
+                        and (nxt < 0 or state.joined[i] < first)):
+                    nxt, first = i, state.joined[i]
             if nxt < 0:
                 break
-            _interrupt(s, p, nxt)
+            _interrupt(state, params, nxt)
             last = first
     else:
-        for i in range(p.n_agents):
-            if s.interest[i] == j:
-                _interrupt(s, p, i)
+        for i in range(params.n_agents):
+            if state.interest[i] == j:
+                _interrupt(state, params, i)
 
 
 @jit
-def _fire_out(s, log, p, j):
+def _fire_out(state, log, params, j):
     """Released order: fire j's burn sub-process ended, the fire goes out; after the last one the
     conditions "fire out", "all out", "all out or T_max" trigger in turn."""
-    _extinguish(s, p, j)
-    if s.n_alive == 0:
-        _push(s, 0.0, NORMAL, END_HOP, 2)
+    _extinguish(state, params, j)
+    if state.n_alive == 0:
+        _push(state, 0.0, NORMAL, END_HOP, 2)
 
 
 @jit
-def _end(s, log, p):
+def _end(state, log, params):
     """The episode ends now: every UAV's running decision closes."""
-    s.done = True
-    s.t_end = s.now
-    for i in range(p.n_agents):
-        _close(s, log[s.cur[i]], i)
+    state.done = True
+    state.t_end = state.now
+    for i in range(params.n_agents):
+        _close(state, log[state.running_row[i]], i)
 
 
 @jit
-def _act(s, p, holds, e, i):
+def _act(state, params, holds, e, i):
     """UAV i starts the action the policy gave it."""
-    a = s.act[i]
-    hold = holds[e, i, s.n_holds[i] % holds.shape[2]] if a == p.n_obs else 0.0
-    _start_action(s, p, i, a, hold)
+    a = state.act[i]
+    hold = holds[e, i, state.n_holds[i] % holds.shape[2]] if a == params.n_observed else 0.0
+    _start_action(state, params, i, a, hold)
 
 
 @jit
-def _to_uav(s, log, p, e, row, i, hops):
+def _to_uav(state, log, params, e, row, i, hops):
     """The end of UAV i's macro-action reaches it ``hops`` NORMAL events later (2: the action
     sub-process ending, then the AnyOf; 1: the AnyOf). Returns the next free row."""
-    if _next_anyway(s, NORMAL):
-        s.events += hops
-        return _macro_action_over(s, log, p, e, row, i, s.cut[i])
-    _push(s, 0.0, NORMAL, ACT_END if hops == 2 else ANY_OF, i)
+    if _next_anyway(state, NORMAL):
+        state.events += hops
+        return _macro_action_over(state, log, params, e, row, i, state.cut[i])
+    _push(state, 0.0, NORMAL, ACT_END if hops == 2 else ANY_OF, i)
     return row
 
 
 @jit
-def _burn_restarts(s, p, j, hops):
+def _burn_restarts(state, params, j, hops):
     """Fire j's failed burn sub-process restarts ``hops`` events later (2: its failure, NORMAL,
     then its start, URGENT; 1: the start)."""
-    if _next_anyway(s, NORMAL if hops == 2 else URGENT):
-        s.events += hops
-        s.burning[j] = True
-        _replan(s, p, j)
+    if _next_anyway(state, NORMAL if hops == 2 else URGENT):
+        state.events += hops
+        state.burning[j] = True
+        _replan(state, params, j)
     else:
-        _push(s, 0.0, NORMAL if hops == 2 else URGENT, BURN_FAIL if hops == 2 else BURN_START, j)
+        _push(state, 0.0, NORMAL if hops == 2 else URGENT,
+              BURN_FAIL if hops == 2 else BURN_START, j)
 
 
 @jit
-def _macro_action_over(s, log, p, e, row, i, cut):
+def _macro_action_over(state, log, params, e, row, i, cut):
     """UAV i's macro-action ended (cut: by an interrupt): it observes again (log row ``row``),
     unless that was its last allowed decision; returns the next free row."""
-    if not (cut and p.cut_goes_on):
-        _land(s, p, i, cut)
-    _close(s, log[s.cur[i]], i)
-    if s.n_dec[i] == p.max_dec:  # 0 (no limit) never: n_dec >= 1 here
-        s.truncated = True
-        _end(s, log, p)
+    if not (cut and params.cut_flight_continues):
+        _land(state, params, i, cut)
+    _close(state, log[state.running_row[i]], i)
+    if state.n_dec[i] == params.max_decisions:  # 0 (no limit) never: n_dec >= 1 here
+        state.truncated = True
+        _end(state, log, params)
         return row
-    _observe(s, p, log[row], row, e, i)
+    _observe(state, params, log[row], row, e, i)
     return row + 1
 
 
 # --- kernels -------------------------------------------------------------------------------------
 
 @jit
-def _setup(states, log, used, params, starts, slots):
+def _setup(states, log, used, params_array, starts, slots):
     """Every field of the (uninitialised) states of episodes ``slots`` (their UAVs start at
     ``starts``, in that order), then time 0: every UAV observes (in index order), and the T_max
     clock starts (in the released order before, as the released code creates it before running
     its processes)."""
-    p = params[0]
+    params = params_array[0]
     row = used[0]
-    for j in range(len(slots)):
-        e = slots[j]
-        s = states[e]
-        s.now = 0.0
-        s.t_end = np.nan
-        s.events = 0
-        s.done = False
-        s.truncated = False
-        s.n_alive = p.n_fires
-        s.hn = 0
-        s.seq = 0
-        s.qu_0 = s.qu_n = s.qn_0 = s.qn_n = 0
-        s.joins = 0
-        for i in range(p.n_agents):
-            s.pos[i, 0], s.pos[i, 1] = starts[j, i, 0], starts[j, i, 1]
-            s.flying[i] = False  # origin, goal, t_dep and length are set on take-off
-            s.interest[i] = -1
-            s.attacking[i] = -1
-            s.in_party[i] = False
-            s.n_holds[i] = 0
-            s.n_dec[i] = 0
-            s.uwait[i] = -1
-            s.joined[i] = 0
-            s.acting[i] = False
-            s.cut[i] = False
-            s.t_disc[i] = 0.0
-            s.returns[i] = 0.0  # rank, cur, t_obs, rew, in_lat: set by the first observation
-        for j in range(p.n_fires):
-            s.alive[j] = True
-            s.health[j] = p.t_health
-            s.t_update[j] = 0.0
-            s.party[j] = 0
-            s.fwait[j] = -1
-            s.burning[j] = True  # the burn sub-process waits for a party
-        if p.released:
-            _push(s, p.t_max, NORMAL, CLOCK, 0)
-        for i in range(p.n_agents):
-            _observe(s, p, log[row], row, e, i)
+    for slot in range(len(slots)):
+        e = slots[slot]
+        state = states[e]
+        state.now = 0.0
+        state.t_end = np.nan
+        state.events = 0
+        state.done = False
+        state.truncated = False
+        state.n_alive = params.n_fires
+        state.heap_size = 0
+        state.next_seq = 0
+        state.urgent_head = state.urgent_size = state.normal_head = state.normal_size = 0
+        state.joins = 0
+        for i in range(params.n_agents):
+            state.pos[i, 0], state.pos[i, 1] = starts[slot, i, 0], starts[slot, i, 1]
+            state.flying[i] = False  # origin, goal, t_dep and length are set on take-off
+            state.interest[i] = -1
+            state.attacking[i] = -1
+            state.in_party[i] = False
+            state.n_holds[i] = 0
+            state.n_dec[i] = 0
+            state.uav_wait[i] = -1
+            state.joined[i] = 0
+            state.acting[i] = False
+            state.cut[i] = False
+            state.t_disc[i] = 0.0
+            # rank, running_row, t_obs, rew, in_lat: set by the first observation
+            state.returns[i] = 0.0
+        for j in range(params.n_fires):
+            state.alive[j] = True
+            state.health[j] = params.t_health
+            state.t_update[j] = 0.0
+            state.party[j] = 0
+            state.fire_wait[j] = -1
+            state.burning[j] = True  # the burn sub-process waits for a party
+        if params.released_order:
+            _push(state, params.t_max, NORMAL, CLOCK, 0)
+        for i in range(params.n_agents):
+            _observe(state, params, log[row], row, e, i)
             row += 1
-        if not p.released:
-            _push(s, p.t_max, NORMAL, CLOCK, 0)
+        if not params.released_order:
+            _push(state, params.t_max, NORMAL, CLOCK, 0)
     used[0] = row
 
 
 @jit
-def _advance(states, live, log, used, params, holds, actions, first):
+def _advance(states, live, log, used, params_array, holds, actions, first):
     """Record the actions of log rows first, first + 1, ...; then run every live episode until it is
     blocked (its next event is the end of a decision latency whose action is still -1) or over, or
     until the log or a heap is full. Returns the status and the first row now without an action.
     BAD_ACTION, and nothing changed, if an action is out of range (checked here: numpy's checks cost
     more than a small round's simulation). ``live[0]`` episodes are live, ``live[1:]`` (in order);
     those that end leave the list, so later rounds do not visit them."""
-    p = params[0]
+    params = params_array[0]
     for k in range(len(actions)):
-        if actions[k] < 0 or actions[k] > p.n_obs:  # the actions are 0..n_obs
+        if actions[k] < 0 or actions[k] > params.n_observed:  # the actions are 0..n_observed
             return BAD_ACTION, first
     for k in range(len(actions)):
-        r = log[first + k]
-        r.act = actions[k]
-        s = states[r.ep]
-        if s.cur[r.agent] == first + k:  # else superseded: its latency's end is stale
-            s.act[r.agent] = actions[k]
+        record = log[first + k]
+        record.act = actions[k]
+        state = states[record.ep]
+        # else superseded: the end of its latency is stale
+        if state.running_row[record.agent] == first + k:
+            state.act[record.agent] = actions[k]
     row = used[0]
     status = OK
     n_live = 0
     for q in range(live[0]):
         e = live[1 + q]
-        s = states[e]
-        while not s.done:
-            sq, kind, who = _unpack(_next_key(s))
-            if kind == LATENCY and sq == s.uwait[who] and s.act[who] < 0:
+        state = states[e]
+        while not state.done:
+            seq, kind, who = key_fields(_next_key(state))
+            if kind == LATENCY and seq == state.uav_wait[who] and state.act[who] < 0:
                 break  # the policy has not decided yet
             if row >= len(log):
                 status = GROW_LOG
                 break
-            room = p.n_agents + 3  # what one event may push, at most
-            if (s.hn + room > s.hkey.shape[0] or s.qu_n + room > s.qu.shape[0]
-                    or s.qn_n + room > s.qn.shape[0]):
+            room = params.n_agents + 3  # what one event may push, at most
+            if (state.heap_size + room > state.heap_key.shape[0]
+                    or state.urgent_size + room > state.urgent_queue.shape[0]
+                    or state.normal_size + room > state.normal_queue.shape[0]):
                 status = HEAP_FULL
                 break
-            t, key = _pop(s)
-            sq, kind, who = _unpack(key)
-            s.now = t
-            s.events += 1
+            t, key = _pop(state)
+            seq, kind, who = key_fields(key)
+            state.now = t
+            state.events += 1
             if kind == LATENCY:
-                if sq == s.uwait[who]:
-                    s.in_lat[who] = False
-                    if not p.released:
-                        _act(s, p, holds, e, who)
+                if seq == state.uav_wait[who]:
+                    state.in_lat[who] = False
+                    if not params.released_order:
+                        _act(state, params, holds, e, who)
                     else:  # the action sub-process starts
-                        s.acting[who] = True
-                        if _next_anyway(s, URGENT):
-                            s.events += 1
-                            _act(s, p, holds, e, who)
+                        state.acting[who] = True
+                        if _next_anyway(state, URGENT):
+                            state.events += 1
+                            _act(state, params, holds, e, who)
                         else:
-                            _push(s, 0.0, URGENT, ACT_START, who)
+                            _push(state, 0.0, URGENT, ACT_START, who)
             elif kind == ACT_START:
-                _act(s, p, holds, e, who)
+                _act(state, params, holds, e, who)
             elif kind == ACTION:
-                if sq == s.uwait[who]:
-                    if p.released:  # the sub-process ends
-                        s.acting[who] = False
-                        s.cut[who] = False
-                        row = _to_uav(s, log, p, e, row, who, 2)
+                if seq == state.uav_wait[who]:
+                    if params.released_order:  # the sub-process ends
+                        state.acting[who] = False
+                        state.cut[who] = False
+                        row = _to_uav(state, log, params, e, row, who, 2)
                     else:
-                        row = _macro_action_over(s, log, p, e, row, who, False)
+                        row = _macro_action_over(state, log, params, e, row, who, False)
             elif kind == INT_UAV:
-                row = _macro_action_over(s, log, p, e, row, who, True)
+                row = _macro_action_over(state, log, params, e, row, who, True)
             elif kind == INT_ACT:
-                if s.acting[who]:  # the sub-process fails
-                    s.acting[who] = False
-                    s.cut[who] = True
-                    s.uwait[who] = -1
-                    row = _to_uav(s, log, p, e, row, who, 2)
+                if state.acting[who]:  # the sub-process fails
+                    state.acting[who] = False
+                    state.cut[who] = True
+                    state.uav_wait[who] = -1
+                    row = _to_uav(state, log, params, e, row, who, 2)
             elif kind == ACT_END:
-                row = _to_uav(s, log, p, e, row, who, 1)
+                row = _to_uav(state, log, params, e, row, who, 1)
             elif kind == ANY_OF:
-                row = _macro_action_over(s, log, p, e, row, who, s.cut[who])
+                row = _macro_action_over(state, log, params, e, row, who, state.cut[who])
             elif kind == EXTINGUISH:
-                if sq == s.fwait[who]:
-                    if not p.released:
-                        _extinguish(s, p, who)
-                        if s.n_alive == 0:
-                            _end(s, log, p)
+                if seq == state.fire_wait[who]:
+                    if not params.released_order:
+                        _extinguish(state, params, who)
+                        if state.n_alive == 0:
+                            _end(state, log, params)
                     else:  # the burn sub-process ends
-                        s.burning[who] = False
-                        if _next_anyway(s, NORMAL):
-                            s.events += 1
-                            _fire_out(s, log, p, who)
+                        state.burning[who] = False
+                        if _next_anyway(state, NORMAL):
+                            state.events += 1
+                            _fire_out(state, log, params, who)
                         else:
-                            _push(s, 0.0, NORMAL, BURN_END, who)
+                            _push(state, 0.0, NORMAL, BURN_END, who)
             elif kind == BURN_END:
-                _fire_out(s, log, p, who)
+                _fire_out(state, log, params, who)
             elif kind == INT_FIRE:
-                if p.released:
-                    if s.burning[who]:  # the burn sub-process fails
-                        s.burning[who] = False
-                        s.fwait[who] = -1
-                        _burn_restarts(s, p, who, 2)
-                elif s.alive[who]:
-                    _replan(s, p, who)
+                if params.released_order:
+                    if state.burning[who]:  # the burn sub-process fails
+                        state.burning[who] = False
+                        state.fire_wait[who] = -1
+                        _burn_restarts(state, params, who, 2)
+                elif state.alive[who]:
+                    _replan(state, params, who)
             elif kind == BURN_FAIL:  # the fire restarts its burn sub-process
-                _burn_restarts(s, p, who, 1)
+                _burn_restarts(state, params, who, 1)
             elif kind == BURN_START:
-                s.burning[who] = True
-                _replan(s, p, who)
+                state.burning[who] = True
+                _replan(state, params, who)
             elif kind == END_HOP:
                 if who > 0:
-                    _push(s, 0.0, NORMAL, END_HOP, who - 1)
+                    _push(state, 0.0, NORMAL, END_HOP, who - 1)
                 else:
-                    _end(s, log, p)
-            elif p.released:  # CLOCK: then the condition "all out or T_max"
-                _push(s, 0.0, NORMAL, END_HOP, 0)
+                    _end(state, log, params)
+            elif params.released_order:  # CLOCK: then the condition "all out or T_max"
+                _push(state, 0.0, NORMAL, END_HOP, 0)
             else:
-                _end(s, log, p)
-        if not s.done:
+                _end(state, log, params)
+        if not state.done:
             live[1 + n_live] = e
             n_live += 1
         if status != OK:  # keep the episodes not visited
-            for r in range(q + 1, live[0]):
-                live[1 + n_live] = live[1 + r]
+            for rest in range(q + 1, live[0]):
+                live[1 + n_live] = live[1 + rest]
                 n_live += 1
             break
     live[0] = n_live
@@ -736,8 +709,8 @@ def _advance(states, live, log, used, params, holds, actions, first):
 
 
 @jit
-def _act_and_advance(states, live, log, used, params, holds, first, weights, biases, mean, scale,
-                     rng):
+def _act_and_advance(states, live, log, used, params_array, holds, first, weights, biases, mean,
+                     scale, rng):
     """Act on the pending round of at most MAX_ROWS decisions as the policy's call would (its
     last five arguments: a CompiledPolicy) and :func:`_advance`; repeat while the next round is as
     small. Long episodes end in many rounds of a row or a few, each a return to Python otherwise.
@@ -748,29 +721,24 @@ def _act_and_advance(states, live, log, used, params, holds, first, weights, bia
         n = used[0] - first
         for k in range(n):
             own[k] = act_row(log[first + k].obs, weights, biases, mean, scale, rng.random())
-        status, first = _advance(states, live, log, used, params, holds, own[:n], first)
+        status, first = _advance(states, live, log, used, params_array, holds, own[:n], first)
         if status != OK or not 0 < used[0] - first <= MAX_ROWS:
             return status, first
 
 
 @jit
-def _paths(rows, path_start, n_agents, obs, actions, rewards, durations, times):
-    """The log's rows into path order. A row's place is its path's start plus its decision number
-    (rows of a path come in decision order, so this is the stable sort by path); the copy then
-    gathers the rows in that order (reading scattered rows beats writing scattered ones)."""
-    order = np.empty(len(rows), np.int64)
-    for r in range(len(rows)):
-        rec = rows[r]
-        order[path_start[rec.ep * n_agents + rec.agent] + rec.idx] = r
-    for d in range(len(rows)):
-        rec = rows[order[d]]
-        o = rec.obs
+def _gather(rows, order, obs, actions, rewards, durations, times):
+    """The log's rows in path order (``order``, :func:`repro.core.paths.path_order`) into the
+    rollout's columns (compiled: numpy's gathers of the records' fields take half as long again)."""
+    for d in range(len(order)):
+        record = rows[order[d]]
+        o = record.obs
         for w in range(obs.shape[1]):
             obs[d, w] = o[w]
-        actions[d] = rec.act
-        rewards[d] = rec.rew
-        durations[d] = rec.dur
-        times[d] = rec.time
+        actions[d] = record.act
+        rewards[d] = record.rew
+        durations[d] = record.dur
+        times[d] = record.time
 
 
 # --- Python side ---------------------------------------------------------------------------------
@@ -862,22 +830,19 @@ class WildfireBatch:
         self.log[:used - m] = self.log[m:used]
         self.used[0] = used - m
         self.first -= m
-        self.states["cur"] -= m
+        self.states["running_row"] -= m
 
     def to_rollout(self) -> Rollout:
         """The recorded decisions, once every episode has ended."""
-        e, n = len(self.states), self.env.n_agents
-        d = self.first
-        # every UAV observes at time 0, so every (episode, agent) path has a decision
-        path_start = np.zeros(e * n + 1, np.int64)
-        np.cumsum(self.states["n_dec"].reshape(-1), out=path_start[1:])
+        d, rows = self.first, self.log[:self.first]
+        path_start, path_episode, path_agent = path_layout(self.states["n_dec"])
+        order = path_order(rows["ep"], rows["agent"], rows["idx"], self.env.n_agents, path_start)
         obs, time = np.empty((d, self.env.obs_dim)), np.empty(d)
         actions, rewards, durations = np.empty(d, np.int64), np.empty(d), np.empty(d)
-        _paths(self.log[:d], path_start, n, obs, actions, rewards, durations, time)
+        _gather(rows, order, obs, actions, rewards, durations, time)
         return Rollout(
             obs=obs, actions=actions, rewards=rewards, durations=durations, path_start=path_start,
-            path_episode=np.repeat(np.arange(e, dtype=np.int64), n),
-            path_agent=np.tile(np.arange(n, dtype=np.int64), e),
+            path_episode=path_episode, path_agent=path_agent,
             episode_return=self.states["returns"].mean(axis=1),
             truncated=self.states["truncated"].copy(),
             info={"decision_time": time, "end_time": self.states["t_end"].copy(),

@@ -11,6 +11,7 @@ import numpy as np
 
 from repro.core.config import Validated
 from repro.core.errors import require
+from repro.core.event_queue import MAX_WHO
 from repro.core.rollout import children
 
 # The observation's layout, named once (the engines write it in this order; heuristics, wrappers
@@ -66,7 +67,9 @@ class WildfireConfig(Validated):
     decision_latency: float = 1e-5
     """Time between an observation and the action it leads to (s); never rounded to the grid."""
     at_fire_tol: float = 1e-3
-    """A hold joins the parties of the first fire (by index) closer than this (m)."""
+    """The simulator's "at a fire" distance (m; the released code's): a hold joins the parties of
+    the first fire (by index) closer than this, and Q6 uses it too. Observers of decisions use a
+    looser one, ``policies.OBSERVED_AT_FIRE_TOL``, which says why."""
     n_observed: int = 5
     """Fires in an observation (the closest ones) and fly actions (one per observed fire)."""
     cluster_radius: float = 1.0
@@ -159,8 +162,8 @@ class WildfireConfig(Validated):
         return cls(**{**dict.fromkeys(QUIRKS, False), **fields})
 
     def validate(self) -> None:
-        # the fast engine's event keys hold an agent index in 20 bits
-        require(isinstance(self.n_agents, numbers.Integral) and 1 <= self.n_agents < 2**20,
+        # the fast engine's event keys hold an agent index up to MAX_WHO = 2^20 - 1
+        require(isinstance(self.n_agents, numbers.Integral) and 1 <= self.n_agents <= MAX_WHO,
                 "--n-agents", "an integer from 1 to 2^20 - 1", self.n_agents)
         require(self.t_health > 0 and math.isfinite(self.t_health), "--t-health", "a number > 0",
                 self.t_health)
@@ -246,24 +249,6 @@ def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
         c, sn = math.cos(math.radians(deg)), math.sin(math.radians(deg))
         out.append(a @ np.array([[c, sn], [-sn, c]]))
     return np.concatenate(out)
-
-
-def fs_delay(now: float, delay: float, dt: float, round_negative: bool = True) -> float:
-    """The FS replacement of a delay scheduled at ``now``: its end is rounded up to the dT grid,
-    and the delay is at least 0.
-
-    ``dt <= 0`` stands for ED (no rounding). A negative delay (a fire whose health ran out before
-    its rounded extinguish event, re-planned at a party change) is rounded like any other if
-    ``round_negative`` (docs/semantics.md section 3.11, released code: to the grid point at or
-    before now when that is more than now + delay, so at once), else it first counts as 0 (rounded
-    up to the next grid point). Plain float arithmetic, so the numba engine compiles the same
-    operations; a float ceiling, because numba's ``math.ceil`` returns an int64, which overflows (to
-    a delay of 0) once the number of steps passes 2^63.
-    """
-    d = delay if round_negative else max(delay, 0.0)
-    if dt <= 0.0:
-        return max(d, 0.0)
-    return max(0.0, np.ceil((now + d) / dt) * dt - now)
 
 
 def rank_key(distance: float, resolution: float) -> float:

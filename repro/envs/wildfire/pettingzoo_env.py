@@ -102,14 +102,14 @@ class _FastEpisode:
         self.answers.append(action)
 
     def observation(self, i: int) -> np.ndarray:
-        return self.batch.log[self.batch.states[0]["cur"][i]]["obs"].copy()
+        return self.batch.log[self.batch.states[0]["running_row"][i]]["obs"].copy()
 
     def previous(self, i: int) -> tuple[float, float] | None:
         row = self.batch.log[self.previous_row] if self.previous_row >= 0 else None
         return None if row is None else (float(row["rew"]), float(row["dur"]))
 
     def last(self, i: int) -> tuple[float, float]:
-        row = self.batch.log[self.batch.states[0]["cur"][i]]
+        row = self.batch.log[self.batch.states[0]["running_row"][i]]
         return float(row["rew"]), float(row["dur"])
 
     def time(self) -> float:

@@ -55,10 +55,11 @@ import math
 import numpy as np
 import simpy
 
+from repro.core.fixed_step import fs_delay
+from repro.core.paths import path_layout, path_order
 from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episodes,
-                                        fire_positions, fs_delay, rank_key)
-from repro.envs.wildfire.records import rollout_from_records
+                                        fire_positions, rank_key)
 
 class WildfireModel:
     """One episode. Drive it with :meth:`advance` and :meth:`act` (or let :class:`ReferenceEnv`)."""
@@ -359,7 +360,12 @@ class ReferenceEnv:
         return self.simulate(policy, draw_episodes(self.cfg, n_episodes, seed))
 
     def simulate(self, policy: Policy, draws: EpisodeDraws) -> Rollout:
-        """Run the episodes of ``draws`` (tests script start positions and hold durations)."""
+        """Run the episodes of ``draws`` (tests script start positions and hold durations).
+
+        ``info`` keeps every decision's observation time, each episode's end time and event count.
+        The event counts are each engine's own work measure and differ between them: the fast
+        engine counts the events it pops from its heap, SimPy also counts process starts, process
+        ends and interrupts (94 against 73 in one episode of the nearest-fire policy)."""
         recs, returns, ends, events, truncated = [], [], [], [], []
         for e in range(draws.n_episodes):
             model = WildfireModel(self.cfg, draws.starts[e], draws.holds[e])
@@ -378,11 +384,17 @@ class ReferenceEnv:
             events.append(model.events)
             truncated.append(model.truncated)
         col = lambda key, dtype=float: np.array([r[key] for r in recs], dtype=dtype)  # noqa: E731
-        return rollout_from_records(
-            episode=col("episode", np.int64), agent=col("agent", np.int64),
-            index=col("index", np.int64), time=col("time"),
-            obs=np.array([r["obs"] for r in recs]).reshape(len(recs), self.obs_dim),
-            actions=col("action", np.int64), rewards=col("reward"), durations=col("duration"),
-            agent_returns=np.array(returns).reshape(draws.n_episodes, self.n_agents),
-            end_time=np.array(ends), events=np.array(events, dtype=np.int64),
-            truncated=np.array(truncated, dtype=bool))
+        n = self.n_agents
+        episode, agent = col("episode", np.int64), col("agent", np.int64)
+        counts = np.bincount(episode * n + agent, minlength=draws.n_episodes * n)
+        path_start, path_episode, path_agent = path_layout(counts.reshape(-1, n))
+        order = path_order(episode, agent, col("index", np.int64), n, path_start)
+        obs = np.array([r["obs"] for r in recs]).reshape(len(recs), self.obs_dim)
+        return Rollout(
+            obs=obs[order], actions=col("action", np.int64)[order], rewards=col("reward")[order],
+            durations=col("duration")[order], path_start=path_start, path_episode=path_episode,
+            path_agent=path_agent,
+            episode_return=np.array(returns).reshape(draws.n_episodes, n).mean(axis=1),
+            truncated=np.array(truncated, dtype=bool),
+            info={"decision_time": col("time")[order], "end_time": np.array(ends),
+                  "events": np.array(events, dtype=np.int64)})

@@ -39,12 +39,12 @@ def frame_of_state(env, state: np.void) -> Frame:
     """The frame of one episode's state record of the fast engine ``env`` (a WildfireEnv)."""
     from repro.envs.wildfire.engine import _health_now, _position
 
-    p = env.params[0]
+    params = env.params[0]
     k, n = len(state["alive"]), len(state["interest"])
     return Frame(time=float(state["now"]), fires=fire_positions(env.cfg),
-                 health=np.array([_health_now(state, p, j) for j in range(k)]),
+                 health=np.array([_health_now(state, params, j) for j in range(k)]),
                  alive=state["alive"].astype(bool), party=state["party"].astype(np.int64),
-                 uavs=np.array([_position(state, p, i) for i in range(n)]),
+                 uavs=np.array([_position(state, params, i) for i in range(n)]),
                  target=state["interest"].astype(np.int64))
 
 

@@ -49,7 +49,7 @@ class WildfireVectorEnv(VectorEnv):
         rec = b.log[rows]
         ep, agent = rec["ep"], rec["agent"]
         over = b.states["done"][ep]
-        last = b.states["cur"][ep, agent] == rows  # the UAV's running (or final) decision
+        last = b.states["running_row"][ep, agent] == rows  # the UAV's running (or final) decision
         ended = over | ~last
         self._open = rows[~ended]
         rec = rec[ended]
