@@ -96,6 +96,12 @@ class BusSweepConfig(Validated):
         return [(self.batch_lambda, b) for b in self.batches]
 
 
+def runs_folder(bus: BusConfig) -> str:
+    """The folder, under ``--runs-dir``, of the sweeps' runs on ``bus``'s semantics: runs from
+    before the switches existed, in runs/bus, ran the corrected semantics."""
+    return "bus" if bus.semantics == "corrected" else f"bus-{bus.semantics}"
+
+
 def jobs(cfg: BusSweepConfig, sweep: str, seed: int, bus: BusConfig) -> list[TrainJob]:
     out = []
     for lam, batch in cfg.settings(sweep):
@@ -199,9 +205,7 @@ def run_named(sweep: str, args: argparse.Namespace) -> int:
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     bus = config_from_args(args)
-    # runs from before the switches existed, in runs/bus, ran the corrected semantics
-    folder = "bus" if bus.semantics == "corrected" else f"bus-{bus.semantics}"
-    root = check_writable_dir(Path(args.runs_dir) / folder, "--runs-dir")
+    root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")
     t0 = time.perf_counter()
     baselines = baseline_returns(results, bus)  # needs table-thresholds: fails before training
     job_list = jobs(cfg, sweep, args.seed, bus)

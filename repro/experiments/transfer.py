@@ -30,7 +30,7 @@ import io
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -273,6 +273,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="train and test only this simulator (e.g. FS-1), repeatable")
 
 
+def runs_folder(runs_dir: str | Path, cfg: TransferConfig, scale: str) -> Path:
+    """The folder of the study's run folders: one per semantics and scale (UsageError naming
+    ``--runs-dir`` if it cannot be written)."""
+    return check_writable_dir(Path(runs_dir) / cfg.name.replace("_", "-") / scale, "--runs-dir")
+
+
+def train_and_test(cfg: TransferConfig, args: argparse.Namespace,
+                   labelled: list[tuple[str, TrainJob]]) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Train (or resume) the ``labelled`` jobs in the study's run folders, then test every
+    policy on ED; returns the per-policy table and the sweep's timing for the provenance sidecar."""
+    runs = runs_folder(args.runs_dir, cfg, args.scale)
+    t0 = time.perf_counter()
+    folders = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
+                        scheduler=args.scheduler)
+    t_train = time.perf_counter() - t0
+    per_policy = evaluate_policies(cfg, labelled, folders, args.seed, n_jobs=args.n_jobs,
+                                   scheduler=args.scheduler)
+    seconds = [pd.read_csv(f / "progress.csv").seconds for f in folders]
+    # the median skips each worker's first epoch, which includes numba's start-up
+    return per_policy, dict(
+        runs_dir=str(runs), sweep_seconds=round(t_train, 3),
+        median_seconds_per_epoch=round(float(np.median(np.concatenate(seconds))), 4))
+
+
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
@@ -282,21 +306,10 @@ def run(args: argparse.Namespace) -> int:
     check_sweep_arguments(args)
     results = check_writable_dir(args.results_dir, "--results-dir")
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
-    runs = check_writable_dir(Path(args.runs_dir) / cfg.name.replace("_", "-") / args.scale,
-                              "--runs-dir")
-    labelled = make_jobs(cfg, args.scale, args.seed)
     t0 = time.perf_counter()
-    folders = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
-                        scheduler=args.scheduler)
-    t_train = time.perf_counter() - t0
-    per_policy = evaluate_policies(cfg, labelled, folders, args.seed, n_jobs=args.n_jobs,
-                                   scheduler=args.scheduler)
+    per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
     summary = summarise(per_policy, cfg.n_boot, args.seed)
     wall = time.perf_counter() - t0
-    seconds = [pd.read_csv(f / "progress.csv").seconds for f in folders]
-    # the median skips each worker's first epoch, which includes numba's start-up
-    extra = dict(runs_dir=str(runs), sweep_seconds=round(t_train, 3),
-                 median_seconds_per_epoch=round(float(np.median(np.concatenate(seconds))), 4))
     prov = provenance(dataclasses.asdict(cfg), command="fig-transfer", scale=args.scale,
                       seed=args.seed, wall_seconds=wall, extra=extra)
     write_result(results / f"{cfg.name}.csv", per_policy, prov)
