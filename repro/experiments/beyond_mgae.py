@@ -43,8 +43,7 @@ from repro.core.io import check_writable_dir, provenance, save_figure, write_res
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.bus import BusConfig
 from repro.experiments import bus_sweeps, transfer
-from repro.experiments.options import add_common
-from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
+from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
 from repro.learn.m_gae import ESTIMATORS
 
@@ -195,17 +194,13 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
-    add_sweep_arguments(p)
-    p.add_argument("--seeds", type=int,
-                   help="policies per estimator and environment (default: the studies', paper 5)")
+    add_study_arguments(p, "policies per estimator and environment (default: the studies', "
+                           "paper 5)")
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(MgaeStudyConfig, args.scale, seeds=args.seeds)
-    check_sweep_arguments(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     runs = pd.concat([bus_runs(cfg, args), wildfire_runs(cfg, args)], ignore_index=True)
     summary = summarise(runs, cfg.n_boot, args.seed)

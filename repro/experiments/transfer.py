@@ -35,13 +35,12 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.experiments.options import add_common
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import QUIRKS, WildfireConfig, make_env
-from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
+from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
 
@@ -258,9 +257,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
-    add_sweep_arguments(p)
-    p.add_argument("--seeds", type=int, help="policies per training simulator (paper: 5)")
+    add_study_arguments(p, "policies per training simulator (paper: 5)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
     p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
     p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
@@ -303,9 +300,7 @@ def run(args: argparse.Namespace) -> int:
                     corrected=args.corrected or None,
                     quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
                     only=tuple(args.simulator) or None)
-    check_sweep_arguments(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
     summary = summarise(per_policy, cfg.n_boot, args.seed)

@@ -30,10 +30,9 @@ import pandas as pd
 
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import provenance, save_figure, write_result
 from repro.experiments import transfer
-from repro.experiments.options import add_common
-from repro.experiments.sweep import add_sweep_arguments, check_sweep_arguments
+from repro.experiments.sweep import add_study_arguments, check_study_arguments
 
 RACES = "races.csv"
 """Claim X2's result (another driver): at least the columns policy, n_agents, dt,
@@ -129,18 +128,14 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, races: pd.DataFrame | 
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
-    add_sweep_arguments(p)
-    p.add_argument("--seeds", type=int,
-                   help="policies per training simulator (default: the transfer study's, paper 5)")
+    add_study_arguments(p, "policies per training simulator (default: the transfer study's, "
+                           "paper 5)")
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(TransferDtConfig, args.scale, seeds=args.seeds)
     study = cfg.study(args.scale)
-    check_sweep_arguments(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     tested, extra = transfer.train_and_test(
         study, args, transfer.make_jobs(study, args.scale, args.seed))
