@@ -32,7 +32,7 @@ import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -112,7 +112,7 @@ def bus_runs(cfg: MgaeStudyConfig, args: argparse.Namespace) -> pd.DataFrame:
     bus = BusConfig()
     root = check_writable_dir(Path(args.runs_dir) / bus_sweeps.runs_folder(bus), "--runs-dir")
     base = [j for j in bus_sweeps.jobs(sweep, "lambda", args.seed, bus)
-            if j.train.lam == sweep.batch_lambda]
+            if j.train.lam == sweep.batch_lambda]  # the paper's bus lambda, 2
     labelled = estimator_jobs(cfg, base)
     run_sweep([job for _, job in labelled], root, n_jobs=args.n_jobs, scheduler=args.scheduler)
     rows = []
@@ -156,9 +156,9 @@ def summarise(runs: pd.DataFrame, n_boot: int, seed: int) -> pd.DataFrame:
     return table
 
 
-def ci_side(a: pd.Series, b) -> str:
-    """Where the CI of ``a`` lies against that of ``b`` (rows with ci_low, ci_high): "above",
-    "below" or "overlapping"."""
+def ci_side(a: Any, b: Any) -> str:
+    """Where the CI of ``a`` lies against that of ``b`` (summary rows, with ci_low and ci_high):
+    "above", "below" or "overlapping"."""
     return ("above" if a.ci_low > b.ci_high else "below" if a.ci_high < b.ci_low
             else "overlapping")
 
