@@ -194,8 +194,7 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_study_arguments(p, "policies per estimator and environment (default: the studies', "
-                           "paper 5)")
+    add_study_arguments(p, "policies per estimator and environment (paper: 5)")
 
 
 def run(args: argparse.Namespace) -> int:

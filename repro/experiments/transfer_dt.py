@@ -128,8 +128,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, races: pd.DataFrame | 
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_study_arguments(p, "policies per training simulator (default: the transfer study's, "
-                           "paper 5)")
+    add_study_arguments(p, "policies per training simulator (paper: 5)")
 
 
 def run(args: argparse.Namespace) -> int:
