@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from repro.claims import NOT_RUN, registry, render
+from repro.claims import NOT_RUN, is_beyond, registry, render
 from repro.cli import main
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
@@ -71,9 +71,12 @@ def test_claims_never_pass_without_results(tmp_path):
 
 def test_every_claim_has_a_verdict_from_the_committed_results():
     """Incomplete files read "not yet run"; the committed ones must all be read, so a check whose
-    own bug raises is not hidden behind that verdict."""
+    own bug raises is not hidden behind that verdict. A question beyond the paper may not have
+    been run at paper scale yet: its files are missing then, not unreadable."""
     for claim in registry():
         v = claim.evaluate(ROOT / "results" / "paper")
+        if is_beyond(claim) and v.detail.startswith("missing"):
+            continue
         # or a result of the semantics before the released simulator's, which says so
         assert v.verdict != NOT_RUN or v.outdated, (claim.id, v)
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from repro.learn import m_gae
-from repro.learn.m_gae import m_gae_paths
+from repro.learn.m_gae import ESTIMATORS, advantage_paths, m_gae_paths
 
 
 def sb3_gae(rewards, values, last_value, done, gamma_d, lambda_d):
@@ -110,6 +110,67 @@ def test_returns_match_rollout_discounted_path_returns():
     r, dt = rng.normal(size=9), rng.exponential(size=9)
     _, ret = m_gae_paths(r, dt, np.zeros(9), start, 0.3, 1.0)
     np.testing.assert_allclose(ret[[0, 4]], discounted_path_returns(r, dt, start, 0.3)[[0, 2]])
+
+
+def direct_sums(estimator, r, dt, v, last, gamma, lam, m):
+    """The alternatives of X1 on one path as sums over its decisions (docs/semantics.md section
+    5.3), m the batch's mean duration: A_k = sum_l w_kl delta_{k+l}, R_k = sum_l d_kl r_{k+l} +
+    d_kn V_n, with d_kl the discount from decision k to k + l and w_kl the trace."""
+    n = len(r)
+    t = np.concatenate([[0.0], np.cumsum(dt)])
+    vv = np.append(v, last)
+    if estimator == "decision-gae":  # one step per decision
+        steps = np.arange(n + 1, dtype=float)
+        discount = np.exp(-gamma * m * (steps[None, :] - steps[:, None]))
+        trace = np.exp(-gamma * lam * m * (steps[None, :] - steps[:, None]))
+    else:  # duration-gae: continuous-time discount, lambda_d per decision
+        lambda_d = np.exp(-gamma * (lam - 1) * m)
+        discount = np.exp(-gamma * (t[None, :] - t[:, None]))
+        steps = np.arange(n + 1)
+        trace = discount * lambda_d ** (steps[None, :] - steps[:, None]).astype(float)
+    deltas = r + np.array([discount[k, k + 1] for k in range(n)]) * vv[1:] - vv[:-1]
+    adv = np.array([sum(trace[k, j] * deltas[j] for j in range(k, n)) for k in range(n)])
+    ret = np.array([sum(discount[k, j] * r[j] for j in range(k, n)) + discount[k, n] * last
+                    for k in range(n)])
+    return adv, ret
+
+
+@pytest.mark.parametrize("estimator", ["decision-gae", "duration-gae"])
+@pytest.mark.parametrize("seed", range(3))
+def test_alternative_estimators_equal_their_sum_forms(estimator, seed):
+    """Each alternative of claim X1 against its direct sum, on the paths of one batch: m is the
+    mean duration over the whole batch, not over a path."""
+    rng = np.random.default_rng(seed)
+    lengths = np.array([5, 0, 1, 7])
+    start = np.concatenate([[0], np.cumsum(lengths)])
+    d = int(start[-1])
+    r, dt, v = rng.normal(size=d), rng.exponential(3.0, size=d), rng.normal(size=d)
+    last = rng.normal(size=len(lengths))
+    gamma, lam, m = 0.05, rng.uniform(0.5, 3.0), dt.mean()
+    adv, ret = advantage_paths(estimator, r, dt, v, start, gamma, lam, last)
+    for p in range(len(lengths)):
+        s = slice(start[p], start[p + 1])
+        a, g = direct_sums(estimator, r[s], dt[s], v[s], last[p], gamma, lam, m)
+        np.testing.assert_allclose(adv[s], a, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(ret[s], g, rtol=1e-10, atol=1e-12)
+
+
+def test_the_estimators_agree_where_they_should():
+    """With every duration equal, all three are M-GAE; at lam = 1 duration-gae is M-GAE bit for
+    bit (lambda_d = 1); with unequal durations they differ."""
+    rng = np.random.default_rng(4)
+    start = np.array([0, 6, 10])
+    r, v = rng.normal(size=10), rng.normal(size=10)
+    even, uneven = np.full(10, 2.5), rng.exponential(2.5, size=10)
+    results = {(e, k): advantage_paths(e, r, dt, v, start, 0.1, 1.7)
+               for e in ESTIMATORS for k, dt in (("even", even), ("uneven", uneven))}
+    for e in ESTIMATORS:
+        for a, b in zip(results[e, "even"], results["m-gae", "even"]):
+            np.testing.assert_allclose(a, b, rtol=1e-12)
+        if e != "m-gae":
+            assert not np.allclose(results[e, "uneven"][0], results["m-gae", "uneven"][0])
+    one = [advantage_paths(e, r, uneven, v, start, 0.1, 1.0) for e in ("m-gae", "duration-gae")]
+    assert all(np.array_equal(a, b) for a, b in zip(*one))
 
 
 def test_step_index_numbers_the_decisions_of_each_path_from_0():

@@ -173,6 +173,7 @@ def test_cli_smoke_and_checkpoint_policy(tmp_path):
     (["--lam", "inf"], "--lam"),
     (["--max-kl", "inf"], "--max-kl"),
     (["--seed", "-1"], "--seed"),
+    (["--advantage", "gae"], "--advantage"),
 ])
 def test_bad_options_exit_2_with_one_line(tmp_path, capsys, bad, param):
     out = tmp_path / "run"
@@ -242,6 +243,25 @@ def test_resume_of_a_run_older_than_a_setting(tmp_path):
     progress = pd.read_csv(out / "progress.csv")
     assert list(progress.columns) == PROGRESS_COLUMNS and len(progress) == 2
     assert progress.truncated_episodes.isna().tolist() == [True, False]  # unknown, then 0
+
+
+def test_the_advantage_estimator_is_part_of_a_run(tmp_path, capsys):
+    """config.json records the estimator; a run recorded before the setting existed is an M-GAE run
+    and resumes as one, and no folder resumes under another estimator."""
+    out = tmp_path / "run"
+    opts = ["train", "--env", "toy", "--scale", "smoke", "--out", str(out)]
+    assert main([*opts, "--epochs", "1"]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["train"]["advantage"] == "m-gae"
+    del config["train"]["advantage"]
+    (out / "config.json").write_text(json.dumps(config))
+    assert main([*opts, "--epochs", "2", "--advantage", "decision-gae"]) == 2
+    assert "advantage" in capsys.readouterr().err
+    assert main([*opts, "--epochs", "2"]) == 0
+    other = tmp_path / "other"
+    assert main(["train", "--env", "toy", "--scale", "smoke", "--out", str(other),
+                 "--advantage", "duration-gae"]) == 0
+    assert json.loads((other / "config.json").read_text())["train"]["advantage"] == "duration-gae"
 
 
 def test_episodes_cut_at_the_decision_limit_are_reported(tmp_path, capsys):

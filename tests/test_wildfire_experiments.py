@@ -165,10 +165,15 @@ def test_fig_transfer_cli_smoke(tmp_path, monkeypatch):
     assert all((tmp_path / "fig" / f"transfer.{ext}").exists() for ext in ("png", "pdf"))
 
 
-@pytest.mark.parametrize("command", ["fig-transfer", "wildfire-behaviour"])
-@pytest.mark.parametrize("argv", [["--seeds", "0"], ["--test-episodes", "0"], ["--n-jobs", "0"],
-                                  ["--epochs", "0"], ["--scale", "huge"], ["--seed", "-1"],
-                                  ["--scheduler", "notanaddress", "--scale", "smoke"]])
+STUDY_BAD_INPUT = [["--seeds", "0"], ["--n-jobs", "0"], ["--scale", "huge"], ["--seed", "-1"],
+                   ["--scheduler", "notanaddress", "--scale", "smoke"]]
+"""Bad options of every training study (the beyond-the-paper ones have only these)."""
+
+
+@pytest.mark.parametrize("command, argv", [
+    *((c, a) for c in ("fig-transfer", "wildfire-behaviour")
+      for a in [*STUDY_BAD_INPUT, ["--test-episodes", "0"], ["--epochs", "0"]]),
+    *((c, a) for c in ("beyond-mgae", "beyond-transfer-dt") for a in STUDY_BAD_INPUT)])
 def test_bad_input_writes_nothing(tmp_path, monkeypatch, capsys, command, argv):
     monkeypatch.chdir(tmp_path)
     assert _main([command, *argv]) == 2

@@ -1,5 +1,6 @@
 """The claims registry: one small check per claim C1..C11 of docs/semantics.md section 1.2, rendered
-to ``paper_claims.md`` by ``python -m repro claims`` (``make claims``).
+to ``paper_claims.md`` by ``python -m repro claims`` (``make claims``), and the questions beyond the
+paper, X1.., in a section of their own.
 
 A check reads result files and returns a :class:`Verdict`. A claim whose result files do not exist,
 or lack the rows and columns its check reads (a stale or hand-edited file), reads "not yet run",
@@ -33,7 +34,11 @@ LEGEND = {
 }
 """What each verdict means."""
 TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
-          "repro.claims.wildfire")
+          "repro.claims.wildfire", "repro.claims.beyond")
+BEYOND = "X"
+"""Id prefix of the claims beyond the paper (issue 20): questions the paper raises and leaves open.
+They are rendered in a section of their own, and a scale's results are complete without them (so
+that `make claims` keeps reading the paper scale until they are run there)."""
 
 
 @dataclass(frozen=True)
@@ -56,7 +61,7 @@ class Claim:
     id: str
     text: str
     paper: str
-    """The paper's value or statement."""
+    """The paper's value or statement (beyond the paper: the hypothesis the check tests)."""
     tolerance: str
     """What counts as reproduced."""
     command: str
@@ -92,7 +97,12 @@ def registry() -> list[Claim]:
     claims: list[Claim] = []
     for mod in TOPICS:
         claims.extend(importlib.import_module(mod).CLAIMS)
-    return sorted(claims, key=lambda c: int(c.id[1:]))
+    return sorted(claims, key=lambda c: (is_beyond(c), int(c.id[1:])))
+
+
+def is_beyond(claim: Claim) -> bool:
+    """Whether ``claim`` is a question beyond the paper (X1..) rather than one of its claims."""
+    return claim.id.startswith(BEYOND)
 
 
 def _cell(s: str) -> str:
@@ -101,15 +111,13 @@ def _cell(s: str) -> str:
 
 def render(results: Path) -> str:
     """paper_claims.md: a tally, one short row per claim, then each claim's detail."""
-    rows = [(c, c.evaluate(results)) for c in registry()]
-    counts = {k: sum(v.verdict == k for _, v in rows) for k in VERDICTS}
-    scales = sorted({v.scale for _, v in rows if v.scale})
-    tally = ", ".join(f"{n} {k}" for k, n in counts.items() if n)
+    evaluated = [(c, c.evaluate(results)) for c in registry()]
+    rows = [(c, v) for c, v in evaluated if not is_beyond(c)]
+    beyond = [(c, v) for c, v in evaluated if is_beyond(c)]
     lines = [
         "# Paper claims: the paper's numbers beside ours",
         "",
-        f"**{len(rows)} claims: {tally}** (results in `{results}/`, "
-        f"{' and '.join(scales) or 'no'} scale).",
+        f"**{len(rows)} claims: {_tally(rows)}** (results in `{results}/`, {_scales(rows)} scale).",
         "",
         "Rendered by `make claims` (`python -m repro claims`) from the result CSVs; do not edit by "
         "hand. The verdicts:",
@@ -119,22 +127,49 @@ def render(results: Path) -> str:
         "| id | claim | paper | ours | verdict |",
         "|----|-------|-------|------|---------|",
     ]
-    for c, v in rows:
-        where = f" ({c.where})" if c.where else ""
-        lines.append("| " + " | ".join(_cell(x) for x in (
-            c.id, c.text, c.paper + where, v.ours, f"**{v.verdict}**")) + " |")
-    lines += ["", "## Details"]
-    for c, v in rows:
-        lines += ["", f"### {c.id}: {v.verdict}" + (f" ({v.scale} scale)" if v.scale else ""), ""]
-        lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}", WIDTH,
-                               break_on_hyphens=False)
-        lines.append(f"Regenerate: `{c.command}`.")
+    lines += [*_table(rows), "", "## Details", *_details(rows)]
     # a topic's NOTES: text, or a function of the results folder that returns it
     notes = [getattr(importlib.import_module(m), "NOTES", "") for m in TOPICS]
     notes = [n(results) if callable(n) else n for n in notes]
     for note in filter(None, notes):
         lines += ["", note.strip()]
+    if beyond:
+        intro = ("Questions the paper raises and leaves open (issue 20), answered with the same "
+                 "machinery; a verdict says whether the hypothesis holds. "
+                 f"**{len(beyond)} questions: {_tally(beyond)}** ({_scales(beyond)} scale).")
+        lines += ["", "## Beyond the paper", "", *textwrap.wrap(intro, WIDTH),
+                  "", "| id | question | hypothesis | ours | verdict |",
+                  "|----|----------|------------|------|---------|",
+                  *_table(beyond), *_details(beyond)]
     return "\n".join(lines) + "\n"
+
+
+def _tally(rows: list[tuple[Claim, Verdict]]) -> str:
+    counts = {k: sum(v.verdict == k for _, v in rows) for k in VERDICTS}
+    return ", ".join(f"{n} {k}" for k, n in counts.items() if n)
+
+
+def _scales(rows: list[tuple[Claim, Verdict]]) -> str:
+    return " and ".join(sorted({v.scale for _, v in rows if v.scale})) or "no"
+
+
+def _table(rows: list[tuple[Claim, Verdict]]) -> list[str]:
+    lines = []
+    for c, v in rows:
+        where = f" ({c.where})" if c.where else ""
+        lines.append("| " + " | ".join(_cell(x) for x in (
+            c.id, c.text, c.paper + where, v.ours, f"**{v.verdict}**")) + " |")
+    return lines
+
+
+def _details(rows: list[tuple[Claim, Verdict]]) -> list[str]:
+    lines = []
+    for c, v in rows:
+        lines += ["", f"### {c.id}: {v.verdict}" + (f" ({v.scale} scale)" if v.scale else ""), ""]
+        lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}", WIDTH,
+                               break_on_hyphens=False)
+        lines.append(f"Regenerate: `{c.command}`.")
+    return lines
 
 
 WIDTH = 100
@@ -142,12 +177,13 @@ WIDTH = 100
 
 
 def default_results(root: Path = Path("results")) -> Path:
-    """The folder ``claims`` reads unless told: the largest scale that has every claim's results
-    (outdated ones count), else the largest scale that has results at all (paper, then quick, then
-    smoke)."""
+    """The folder ``claims`` reads unless told: the largest scale that has every paper claim's
+    results (outdated ones count; the questions beyond the paper need not be there), else the
+    largest scale that has results at all (paper, then quick, then smoke)."""
     folders = [root / s for s in reversed(SCALES) if (root / s).is_dir()]
+    claims = [c for c in registry() if not is_beyond(c)]
     complete = (f for f in folders if all(v.verdict != NOT_RUN or v.outdated
-                                          for v in (c.evaluate(f) for c in registry())))
+                                          for v in (c.evaluate(f) for c in claims)))
     return next(complete, folders[0] if folders else root / SCALES[-1])
 
 

@@ -34,7 +34,6 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from repro.experiments.options import add_common
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -42,7 +41,7 @@ from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.experiments.bus_policies import read_thresholds
-from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
+from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
 from repro.learn.config import train_config
 
@@ -94,6 +93,12 @@ class BusSweepConfig(Validated):
         if sweep == "lambda":
             return [(lam, self.lambda_batch) for lam in self.lambdas]
         return [(self.batch_lambda, b) for b in self.batches]
+
+
+def runs_folder(bus: BusConfig) -> str:
+    """The folder, under ``--runs-dir``, of the sweeps' runs on ``bus``'s semantics: runs from
+    before the switches existed, in runs/bus, ran the corrected semantics."""
+    return "bus" if bus.semantics == "corrected" else f"bus-{bus.semantics}"
 
 
 def jobs(cfg: BusSweepConfig, sweep: str, seed: int, bus: BusConfig) -> list[TrainJob]:
@@ -184,9 +189,7 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
-    add_sweep_arguments(p)
-    p.add_argument("--seeds", type=int, help="runs per setting")
+    add_study_arguments(p, "runs per setting")
     p.add_argument("--epochs", type=int, help="policy updates per run")
     p.add_argument("--final-epochs", type=int, help="epochs averaged into a run's final return")
     add_switch_arguments(p)
@@ -195,13 +198,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run_named(sweep: str, args: argparse.Namespace) -> int:
     cfg = for_scale(BusSweepConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
                     final_epochs=args.final_epochs)
-    check_sweep_arguments(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    results, figures = check_study_arguments(args)
     bus = config_from_args(args)
-    # runs from before the switches existed, in runs/bus, ran the corrected semantics
-    folder = "bus" if bus.semantics == "corrected" else f"bus-{bus.semantics}"
-    root = check_writable_dir(Path(args.runs_dir) / folder, "--runs-dir")
+    root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")
     t0 = time.perf_counter()
     baselines = baseline_returns(results, bus)  # needs table-thresholds: fails before training
     job_list = jobs(cfg, sweep, args.seed, bus)

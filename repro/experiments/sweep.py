@@ -28,8 +28,9 @@ from pathlib import Path
 from typing import Any, Callable
 
 from repro.core.errors import UsageError
-from repro.core.io import write_bytes
+from repro.core.io import check_writable_dir, write_bytes
 from repro.core.workers import die_with_parent
+from repro.experiments.options import add_common
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, epochs_done,
                                     is_finished, writer_lock)
 from repro.envs import env_package
@@ -173,6 +174,22 @@ def add_sweep_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", help="address of an existing Dask scheduler to run on instead")
 
 
+def add_study_arguments(p: argparse.ArgumentParser, seeds_help: str) -> None:
+    """The options of a driver that trains a sweep: every driver's (``add_common``), the
+    sweep's, and ``--seeds`` (``seeds_help``: what they count)."""
+    add_common(p)
+    add_sweep_arguments(p)
+    p.add_argument("--seeds", type=int, help=seeds_help)
+
+
 def check_sweep_arguments(args: argparse.Namespace) -> None:
     if args.n_jobs is not None and args.n_jobs < 1:
         raise UsageError("--n-jobs", "an integer >= 1", args.n_jobs)
+
+
+def check_study_arguments(args: argparse.Namespace) -> tuple[Path, Path]:
+    """Check the options of :func:`add_study_arguments` before any work: the sweep's, and that
+    the results and figures folders can be written; returns those two folders."""
+    check_sweep_arguments(args)
+    return (check_writable_dir(args.results_dir, "--results-dir"),
+            check_writable_dir(args.figures_dir, "--figures-dir"))

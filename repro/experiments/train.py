@@ -11,6 +11,7 @@ from repro.core.rollout import BatchEnv
 from repro.envs import BUILT_IN, env_package
 from repro.learn.baseline import BASELINES
 from repro.learn.config import TrainConfig, train_config
+from repro.learn.m_gae import ESTIMATORS
 from repro.learn.trainer import Trainer
 
 
@@ -23,6 +24,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--epochs", type=int, help="policy updates")
     p.add_argument("--batch-episodes", type=int, help="episodes per epoch")
     p.add_argument("--lam", type=float, help="M-GAE lambda (wildfire 1.0, bus 2.0)")
+    p.add_argument("--advantage", help="advantage estimator: " + ", ".join(ESTIMATORS)
+                   + " (m-gae, the paper's)")
     p.add_argument("--max-kl", type=float, help="TRPO max step (0.01)")
     p.add_argument("--hidden", type=int, nargs="+", help="policy hidden sizes (32 32)")
     p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
@@ -45,7 +48,8 @@ def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainCon
     """Train config, environment and environment config from parsed ``train``-style options."""
     pkg = env_package(args.env)
     cfg = train_config(args.scale, args.env, seed=args.seed, epochs=args.epochs,
-                       batch_episodes=args.batch_episodes, lam=args.lam, max_kl=args.max_kl,
+                       batch_episodes=args.batch_episodes, lam=args.lam,
+                       advantage=args.advantage, max_kl=args.max_kl,
                        hidden=tuple(args.hidden) if args.hidden else None, baseline=args.baseline,
                        fvp_subsample=args.fvp_subsample,
                        normalize_obs=False if args.no_obs_norm else None, **overrides)

@@ -30,18 +30,17 @@ import io
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
 
-from repro.experiments.options import add_common
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import QUIRKS, WildfireConfig, make_env
-from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
+from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
 
@@ -258,9 +257,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_common(p)
-    add_sweep_arguments(p)
-    p.add_argument("--seeds", type=int, help="policies per training simulator (paper: 5)")
+    add_study_arguments(p, "policies per training simulator (paper: 5)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
     p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
     p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
@@ -273,30 +270,41 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="train and test only this simulator (e.g. FS-1), repeatable")
 
 
-def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                    batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
-                    corrected=args.corrected or None,
-                    quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
-                    only=tuple(args.simulator) or None)
-    check_sweep_arguments(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
-    runs = check_writable_dir(Path(args.runs_dir) / cfg.name.replace("_", "-") / args.scale,
-                              "--runs-dir")
-    labelled = make_jobs(cfg, args.scale, args.seed)
+def runs_folder(runs_dir: str | Path, cfg: TransferConfig, scale: str) -> Path:
+    """The folder of the study's run folders: one per semantics and scale (UsageError naming
+    ``--runs-dir`` if it cannot be written)."""
+    return check_writable_dir(Path(runs_dir) / cfg.name.replace("_", "-") / scale, "--runs-dir")
+
+
+def train_and_test(cfg: TransferConfig, args: argparse.Namespace,
+                   labelled: list[tuple[str, TrainJob]]) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Train (or resume) the ``labelled`` jobs in the study's run folders, then test every
+    policy on ED; returns the per-policy table and the sweep's timing for the provenance sidecar."""
+    runs = runs_folder(args.runs_dir, cfg, args.scale)
     t0 = time.perf_counter()
     folders = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
                         scheduler=args.scheduler)
     t_train = time.perf_counter() - t0
     per_policy = evaluate_policies(cfg, labelled, folders, args.seed, n_jobs=args.n_jobs,
                                    scheduler=args.scheduler)
-    summary = summarise(per_policy, cfg.n_boot, args.seed)
-    wall = time.perf_counter() - t0
     seconds = [pd.read_csv(f / "progress.csv").seconds for f in folders]
     # the median skips each worker's first epoch, which includes numba's start-up
-    extra = dict(runs_dir=str(runs), sweep_seconds=round(t_train, 3),
-                 median_seconds_per_epoch=round(float(np.median(np.concatenate(seconds))), 4))
+    return per_policy, dict(
+        runs_dir=str(runs), sweep_seconds=round(t_train, 3),
+        median_seconds_per_epoch=round(float(np.median(np.concatenate(seconds))), 4))
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
+                    batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
+                    corrected=args.corrected or None,
+                    quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
+                    only=tuple(args.simulator) or None)
+    results, figures = check_study_arguments(args)
+    t0 = time.perf_counter()
+    per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
+    summary = summarise(per_policy, cfg.n_boot, args.seed)
+    wall = time.perf_counter() - t0
     prov = provenance(dataclasses.asdict(cfg), command="fig-transfer", scale=args.scale,
                       seed=args.seed, wall_seconds=wall, extra=extra)
     write_result(results / f"{cfg.name}.csv", per_policy, prov)

@@ -10,6 +10,7 @@ from repro.core.config import Validated, SCALES
 from repro.core.errors import require
 from repro.envs import env_package, train_defaults
 from repro.learn.baseline import BASELINES
+from repro.learn.m_gae import ESTIMATORS
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,12 @@ class TrainConfig(Validated):
     not GAE's per-step lambda_d: with every duration 1 s, lambda_d = e^{-gamma (lam - 1)}. Named
     ``lam`` as ``lambda`` is Python's keyword; the name is serialised (config.json, run names such
     as ``lam2_batch540_seed0``, ``--lam``), so it stays."""
+    advantage: str = "m-gae"
+    """Advantage estimator (``repro.learn.m_gae.ESTIMATORS``; claim X1), m being the epoch's mean
+    macro-action duration: "m-gae", the paper's M-GAE; "decision-gae", standard GAE with every
+    macro-action one step, discount exp(-gamma m) and GAE lambda exp(-gamma (lam - 1) m), what a
+    user of a standard library would do; "duration-gae", M-GAE's discount exp(-gamma dt) with that
+    lambda constant per decision. Runs recorded before this setting existed used "m-gae"."""
     max_kl: float = 0.01
     """TRPO max step: bound on the mean KL between consecutive policies."""
     hidden: tuple[int, ...] = (32, 32)
@@ -78,6 +85,8 @@ class TrainConfig(Validated):
         require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
                 self.batch_episodes)
         require(self.lam >= 0 and math.isfinite(self.lam), "--lam", "a number >= 0", self.lam)
+        require(self.advantage in ESTIMATORS, "--advantage", "one of " + ", ".join(ESTIMATORS),
+                self.advantage)
         require(self.max_kl > 0 and math.isfinite(self.max_kl), "--max-kl", "a number > 0",
                 self.max_kl)
         require(len(self.hidden) >= 1 and min(self.hidden) >= 1, "--hidden",

@@ -1,11 +1,12 @@
 """PS-TRPO with M-GAE: the training loop (docs/semantics.md section 5.6).
 
 One epoch = sample ``batch_episodes`` whole episodes with the current shared policy, compute M-GAE
-advantages with the current baseline, take one TRPO step, update the observation normaliser, then
-fit the baseline to the batch's discounted returns (in the new normalisation, which it will be used
-with). After every epoch a row is appended to the run folder's ``progress.csv`` and a checkpoint is
-written atomically; running the same command again resumes from the checkpoint and ends with
-exactly the parameters and progress table of an uninterrupted run.
+advantages (or those of ``TrainConfig.advantage``) with the current baseline, take one TRPO step,
+update the observation normaliser, then fit the baseline to the batch's discounted returns (in the
+new normalisation, which it will be used with). After every epoch a row is appended to the run
+folder's ``progress.csv`` and a checkpoint is written atomically; running the same command again
+resumes from the checkpoint and ends with exactly the parameters and progress table of an
+uninterrupted run.
 
 Threads: torch and numpy's BLAS run on one thread (:func:`~repro.learn.policy.blas_on_one_thread`
 says why). Memory: malloc keeps freed blocks (:func:`~repro.core.memory.keep_freed_memory` says
@@ -36,7 +37,7 @@ from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
 from repro.learn.baseline import make_baseline
 from repro.learn.config import TrainConfig
-from repro.learn.m_gae import m_gae_paths
+from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
                                 blas_on_one_thread)
@@ -90,7 +91,8 @@ class Trainer:
         z = self.normalizer(ro.obs)
         index = ro.step_index()
         values = self.baseline.predict(z, index)
-        adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
+        adv, ret = advantage_paths(cfg.advantage, ro.rewards, ro.durations, values, ro.path_start,
+                                   env.gamma, cfg.lam)
         explained = 1.0 - np.var(ret - values) / np.var(ret) if np.var(ret) > 0 else 0.0
         stats = trpo_step(TanhMLP(self.policy.net), torch.as_tensor(z, dtype=DTYPE),
                           torch.as_tensor(ro.actions), torch.as_tensor(normalize(adv), dtype=DTYPE),
