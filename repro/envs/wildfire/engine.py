@@ -60,13 +60,14 @@ from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OB
 URGENT, NORMAL = 0, 1
 """SimPy's priorities: an interrupt or a process start at time t comes before any timeout at t."""
 (LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK, ACT_START, INT_ACT, ACT_END, ANY_OF,
- BURN_FAIL, BURN_START, BURN_END, END_HOP) = range(14)
+ BURN_FAIL, BURN_START, BURN_END, END_HOP, OUT_WAIT1, OUT_WAIT2) = range(16)
 """Event kinds: decision latency over, macro-action over, fire out, UAV process interrupted (its
 fire went out: in scheduling order, or in the latency without Q4), fire interrupted (its party
 changed), T_max reached. The released order's hops, SimPy's intermediate events there: the action
 sub-process starts (URGENT), is interrupted (URGENT), ends or fails, then the AnyOf the UAV waits
 on triggers; the burn sub-process fails (interrupted), restarts (URGENT), ends (its fire is out);
-the episode's end condition (END_HOP: ``who`` more hops to go)."""
+the episode's end condition (END_HOP: ``who`` more hops to go); without ``fire_out_first``, the
+two zero-delay timeouts a fire waits after its burn sub-process ended."""
 OK, GROW_LOG, HEAP_FULL, BAD_ACTION = range(4)
 """Status codes of ``_advance``."""
 def heap_capacity(cfg: WildfireConfig) -> int:
@@ -96,9 +97,10 @@ jit = njit(cache=True)
 rank_key_nb = jit(rank_key)
 
 
-def params_record(cfg: WildfireConfig) -> np.ndarray:
+def params_record(cfg: WildfireConfig, count_races: bool = False) -> np.ndarray:
     """The (1,) structured array of the kernels' parameters, named as the config's fields
-    (``released_order``: the released same-instant order; ``latency``: the decision latency)."""
+    (``released_order``: the released same-instant order; ``latency``: the decision latency), and
+    whether the kernels count races (:class:`WildfireEnv`)."""
     fires = fire_positions(cfg)
     rec = np.zeros(1, np.dtype([
         ("n_agents", np.int64), ("n_fires", np.int64), ("n_observed", np.int64),
@@ -111,8 +113,8 @@ def params_record(cfg: WildfireConfig) -> np.ndarray:
         ("quirk_q5_discount_from_action_start", np.bool_),
         ("quirk_q6_short_flight_stays", np.bool_),
         ("released_order", np.bool_), ("fs_round_negative_delays", np.bool_),
-        ("cut_flight_continues", np.bool_),
-        ("fires", np.float64, fires.shape)], align=True))
+        ("cut_flight_continues", np.bool_), ("fire_out_first", np.bool_),
+        ("count_races", np.bool_), ("fires", np.float64, fires.shape)], align=True))
     rec[0] = (cfg.n_agents, len(fires), cfg.n_observed, cfg.v_uav, cfg.dt or 0.0,
               cfg.decision_latency, cfg.at_fire_tol, cfg.gamma, cfg.r_ext, cfg.r_pen,
               cfg.t_health, cfg.t_max, cfg.max_decisions or 0, cfg.ranking_resolution,
@@ -120,7 +122,8 @@ def params_record(cfg: WildfireConfig) -> np.ndarray:
               cfg.quirk_q3_unclamped_health, cfg.quirk_q4_latency_not_interrupted,
               cfg.quirk_q5_discount_from_action_start, cfg.quirk_q6_short_flight_stays,
               cfg.same_instant_order == "released",
-              cfg.fs_round_negative_delays, cfg.cut_flight_continues, fires)
+              cfg.fs_round_negative_delays, cfg.cut_flight_continues, cfg.fire_out_first,
+              count_races, fires)
     return rec
 
 
@@ -158,6 +161,12 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # scratch of an observation: the observing UAV's distance to every fire and its ranking
         # key, the fires in ranking order, the size of every fire's interest party
         ("fire_dist", f8, k), ("fire_key", f8, k), ("fire_order", i4, k), ("fire_party", i4, k),
+        # the race count (only with ``count_races``, last: the default path never touches it):
+        # the exact due times, before FS rounding, of each UAV's macro-action and each fire's
+        # extinguishing; the races so far; the instant of the latest expiry, the exact due time
+        # of the first timeout that expired then, and whether that instant was counted
+        ("action_due", f8, n), ("out_due", f8, k), ("races", i8), ("race_time", f8),
+        ("race_due", f8), ("race_counted", np.bool_),
     ], align=True)
 
 
@@ -434,7 +443,7 @@ def _start_action(state, params, i, a, hold):
         state.t_dep[i] = now
         state.length[i] = length
         state.flying[i] = True
-        delay = fs_delay(now, length / params.v_uav, params.dt, params.fs_round_negative_delays)
+        duration = length / params.v_uav
     else:
         x, y = state.pos[i, 0], state.pos[i, 1]
         for j in range(params.n_fires):
@@ -448,7 +457,10 @@ def _start_action(state, params, i, a, hold):
                         _penalise(state, params, j)
                 break
         state.n_holds[i] += 1
-        delay = fs_delay(now, hold, params.dt, params.fs_round_negative_delays)
+        duration = hold
+    if params.count_races:
+        state.action_due[i] = now + duration
+    delay = fs_delay(now, duration, params.dt, params.fs_round_negative_delays)
     state.uav_wait[i] = _push(state, delay, NORMAL, ACTION, i)
 
 
@@ -469,8 +481,10 @@ def _replan(state, params, j):
     if state.party[j] == 0:
         state.fire_wait[j] = -1  # idle until the party changes
     else:
-        delay = fs_delay(state.now, state.health[j] / state.party[j], params.dt,
-                         params.fs_round_negative_delays)
+        duration = state.health[j] / state.party[j]
+        if params.count_races:
+            state.out_due[j] = state.now + duration
+        delay = fs_delay(state.now, duration, params.dt, params.fs_round_negative_delays)
         state.fire_wait[j] = _push(state, delay, NORMAL, EXTINGUISH, j)
 
 
@@ -517,6 +531,30 @@ def _fire_out(state, log, params, j):
     _extinguish(state, params, j)
     if state.n_alive == 0:
         _push(state, 0.0, NORMAL, END_HOP, 2)
+
+
+@jit
+def _burn_ended(state, log, params, j):
+    """Released order: the end of fire j's burn sub-process reaches the fire, which goes out now
+    (``fire_out_first``), or waits two zero-delay timeouts first (OUT_WAIT1, OUT_WAIT2), so that
+    a UAV whose macro-action ends at this instant observes before (two hops after its timeout)."""
+    if params.fire_out_first:
+        _fire_out(state, log, params, j)
+    else:
+        _push(state, 0.0, NORMAL, OUT_WAIT1, j)
+
+
+@jit
+def _note_expiry(state, due):
+    """A timeout whose exact due time (before FS rounding) was ``due`` expires now: the instant
+    is a race once a timeout due at another time expired at it too (counted once per instant)."""
+    if state.now != state.race_time:
+        state.race_time = state.now
+        state.race_due = due
+        state.race_counted = False
+    elif due != state.race_due and not state.race_counted:
+        state.races += 1
+        state.race_counted = True
 
 
 @jit
@@ -620,6 +658,9 @@ def _setup(states, log, used, params_array, starts, slots):
             state.party[j] = 0
             state.fire_wait[j] = -1
             state.burning[j] = True  # the burn sub-process waits for a party
+        state.races = 0
+        state.race_time = -1.0  # no expiry yet (times are >= 0)
+        state.race_counted = False
         if params.released_order:
             _push(state, params.t_max, NORMAL, CLOCK, 0)
         for i in range(params.n_agents):
@@ -674,6 +715,8 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
             state.events += 1
             if kind == LATENCY:
                 if seq == state.uav_wait[who]:
+                    if params.count_races:
+                        _note_expiry(state, t)  # never rounded: due when it expires
                     state.in_lat[who] = False
                     if not params.released_order:
                         _act(state, params, holds, e, who)
@@ -688,6 +731,8 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                 _act(state, params, holds, e, who)
             elif kind == ACTION:
                 if seq == state.uav_wait[who]:
+                    if params.count_races:
+                        _note_expiry(state, state.action_due[who])
                     if params.released_order:  # the sub-process ends
                         state.acting[who] = False
                         state.cut[who] = False
@@ -708,6 +753,8 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                 row = _macro_action_over(state, log, params, e, row, who, state.cut[who])
             elif kind == EXTINGUISH:
                 if seq == state.fire_wait[who]:
+                    if params.count_races:
+                        _note_expiry(state, state.out_due[who])
                     if not params.released_order:
                         _extinguish(state, params, who)
                         if state.n_alive == 0:
@@ -716,10 +763,14 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                         state.burning[who] = False
                         if _next_anyway(state, NORMAL):
                             state.events += 1
-                            _fire_out(state, log, params, who)
+                            _burn_ended(state, log, params, who)
                         else:
                             _push(state, 0.0, NORMAL, BURN_END, who)
             elif kind == BURN_END:
+                _burn_ended(state, log, params, who)
+            elif kind == OUT_WAIT1:
+                _push(state, 0.0, NORMAL, OUT_WAIT2, who)
+            elif kind == OUT_WAIT2:
                 _fire_out(state, log, params, who)
             elif kind == INT_FIRE:
                 if params.released_order:
@@ -739,10 +790,13 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                     _push(state, 0.0, NORMAL, END_HOP, who - 1)
                 else:
                     _end(state, log, params)
-            elif params.released_order:  # CLOCK: then the condition "all out or T_max"
-                _push(state, 0.0, NORMAL, END_HOP, 0)
-            else:
-                _end(state, log, params)
+            else:  # CLOCK
+                if params.count_races:
+                    _note_expiry(state, t)
+                if params.released_order:  # then the condition "all out or T_max"
+                    _push(state, 0.0, NORMAL, END_HOP, 0)
+                else:
+                    _end(state, log, params)
         if not state.done:
             live[1 + n_live] = e
             n_live += 1
@@ -895,29 +949,34 @@ class WildfireBatch:
         obs, time = np.empty((d, self.env.obs_dim)), np.empty(d)
         actions, rewards, durations = np.empty(d, np.int64), np.empty(d), np.empty(d)
         _paths(self.log[:d], path_start, n, obs, actions, rewards, durations, time)
+        info = {"decision_time": time, "end_time": self.states["t_end"].copy(),
+                "events": self.states["events"].copy()}
+        if self.env.count_races:
+            info["races"] = self.states["races"].copy()
         return Rollout(
             obs=obs, actions=actions, rewards=rewards, durations=durations, path_start=path_start,
             path_episode=np.repeat(np.arange(e, dtype=np.int64), n),
             path_agent=np.tile(np.arange(n, dtype=np.int64), e),
             episode_return=self.states["returns"].mean(axis=1),
-            truncated=self.states["truncated"].copy(),
-            info={"decision_time": time, "end_time": self.states["t_end"].copy(),
-                  "events": self.states["events"].copy()})
+            truncated=self.states["truncated"].copy(), info=info)
 
 
 class WildfireEnv:
-    """docs/semantics.md section 3, fast: implements :class:`repro.core.rollout.BatchEnv`."""
+    """docs/semantics.md section 3, fast: implements :class:`repro.core.rollout.BatchEnv`.
+    ``count_races``: each episode's races (docs/semantics.md section 3.12) in ``info["races"]``
+    (an instrumentation the kernels skip otherwise)."""
 
     name = "wildfire"
 
-    def __init__(self, cfg: WildfireConfig):
+    def __init__(self, cfg: WildfireConfig, count_races: bool = False):
         cfg.validate()
         self.cfg = cfg
+        self.count_races = count_races
         self.obs_dim = cfg.obs_dim
         self.n_actions = cfg.n_actions
         self.n_agents = cfg.n_agents
         self.gamma = cfg.gamma
-        self.params = params_record(cfg)
+        self.params = params_record(cfg, count_races)
         self.state_dtype = state_dtype(cfg)
         self.log_dtype = log_dtype(cfg.obs_dim)
 

@@ -27,7 +27,9 @@ URGENT before NORMAL, then scheduling order; starting a process and interrupting
 - a fire interrupts the UAVs of its interest party in the order they joined it.
 
 E.g. a fire that goes out at the instant a UAV's hold ends is out before that UAV observes, and
-its r_ext belongs to the hold that just ended. "scheduling" is the suite's order before issue 18:
+its r_ext belongs to the hold that just ended (``fire_out_first``; False: the fire waits two more
+zero-delay timeouts, so that the UAV observes first). "scheduling" is the suite's order before
+issue 18:
 the processes wait on their own timeouts, interrupts go in agent-index order, and the episode
 ends at once.
 
@@ -101,13 +103,17 @@ class WildfireModel:
         self.t_end = math.nan
         self.events = 0
         self.joins = 0
+        # the exact (unrounded) due times of the timeouts that expired at each instant (races)
+        self.expired: dict[float, set[float]] = {}
         self.fire_procs = [self.env.process(self._fire(j)) for j in range(k)]
         self.uav_procs = [self.env.process(self._uav(i)) for i in range(n)]
         self.over = self.env.event()  # the episode ended (what a UAV's AnyOf also waits on)
         if self.released:
             self.fire_out = [self.env.event() for _ in range(k)]
             # as the released code runs until (all fires out) or (T_max)
-            ending = self.env.all_of(self.fire_out) | self.env.timeout(cfg.t_max)
+            clock = self.env.timeout(cfg.t_max)
+            clock.callbacks.append(lambda _: self._note_expiry(cfg.t_max))
+            ending = self.env.all_of(self.fire_out) | clock
             ending.callbacks.append(lambda _: self._end())
         else:
             self.env.process(self._clock())
@@ -136,7 +142,7 @@ class WildfireModel:
                 return
             self._observe(i)
             try:
-                yield self.env.timeout(self.cfg.decision_latency)
+                yield from self._timeout(self.cfg.decision_latency, rounded=False)
                 self.in_latency[i] = False
                 if self.released:
                     self.action_procs[i] = self.env.process(self._macro_action(i))
@@ -149,7 +155,7 @@ class WildfireModel:
                     self._land(i, cut=True)
 
     def _macro_action(self, i: int):
-        yield self.env.timeout(self._start_action(i))
+        yield from self._timeout(self._start_action(i))
 
     def _fire(self, j: int):
         while True:
@@ -162,17 +168,27 @@ class WildfireModel:
                 break
             except simpy.Interrupt:
                 pass  # the party changed: re-plan
+        if not self.cfg.fire_out_first:  # after the UAVs whose macro-action ends now observed
+            yield self.env.timeout(0)
+            yield self.env.timeout(0)
         self._extinguish(j)
 
     def _burn(self, j: int):
         if self.party[j] == 0:
             yield self.env.event()  # idle until the party changes
         else:
-            yield self.env.timeout(self._delay(self.health[j] / self.party[j]))
+            yield from self._timeout(self.health[j] / self.party[j])
 
     def _clock(self):
-        yield self.env.timeout(self.cfg.t_max)
+        yield from self._timeout(self.cfg.t_max, rounded=False)
         self._end()
+
+    def _timeout(self, delay: float, rounded: bool = True):
+        """Wait ``delay`` (FS: rounded to the grid, unless not ``rounded``). If the wait is not
+        interrupted, its exact due time, now + delay, is noted at the instant it expires."""
+        exact = self.env.now + delay
+        yield self.env.timeout(self._delay(delay) if rounded else delay)
+        self._note_expiry(exact)
 
     # --- UAV -------------------------------------------------------------------------------------
 
@@ -203,7 +219,7 @@ class WildfireModel:
             self.t_disc[i] = now
 
     def _start_action(self, i: int) -> float:
-        """Act; return the macro-action's (rounded) duration."""
+        """Act; return the macro-action's duration (before FS rounding)."""
         cfg, now = self.cfg, self.env.now
         if cfg.quirk_q5_discount_from_action_start:
             self.t_disc[i] = now
@@ -222,7 +238,7 @@ class WildfireModel:
             length = math.sqrt((goal[0] - origin[0]) * (goal[0] - origin[0])
                                + (goal[1] - origin[1]) * (goal[1] - origin[1]))
             self.flight[i] = (origin, goal, now, length)
-            return self._delay(length / cfg.v_uav)
+            return length / cfg.v_uav
         x, y = self.pos[i]
         for j, (fx, fy) in enumerate(self.fires):
             if math.sqrt((fx - x) * (fx - x) + (fy - y) * (fy - y)) < cfg.at_fire_tol:
@@ -236,7 +252,7 @@ class WildfireModel:
                 break
         hold = self.holds[i, self.n_holds[i] % len(self.holds[i])]
         self.n_holds[i] += 1
-        return self._delay(hold)
+        return hold
 
     def _join_interest(self, i: int, j: int) -> None:
         self.interest[i] = j
@@ -327,6 +343,15 @@ class WildfireModel:
     def _delay(self, d: float) -> float:
         return fs_delay(self.env.now, d, self.dt, self.cfg.fs_round_negative_delays)
 
+    def _note_expiry(self, exact: float) -> None:
+        self.expired.setdefault(self.env.now, set()).add(exact)
+
+    @property
+    def races(self) -> int:
+        """Instants at which timeouts of different exact due times expired (docs/semantics.md
+        section 3.12): FS put together what ED separates."""
+        return sum(len(due) > 1 for due in self.expired.values())
+
     def _accrue(self, i: int, r: float) -> None:
         rec = self.rec[self.current[i]]
         rec["reward"] += math.exp(-self.cfg.gamma * (self.env.now - self.t_disc[i])) * r
@@ -343,13 +368,16 @@ class WildfireModel:
 
 class ReferenceEnv:
     """The SimPy model behind the BatchEnv interface: episodes one after another, the policy asked
-    once per decision (a one-row DecisionBatch)."""
+    once per decision (a one-row DecisionBatch). ``count_races``: each episode's races (docs/
+    semantics.md section 3.12) in ``info["races"]``, counted apart from the fast engine's count
+    (a set of exact due times per instant), to check it."""
 
     name = "wildfire"
 
-    def __init__(self, cfg: WildfireConfig):
+    def __init__(self, cfg: WildfireConfig, count_races: bool = False):
         cfg.validate()
         self.cfg = cfg
+        self.count_races = count_races
         self.obs_dim = cfg.obs_dim
         self.n_actions = cfg.n_actions
         self.n_agents = cfg.n_agents
@@ -361,7 +389,7 @@ class ReferenceEnv:
 
     def simulate(self, policy: Policy, draws: EpisodeDraws) -> Rollout:
         """Run the episodes of ``draws`` (tests script start positions and hold durations)."""
-        recs, returns, ends, events, truncated = [], [], [], [], []
+        recs, returns, ends, events, truncated, races = [], [], [], [], [], []
         for e in range(draws.n_episodes):
             model = WildfireModel(self.cfg, draws.starts[e], draws.holds[e])
             while True:
@@ -378,8 +406,9 @@ class ReferenceEnv:
             ends.append(model.t_end)
             events.append(model.events)
             truncated.append(model.truncated)
+            races.append(model.races)
         col = lambda key, dtype=float: np.array([r[key] for r in recs], dtype=dtype)  # noqa: E731
-        return rollout_from_records(
+        rollout = rollout_from_records(
             episode=col("episode", np.int64), agent=col("agent", np.int64),
             index=col("index", np.int64), time=col("time"),
             obs=np.array([r["obs"] for r in recs]).reshape(len(recs), self.obs_dim),
@@ -387,3 +416,6 @@ class ReferenceEnv:
             agent_returns=np.array(returns).reshape(draws.n_episodes, self.n_agents),
             end_time=np.array(ends), events=np.array(events, dtype=np.int64),
             truncated=np.array(truncated, dtype=bool))
+        if self.count_races:
+            rollout.info["races"] = np.array(races, dtype=np.int64)
+        return rollout
