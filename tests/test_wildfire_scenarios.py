@@ -277,17 +277,20 @@ def test_the_reversed_order_leaves_other_instants_alone(engine, fire_out_first):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize("dt, races", [(1.0, 1), (None, 0)])
+@pytest.mark.parametrize("dt, races", [(1.0, 132), (None, 0)])
 def test_races_are_instants_that_rounding_made_shared(engine, dt, races):
-    """UAVs 0 and 1 wait away from every fire, 2.5 s and 2.7 s from 1e-5: FS-1 rounds both ends to
-    3, a race; from then on both hold 3.0 s from the same instants, simultaneous in ED as well (no
-    race), and UAV 2's holds (10 s, then 3 s) end at 11 + 4k, never with theirs. ED: none."""
-    cfg = WildfireConfig(dt=dt)
-    r = run(engine, cfg, [FAR, FAR, FAR], [[2.5], [2.7], [10.0]], [[HOLD]] * 3, count_races=True)
+    """Four UAVs wait away from every fire from 1e-5. UAVs 0 and 1 first 2.5 s and 2.7 s: FS-1
+    puts both ends at 3, a race; then both wait 3 s at a time, from one instant, so FS-1 keeps
+    them together (at 3 + 4k, 66 times before T_max = 264.9) while ED keeps them 0.2 s apart:
+    each of those instants is a race, and so is each instant 1e-5 later, where both decision
+    latencies end. UAVs 2 and 3 wait 3 s at a time from 1e-5, together in ED as well (at
+    4 + 4k): never a race. ED: none."""
+    cfg = WildfireConfig(dt=dt, n_agents=4)
+    r = run(engine, cfg, [FAR] * 4, [[2.5], [2.7]], [[HOLD]] * 4, count_races=True)
     assert r.info["races"].tolist() == [races]
-    if dt:  # the two holds ended together some 65 times
-        times = r.info["decision_time"]
-        assert np.sum(np.isin(times[path(r, 0)], times[path(r, 1)])) > 60
+    times = [r.info["decision_time"][path(r, i)] for i in range(4)]
+    np.testing.assert_array_equal(times[2], times[3])
+    assert np.isin(times[0], times[1]).sum() == (67 if dt else 1)  # with the start, at 0
 
 
 @pytest.mark.parametrize("engine", ENGINES)

@@ -54,7 +54,8 @@ from repro.core.fixed_step import fs_delay
 from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
-                                        OWN_Y, STATUS, EpisodeDraws, WildfireConfig,
+                                        OWN_Y, RACE_TOLERANCE, STATUS, EpisodeDraws,
+                                        WildfireConfig,
                                         draw_episodes, fire_positions, rank_key)
 
 URGENT, NORMAL = 0, 1
@@ -162,10 +163,12 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # key, the fires in ranking order, the size of every fire's interest party
         ("fire_dist", f8, k), ("fire_key", f8, k), ("fire_order", i4, k), ("fire_party", i4, k),
         # the race count (only with ``count_races``, last: the default path never touches it):
-        # the exact due times, before FS rounding, of each UAV's macro-action and each fire's
-        # extinguishing; the races so far; the instant of the latest expiry, the exact due time
-        # of the first timeout that expired then, and whether that instant was counted
-        ("action_due", f8, n), ("out_due", f8, k), ("races", i8), ("race_time", f8),
+        # the exact time of the event being processed (see _exact_time); the exact due times of
+        # each UAV's latency and macro-action, and of what cut it; of each fire's extinguishing,
+        # and of its latest party change; the races so far; the instant of the latest expiry,
+        # the exact due time of the first timeout that expired then, and whether it was counted
+        ("exact_now", f8), ("latency_due", f8, n), ("action_due", f8, n), ("cut_due", f8, n),
+        ("out_due", f8, k), ("change_due", f8, k), ("races", i8), ("race_time", f8),
         ("race_due", f8), ("race_counted", np.bool_),
     ], align=True)
 
@@ -379,6 +382,8 @@ def _observe(state, params, record, row, e, i):
         state.t_disc[i] = now
     state.rew[i] = 0.0
     state.in_lat[i] = True
+    if params.count_races:
+        state.latency_due[i] = state.exact_now + params.latency
     state.uav_wait[i] = _push(state, params.latency, NORMAL, LATENCY, i)
 
 
@@ -396,6 +401,8 @@ def _party_change(state, params, j, delta):
     state.health[j] = state.health[j] - state.party[j] * (now - state.t_update[j])
     state.t_update[j] = now
     state.party[j] += delta
+    if params.count_races:
+        state.change_due[j] = state.exact_now
     if not params.released_order:
         _push(state, 0.0, URGENT, INT_FIRE, j)
     elif state.burning[j]:  # else it ended at this instant: the fire goes out all the same
@@ -459,7 +466,7 @@ def _start_action(state, params, i, a, hold):
         state.n_holds[i] += 1
         duration = hold
     if params.count_races:
-        state.action_due[i] = now + duration
+        state.action_due[i] = state.exact_now + duration
     delay = fs_delay(now, duration, params.dt, params.fs_round_negative_delays)
     state.uav_wait[i] = _push(state, delay, NORMAL, ACTION, i)
 
@@ -483,7 +490,7 @@ def _replan(state, params, j):
     else:
         duration = state.health[j] / state.party[j]
         if params.count_races:
-            state.out_due[j] = state.now + duration
+            state.out_due[j] = state.exact_now + duration
         delay = fs_delay(state.now, duration, params.dt, params.fs_round_negative_delays)
         state.fire_wait[j] = _push(state, delay, NORMAL, EXTINGUISH, j)
 
@@ -491,6 +498,8 @@ def _replan(state, params, j):
 @jit
 def _interrupt(state, params, i):
     """A fire UAV i is interested in went out."""
+    if params.count_races:
+        state.cut_due[i] = state.exact_now
     if state.in_lat[i]:
         if not params.quirk_q4_latency_not_interrupted:
             _push(state, 0.0, URGENT, INT_UAV, i)  # drop the pending decision
@@ -545,14 +554,38 @@ def _burn_ended(state, log, params, j):
 
 
 @jit
-def _note_expiry(state, due):
-    """A timeout whose exact due time (before FS rounding) was ``due`` expires now: the instant
-    is a race once a timeout due at another time expired at it too (counted once per instant)."""
-    if state.now != state.race_time:
+def _exact_time(state, kind, who):
+    """Races: ``exact_now``, the exact time of the event just popped (of ``kind``, about
+    ``who``): the due time of the timeout it follows from, as ED would time it along this FS run
+    (each due time is the exact time of the event that scheduled it plus the delay before FS
+    rounding). A hop or interrupt has the time of the event that caused it."""
+    if kind == LATENCY or kind == ACT_START:
+        state.exact_now = state.latency_due[who]
+    elif kind == ACTION:
+        state.exact_now = state.action_due[who]
+    elif kind == INT_UAV or kind == INT_ACT:
+        state.exact_now = state.cut_due[who]
+    elif kind == ACT_END or kind == ANY_OF:
+        state.exact_now = state.cut_due[who] if state.cut[who] else state.action_due[who]
+    elif kind == EXTINGUISH or kind == BURN_END or kind == OUT_WAIT1 or kind == OUT_WAIT2:
+        state.exact_now = state.out_due[who]
+    elif kind == INT_FIRE or kind == BURN_FAIL or kind == BURN_START:
+        state.exact_now = state.change_due[who]
+    elif kind == CLOCK:  # T_max is never rounded
+        state.exact_now = state.now
+
+
+@jit
+def _note_expiry(state):
+    """A timeout expires now, exactly due at ``exact_now``: the instant (the expiries within
+    RACE_TOLERANCE of its first) is a race once one of them was due at another time than its
+    first (counted once per instant)."""
+    due = state.exact_now
+    if abs(state.now - state.race_time) > RACE_TOLERANCE:
         state.race_time = state.now
         state.race_due = due
         state.race_counted = False
-    elif due != state.race_due and not state.race_counted:
+    elif abs(due - state.race_due) > RACE_TOLERANCE and not state.race_counted:
         state.races += 1
         state.race_counted = True
 
@@ -658,6 +691,7 @@ def _setup(states, log, used, params_array, starts, slots):
             state.party[j] = 0
             state.fire_wait[j] = -1
             state.burning[j] = True  # the burn sub-process waits for a party
+        state.exact_now = 0.0
         state.races = 0
         state.race_time = -1.0  # no expiry yet (times are >= 0)
         state.race_counted = False
@@ -713,10 +747,12 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
             seq, kind, who = _unpack(key)
             state.now = t
             state.events += 1
+            if params.count_races:
+                _exact_time(state, kind, who)
             if kind == LATENCY:
                 if seq == state.uav_wait[who]:
                     if params.count_races:
-                        _note_expiry(state, t)  # never rounded: due when it expires
+                        _note_expiry(state)
                     state.in_lat[who] = False
                     if not params.released_order:
                         _act(state, params, holds, e, who)
@@ -732,7 +768,7 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
             elif kind == ACTION:
                 if seq == state.uav_wait[who]:
                     if params.count_races:
-                        _note_expiry(state, state.action_due[who])
+                        _note_expiry(state)
                     if params.released_order:  # the sub-process ends
                         state.acting[who] = False
                         state.cut[who] = False
@@ -754,7 +790,7 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
             elif kind == EXTINGUISH:
                 if seq == state.fire_wait[who]:
                     if params.count_races:
-                        _note_expiry(state, state.out_due[who])
+                        _note_expiry(state)
                     if not params.released_order:
                         _extinguish(state, params, who)
                         if state.n_alive == 0:
@@ -792,7 +828,7 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                     _end(state, log, params)
             else:  # CLOCK
                 if params.count_races:
-                    _note_expiry(state, t)
+                    _note_expiry(state)
                 if params.released_order:  # then the condition "all out or T_max"
                     _push(state, 0.0, NORMAL, END_HOP, 0)
                 else:

@@ -36,6 +36,12 @@ SAME_INSTANT_ORDERS = ("released", "scheduling")
 """Values of :attr:`WildfireConfig.same_instant_order`."""
 
 
+RACE_TOLERANCE = 1e-9
+"""Expiry times, and exact due times, closer than this (s) count as one in the race count
+(docs/semantics.md section 3.12): two events on one grid point can differ in the last bit, and
+two flights of equal length (in clusters rotated onto each other) in the last bits."""
+
+
 MAX_T_MAX = 1e5
 """The longest episode cap T_max (s) a config may ask for (through a small gamma)."""
 

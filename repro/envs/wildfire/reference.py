@@ -59,8 +59,8 @@ import simpy
 
 from repro.core.fixed_step import fs_delay
 from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions
-from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episodes,
-                                        fire_positions, rank_key)
+from repro.envs.wildfire.params import (RACE_TOLERANCE, EpisodeDraws, WildfireConfig,
+                                        draw_episodes, fire_positions, rank_key)
 from repro.envs.wildfire.records import rollout_from_records
 
 class WildfireModel:
@@ -103,8 +103,14 @@ class WildfireModel:
         self.t_end = math.nan
         self.events = 0
         self.joins = 0
-        # the exact (unrounded) due times of the timeouts that expired at each instant (races)
-        self.expired: dict[float, set[float]] = {}
+        # races: the exact time of the event being processed, as ED would time it along this run
+        # (see _timeout); the exact due times of each UAV's latency and macro-action, of each
+        # fire's extinguishing and latest party change, which a process reads as it resumes; the
+        # (time, exact due time) of each timeout that expired
+        self.exact_now = 0.0
+        self.latency_due, self.action_due = [0.0] * n, [0.0] * n
+        self.out_due, self.change_due = [0.0] * k, [0.0] * k
+        self.expired: list[tuple[float, float]] = []
         self.fire_procs = [self.env.process(self._fire(j)) for j in range(k)]
         self.uav_procs = [self.env.process(self._uav(i)) for i in range(n)]
         self.over = self.env.event()  # the episode ended (what a UAV's AnyOf also waits on)
@@ -112,7 +118,7 @@ class WildfireModel:
             self.fire_out = [self.env.event() for _ in range(k)]
             # as the released code runs until (all fires out) or (T_max)
             clock = self.env.timeout(cfg.t_max)
-            clock.callbacks.append(lambda _: self._note_expiry(cfg.t_max))
+            clock.callbacks.append(lambda _: self._clock_expired())
             ending = self.env.all_of(self.fire_out) | clock
             ending.callbacks.append(lambda _: self._end())
         else:
@@ -142,20 +148,24 @@ class WildfireModel:
                 return
             self._observe(i)
             try:
-                yield from self._timeout(self.cfg.decision_latency, rounded=False)
+                yield from self._timeout(self.cfg.decision_latency, self.latency_due, i,
+                                         rounded=False)
                 self.in_latency[i] = False
                 if self.released:
                     self.action_procs[i] = self.env.process(self._macro_action(i))
                     yield self.env.any_of([self.action_procs[i], self.over])
+                    self.exact_now = self.action_due[i]
                 else:
                     yield from self._macro_action(i)
                 self._land(i, cut=False)
-            except simpy.Interrupt:
+            except simpy.Interrupt as stop:
+                self.exact_now = stop.cause
                 if not self.cfg.cut_flight_continues:
                     self._land(i, cut=True)
 
     def _macro_action(self, i: int):
-        yield from self._timeout(self._start_action(i))
+        self.exact_now = self.latency_due[i]  # released: a sub-process starts a step later
+        yield from self._timeout(self._start_action(i), self.action_due, i)
 
     def _fire(self, j: int):
         while True:
@@ -171,24 +181,33 @@ class WildfireModel:
         if not self.cfg.fire_out_first:  # after the UAVs whose macro-action ends now observed
             yield self.env.timeout(0)
             yield self.env.timeout(0)
+        self.exact_now = self.out_due[j]
         self._extinguish(j)
 
     def _burn(self, j: int):
+        self.exact_now = self.change_due[j]  # released: a sub-process starts a step later
         if self.party[j] == 0:
             yield self.env.event()  # idle until the party changes
         else:
-            yield from self._timeout(self.health[j] / self.party[j])
+            yield from self._timeout(self.health[j] / self.party[j], self.out_due, j)
 
     def _clock(self):
-        yield from self._timeout(self.cfg.t_max, rounded=False)
+        yield self.env.timeout(self.cfg.t_max)
+        self._clock_expired()
         self._end()
 
-    def _timeout(self, delay: float, rounded: bool = True):
-        """Wait ``delay`` (FS: rounded to the grid, unless not ``rounded``). If the wait is not
-        interrupted, its exact due time, now + delay, is noted at the instant it expires."""
-        exact = self.env.now + delay
+    def _timeout(self, delay: float, dues: list[float], index: int, rounded: bool = True):
+        """Wait ``delay`` (FS: rounded to the grid, unless not ``rounded``). Its exact due time,
+        ``dues[index]``, is the exact time of what scheduled it plus ``delay``: ED's time for it
+        along this run. If the wait is not interrupted, it is noted at the instant it expires."""
+        dues[index] = self.exact_now + delay
         yield self.env.timeout(self._delay(delay) if rounded else delay)
-        self._note_expiry(exact)
+        self.exact_now = dues[index]
+        self._note_expiry()
+
+    def _clock_expired(self) -> None:
+        self.exact_now = self.env.now  # T_max is never rounded
+        self._note_expiry()
 
     # --- UAV -------------------------------------------------------------------------------------
 
@@ -285,11 +304,11 @@ class WildfireModel:
         """A fire UAV i is interested in went out."""
         if self.in_latency[i]:
             if not self.cfg.quirk_q4_latency_not_interrupted:
-                self.uav_procs[i].interrupt()  # drop the pending decision
+                self.uav_procs[i].interrupt(self.exact_now)  # drop the pending decision
         elif not self.released:
-            self.uav_procs[i].interrupt()
+            self.uav_procs[i].interrupt(self.exact_now)
         elif self.action_procs[i].is_alive:  # else it ended at this instant: the UAV will observe
-            self.action_procs[i].interrupt()
+            self.action_procs[i].interrupt(self.exact_now)
 
     # --- fires -----------------------------------------------------------------------------------
 
@@ -307,6 +326,7 @@ class WildfireModel:
         self.health[j] = self.health[j] - self.party[j] * (now - self.t_update[j])
         self.t_update[j] = now
         self.party[j] += delta
+        self.change_due[j] = self.exact_now
         burning = self.burn_procs[j] if self.released else self.fire_procs[j]
         if burning.is_alive:  # else it ended at this instant: the fire goes out all the same
             burning.interrupt()
@@ -343,14 +363,22 @@ class WildfireModel:
     def _delay(self, d: float) -> float:
         return fs_delay(self.env.now, d, self.dt, self.cfg.fs_round_negative_delays)
 
-    def _note_expiry(self, exact: float) -> None:
-        self.expired.setdefault(self.env.now, set()).add(exact)
+    def _note_expiry(self) -> None:
+        self.expired.append((self.env.now, self.exact_now))
 
     @property
     def races(self) -> int:
         """Instants at which timeouts of different exact due times expired (docs/semantics.md
-        section 3.12): FS put together what ED separates."""
-        return sum(len(due) > 1 for due in self.expired.values())
+        section 3.12): FS put together what ED separates. An instant is a run of expiries within
+        RACE_TOLERANCE of its first; due times within it of the first's are the same."""
+        instants: list[list[tuple[float, float]]] = []
+        for t, due in self.expired:
+            if instants and abs(t - instants[-1][0][0]) <= RACE_TOLERANCE:
+                instants[-1].append((t, due))
+            else:
+                instants.append([(t, due)])
+        return sum(any(abs(due - run[0][1]) > RACE_TOLERANCE for _, due in run)
+                   for run in instants)
 
     def _accrue(self, i: int, r: float) -> None:
         rec = self.rec[self.current[i]]
