@@ -15,7 +15,7 @@ STAMP  := $(VENV)/.installed
 .PHONY: setup reproduce test lint claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
 	fig-bus-arrivals fig-bus-load wildfire-heuristics \
 	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour render \
-	clean
+	beyond-races beyond-order clean
 .DEFAULT_GOAL := help
 
 help:
@@ -55,6 +55,8 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
 	$(MAKE) wildfire-heuristics SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) beyond-races SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) beyond-order SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
 claims: $(STAMP) ## render paper_claims.md from results/<largest complete scale>/
@@ -104,6 +106,12 @@ wildfire-heuristics: $(STAMP) ## heuristic policies on the transfer study's ED t
 
 wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the flowchart (C6, C7)
 	$(REPRO) wildfire-behaviour --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+beyond-races: $(STAMP) ## races in the wildfire simulator, dT against N, beside C10 (X2; after table-race)
+	$(REPRO) beyond-races --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+beyond-order: $(STAMP) ## C9's pair under both same-instant orders (X4; reuses fig-transfer's runs)
+	$(REPRO) beyond-order --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 clean: ## remove the virtual environment and caches, numba's compiled kernels too (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from repro.claims import NOT_RUN, registry, render
+from repro.claims import BEYOND, NOT_RUN, registry, render
 from repro.cli import main
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
@@ -74,8 +74,10 @@ def test_every_claim_has_a_verdict_from_the_committed_results():
     own bug raises is not hidden behind that verdict."""
     for claim in registry():
         v = claim.evaluate(ROOT / "results" / "paper")
-        # or a result of the semantics before the released simulator's, which says so
-        assert v.verdict != NOT_RUN or v.outdated, (claim.id, v)
+        # or a result of the semantics before the released simulator's, which says so; a question
+        # beyond the paper may not have run at paper scale yet (its files are missing)
+        beyond_not_run = claim.id.startswith(BEYOND) and v.detail.startswith("missing")
+        assert v.verdict != NOT_RUN or v.outdated or beyond_not_run, (claim.id, v)
 
 
 @pytest.mark.parametrize("content", ["", "x\n1\n"])

@@ -1,5 +1,6 @@
-"""The claims registry: one small check per claim C1..C11 of docs/semantics.md section 1.2, rendered
-to ``paper_claims.md`` by ``python -m repro claims`` (``make claims``).
+"""The claims registry: one small check per claim C1..C11 of docs/semantics.md section 1.2, and per
+question X1.. the suite asks beyond the paper, rendered to ``paper_claims.md`` by ``python -m repro
+claims`` (``make claims``).
 
 A check reads result files and returns a :class:`Verdict`. A claim whose result files do not exist,
 or lack the rows and columns its check reads (a stale or hand-edited file), reads "not yet run",
@@ -33,7 +34,10 @@ LEGEND = {
 }
 """What each verdict means."""
 TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
-          "repro.claims.wildfire")
+          "repro.claims.wildfire", "repro.claims.beyond_races")
+BEYOND = "X"
+"""The first letter of the ids of the questions beyond the paper: rendered in their own section,
+after the paper's claims, and not needed for a scale's results to count as complete."""
 
 
 @dataclass(frozen=True)
@@ -92,7 +96,7 @@ def registry() -> list[Claim]:
     claims: list[Claim] = []
     for mod in TOPICS:
         claims.extend(importlib.import_module(mod).CLAIMS)
-    return sorted(claims, key=lambda c: int(c.id[1:]))
+    return sorted(claims, key=lambda c: (c.id.startswith(BEYOND), int(c.id[1:])))
 
 
 def _cell(s: str) -> str:
@@ -102,6 +106,8 @@ def _cell(s: str) -> str:
 def render(results: Path) -> str:
     """paper_claims.md: a tally, one short row per claim, then each claim's detail."""
     rows = [(c, c.evaluate(results)) for c in registry()]
+    beyond = [(c, v) for c, v in rows if c.id.startswith(BEYOND)]
+    rows = [(c, v) for c, v in rows if not c.id.startswith(BEYOND)]
     counts = {k: sum(v.verdict == k for _, v in rows) for k in VERDICTS}
     scales = sorted({v.scale for _, v in rows if v.scale})
     tally = ", ".join(f"{n} {k}" for k, n in counts.items() if n)
@@ -116,25 +122,39 @@ def render(results: Path) -> str:
         "",
         *(f"- **{k}**: {m}." for k, m in LEGEND.items()),
         "",
-        "| id | claim | paper | ours | verdict |",
-        "|----|-------|-------|------|---------|",
+        *_table(rows),
+        "", "## Details", *_details(rows),
     ]
-    for c, v in rows:
-        where = f" ({c.where})" if c.where else ""
-        lines.append("| " + " | ".join(_cell(x) for x in (
-            c.id, c.text, c.paper + where, v.ours, f"**{v.verdict}**")) + " |")
-    lines += ["", "## Details"]
-    for c, v in rows:
-        lines += ["", f"### {c.id}: {v.verdict}" + (f" ({v.scale} scale)" if v.scale else ""), ""]
-        lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}", WIDTH,
-                               break_on_hyphens=False)
-        lines.append(f"Regenerate: `{c.command}`.")
     # a topic's NOTES: text, or a function of the results folder that returns it
     notes = [getattr(importlib.import_module(m), "NOTES", "") for m in TOPICS]
     notes = [n(results) if callable(n) else n for n in notes]
     for note in filter(None, notes):
         lines += ["", note.strip()]
+    if beyond:
+        lines += ["", "## Beyond the paper", "",
+                  "Questions the paper raises but does not answer, asked of our engines. A verdict "
+                  "says whether the statement holds within the stated tolerance.", "",
+                  *_table(beyond), *_details(beyond)]
     return "\n".join(lines) + "\n"
+
+
+def _table(rows: list[tuple[Claim, Verdict]]) -> list[str]:
+    lines = ["| id | claim | paper | ours | verdict |", "|----|-------|-------|------|---------|"]
+    for c, v in rows:
+        where = f" ({c.where})" if c.where else ""
+        lines.append("| " + " | ".join(_cell(x) for x in (
+            c.id, c.text, c.paper + where, v.ours, f"**{v.verdict}**")) + " |")
+    return lines
+
+
+def _details(rows: list[tuple[Claim, Verdict]]) -> list[str]:
+    lines = []
+    for c, v in rows:
+        lines += ["", f"### {c.id}: {v.verdict}" + (f" ({v.scale} scale)" if v.scale else ""), ""]
+        lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}", WIDTH,
+                               break_on_hyphens=False)
+        lines.append(f"Regenerate: `{c.command}`.")
+    return lines
 
 
 WIDTH = 100
@@ -142,12 +162,13 @@ WIDTH = 100
 
 
 def default_results(root: Path = Path("results")) -> Path:
-    """The folder ``claims`` reads unless told: the largest scale that has every claim's results
-    (outdated ones count), else the largest scale that has results at all (paper, then quick, then
-    smoke)."""
+    """The folder ``claims`` reads unless told: the largest scale that has every paper claim's
+    results (outdated ones count), else the largest scale that has results at all (paper, then
+    quick, then smoke)."""
     folders = [root / s for s in reversed(SCALES) if (root / s).is_dir()]
+    paper = [c for c in registry() if not c.id.startswith(BEYOND)]
     complete = (f for f in folders if all(v.verdict != NOT_RUN or v.outdated
-                                          for v in (c.evaluate(f) for c in registry())))
+                                          for v in (c.evaluate(f) for c in paper)))
     return next(complete, folders[0] if folders else root / SCALES[-1])
 
 
