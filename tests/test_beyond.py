@@ -80,8 +80,9 @@ def test_the_fit_recovers_a_known_exponent():
 
 
 def _x2_results(tmp_path, betas):
-    cells = pd.DataFrame([dict(policy=p, n_agents=n, log10_dt=x, dt=10.0 ** x, episodes=100)
-                          for p in betas for n in (3, 6) for x in (-3.0, -2.0)])
+    cells = pd.DataFrame([dict(policy=p, n_agents=n, log10_dt=x, dt=10.0 ** x, episodes=100,
+                               decisions=100 * n * 10) for p in betas for n in (3, 6)
+                          for x in (-3.0, -2.0)])
     write_result_csv(cells, tmp_path / "races.csv")
     fits = pd.DataFrame([dict(policy=p, n_agents=n, dt_star=1e-3, delta=0.1, alpha=1.0, beta=b,
                               beta_se=0.1, n_fit=4, c10_beta=2.2)
@@ -101,6 +102,7 @@ def test_x2_check_can_pass_and_fail(tmp_path):
         _x2_results(tmp_path, betas)
         v = x2.evaluate(tmp_path)
         assert v.verdict == verdict, v
+        assert verdict == NOT_RUN or "nearest 1.00" in v.detail  # decisions grow as N
 
 
 @pytest.mark.parametrize("argv, param", [

@@ -46,8 +46,18 @@ def check_x2(results: Path) -> Verdict:
               f"{', '.join(within) or 'neither policy'}. Near C10's (within {X2_TOLERANCE}): "
               f"{', '.join(p for p in per_policy.index if near[p]) or 'none'}"
               + (f"; unresolved crossings: {_pairs(unresolved)}" if len(unresolved) else "")
-              + ".")
+              + f". Decisions per episode grow as N^k, k = {_growth(cells)} (log-log slope): "
+              f"unlike C10's N event times, an episode's events do not grow as N; the policy "
+              f"and the layout decide how they grow.")
     return Verdict(ours, verdict, detail, scale_of(path))
+
+
+def _growth(cells: pd.DataFrame) -> str:
+    """Per policy, the log-log slope of decisions per episode against N (at the finest dT)."""
+    finest = cells[cells.dt == cells.dt.min()]
+    return ", ".join(
+        f"{p} {np.polyfit(np.log(g.n_agents), np.log(g.decisions / g.episodes), 1)[0]:.2f}"
+        for p, g in finest.groupby("policy", sort=False))
 
 
 def _pairs(frame: pd.DataFrame) -> str:
