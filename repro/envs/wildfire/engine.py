@@ -55,8 +55,7 @@ from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
                                         OWN_Y, RACE_TOLERANCE, STATUS, EpisodeDraws,
-                                        WildfireConfig,
-                                        draw_episodes, fire_positions, rank_key)
+                                        WildfireConfig, draw_episodes, fire_positions, rank_key)
 
 URGENT, NORMAL = 0, 1
 """SimPy's priorities: an interrupt or a process start at time t comes before any timeout at t."""
