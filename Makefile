@@ -15,7 +15,7 @@ STAMP  := $(VENV)/.installed
 .PHONY: setup reproduce test lint claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
 	fig-bus-arrivals fig-bus-load wildfire-heuristics \
 	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour render \
-	beyond-mgae beyond-transfer-dt clean
+	beyond-races beyond-mgae beyond-order beyond-transfer-dt clean
 .DEFAULT_GOAL := help
 
 help:
@@ -55,7 +55,9 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
 	$(MAKE) wildfire-heuristics SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) beyond-races SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) beyond-mgae SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) beyond-order SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) beyond-transfer-dt SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
@@ -106,6 +108,12 @@ wildfire-heuristics: $(STAMP) ## heuristic policies on the transfer study's ED t
 
 wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the flowchart (C6, C7)
 	$(REPRO) wildfire-behaviour --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+beyond-races: $(STAMP) ## X2: races in the wildfire simulator, dT against N, beside C10 (after table-race)
+	$(REPRO) beyond-races --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+beyond-order: $(STAMP) ## X4: C9's pair under both same-instant orders (reuses fig-transfer's runs)
+	$(REPRO) beyond-order --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 beyond-mgae: $(STAMP) ## X1: M-GAE vs two other advantage estimators (reuses fig-bus-lambda's, fig-transfer's runs)
 	$(REPRO) beyond-mgae --scale $(SCALE) --seed $(SEED) $(ARGS)

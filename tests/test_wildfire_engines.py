@@ -79,6 +79,40 @@ def test_engines_agree_decision_by_decision(seed, dt, t_health, q1, q2, q3, q4, 
     assert_same(ref, fast)
 
 
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2 ** 32 - 1), dt=st.sampled_from(DTS + (1e-3,)),
+       t_health=st.sampled_from((3.0, 2.9999)),
+       # (N, clusters): each pair compiles the kernels anew (the state record's shape)
+       layout=st.sampled_from(((3, 3), (2, 1), (6, 6))), fire_out_first=st.booleans(),
+       q3=st.booleans(),
+       q4=st.booleans(), q5=st.booleans(),
+       kind=st.sampled_from(("scripted", "random", "nearest", "flowchart")))
+def test_engines_agree_on_other_layouts_orders_and_races(seed, dt, t_health, layout,
+                                                         fire_out_first, q3, q4, q5, kind):
+    """The switches of the beyond-the-paper studies, n_clusters and fire_out_first (X2, X4), and
+    the race count, which both engines keep apart (ED never races); counting changes nothing."""
+    n_agents, n_clusters = layout
+    cfg = WildfireConfig(dt=dt, t_health=t_health, n_clusters=n_clusters, n_agents=n_agents,
+                         n_observed=min(5, 3 * n_clusters), fire_out_first=fire_out_first,
+                         quirk_q3_unclamped_health=q3, quirk_q4_latency_not_interrupted=q4,
+                         quirk_q5_discount_from_action_start=q5)
+
+    def policy():
+        s = Scripted(seed, 2, n_agents, cfg.n_actions)
+        return s if kind == "scripted" else POLICIES[kind](uniforms=s.uniforms,
+                                                            n_observed=cfg.n_observed)
+
+    ref = make_reference_env(cfg, count_races=True).rollout(policy(), 2, seed)
+    fast = make_env(cfg, count_races=True).rollout(policy(), 2, seed)
+    assert_same(ref, fast)
+    np.testing.assert_array_equal(ref.info["races"], fast.info["races"])
+    if dt is None:
+        assert not fast.info["races"].any()
+    uncounted = make_env(cfg).rollout(policy(), 2, seed)
+    assert "races" not in uncounted.info
+    np.testing.assert_array_equal(uncounted.obs, fast.obs)
+
+
 def test_engines_agree_on_a_larger_batch():
     """Many episodes in one fast batch (rounds mix episodes at different stages)."""
     cfg = WildfireConfig(dt=10 ** 0.5, quirk_q2_penalty_party_only=False)

@@ -27,12 +27,12 @@ class Script:
                          for i, k in zip(batch.agent, batch.index)], dtype=np.int64)
 
 
-def run(engine: str, cfg: WildfireConfig, starts, holds, scripts):
+def run(engine: str, cfg: WildfireConfig, starts, holds, scripts, count_races: bool = False):
     h = np.full((1, cfg.n_agents, cfg.hold_table_size), 3.0)
     for i, hs in enumerate(holds):
         h[0, i, :len(hs)] = hs
     draws = EpisodeDraws(np.array([starts], dtype=float), h)
-    return ENGINES[engine](cfg).simulate(Script(scripts), draws)
+    return ENGINES[engine](cfg, count_races).simulate(Script(scripts), draws)
 
 
 def path(r, agent):
@@ -207,3 +207,103 @@ def test_two_uavs_join_one_party_at_one_instant(engine, order, q2, q5):
     expect = [-20 * pen + fire] * 2 + [fire + (0 if q2 else -20 * disc(1e-5))]
     np.testing.assert_allclose(returns, expect, atol=1e-12)
     assert r.episode_return[0] == pytest.approx((-19 - 19 + third) / 3)
+
+
+@pytest.mark.parametrize("n_clusters", [1, 2, 3, 4, 24])
+def test_clusters_are_rotations_of_cluster_a(n_clusters):
+    """n_clusters clusters of three: cluster k is cluster A rotated by k 360/n_clusters degrees;
+    3 is the paper's layout, bit for bit."""
+    cfg = WildfireConfig(n_clusters=n_clusters, n_observed=3)
+    f = fire_positions(cfg)
+    assert f.shape == (3 * n_clusters, 2) == (cfg.n_fires, 2)
+    for k in range(n_clusters):
+        a = 2 * np.pi * k / n_clusters
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        np.testing.assert_allclose(f[:3] @ rot.T, f[3 * k:3 * k + 3], atol=1e-12)
+    if n_clusters == 3:
+        assert fire_positions(cfg).tobytes() == fire_positions().tobytes()
+
+
+@pytest.mark.parametrize("fields, param", [
+    (dict(n_clusters=1), "n_observed"), (dict(n_clusters=0), "n_clusters"),
+    (dict(n_clusters=2.5), "n_clusters"),
+    (dict(fire_out_first=False, same_instant_order="scheduling"), "--no-fire-out-first")])
+def test_layouts_and_orders_that_cannot_be_built(fields, param):
+    with pytest.raises(ValueError, match=param):
+        WildfireConfig(**fields)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("fire_out_first", [True, False])
+@pytest.mark.parametrize("q4", [True, False])
+def test_a_hold_that_ends_as_its_fire_goes_out(engine, fire_out_first, q4):
+    """FS-1, T_health = 2.9999: UAV 0 holds 2.9 s on fire 0 from 1e-5; the hold ends and the fire
+    goes out at 3 (claim X4). Released order (fire_out_first): the fire is out when the UAV
+    observes, and its r_ext belongs to the hold. Reversed: the UAV observes the fire alive (Q3:
+    2.9999 - 2.99999 left), then the fire goes out in its latency; its r_ext belongs to the new
+    decision, discounted from the hold's start (Q5); with Q4 the UAV flies as it decided, without
+    it the decision is dropped and it decides again at 3."""
+    cfg = WildfireConfig(dt=1.0, t_health=2.9999, fire_out_first=fire_out_first,
+                         quirk_q4_latency_not_interrupted=q4)
+    r = run(engine, cfg, [FIRE0, FAR, FAR], [[2.9]], [[HOLD, 3], [HOLD], [HOLD]])
+    p0 = path(r, 0)
+    t, rewards, obs = r.info["decision_time"][p0], r.rewards[p0], r.obs[p0]
+    fire = np.exp(-cfg.gamma * (3.0 - 1e-5))
+    assert t[1] == pytest.approx(3.0, abs=1e-9) and r.episode_return[0] > 0
+    assert obs[1, HEALTH0] == pytest.approx(2.9999 - 2.99999, abs=1e-9)
+    if fire_out_first:
+        assert obs[1, STATUS0] == 0.0
+        assert rewards[0] == pytest.approx(fire) and rewards[1] == 0.0
+    else:
+        assert obs[1, STATUS0] == 1.0
+        assert rewards[0] == 0.0 and rewards[1] == pytest.approx(fire)
+    if fire_out_first or q4:  # the fly was carried out
+        assert t[2] - t[1] > 1.0
+    else:
+        assert t[2] == pytest.approx(3.0, abs=1e-9) and obs[2, STATUS0] == 0.0
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("fire_out_first", [True, False])
+def test_the_reversed_order_leaves_other_instants_alone(engine, fire_out_first):
+    """ED: the same hold ends at 2.90001 with the fire alive, and nothing else happens at one
+    instant: both orders give the same episode."""
+    cfg = WildfireConfig(t_health=2.9999, fire_out_first=fire_out_first)
+    r = run(engine, cfg, [FIRE0, FAR, FAR], [[2.9]], [[HOLD, 3], [HOLD], [HOLD]])
+    same = run(engine, WildfireConfig(t_health=2.9999), [FIRE0, FAR, FAR], [[2.9]],
+               [[HOLD, 3], [HOLD], [HOLD]])
+    np.testing.assert_array_equal(r.obs, same.obs)
+    np.testing.assert_array_equal(r.rewards, same.rewards)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("dt, races", [(1.0, 132), (None, 0)])
+def test_races_are_instants_that_rounding_made_shared(engine, dt, races):
+    """Four UAVs wait away from every fire from 1e-5. UAVs 0 and 1 first 2.5 s and 2.7 s: FS-1
+    puts both ends at 3, a race; then both wait 3 s at a time, from one instant, so FS-1 keeps
+    them together (at 3 + 4k, 66 times before T_max = 264.9) while ED keeps them 0.2 s apart:
+    each of those instants is a race, and so is each instant 1e-5 later, where both decision
+    latencies end. UAVs 2 and 3 wait 3 s at a time from 1e-5, together in ED as well (at
+    4 + 4k): never a race. ED: none."""
+    cfg = WildfireConfig(dt=dt, n_agents=4)
+    r = run(engine, cfg, [FAR] * 4, [[2.5], [2.7]], [[HOLD]] * 4, count_races=True)
+    assert r.info["races"].tolist() == [races]
+    times = [r.info["decision_time"][path(r, i)] for i in range(4)]
+    np.testing.assert_array_equal(times[2], times[3])
+    assert np.isin(times[0], times[1]).sum() == (67 if dt else 1)  # with the start, at 0
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("t_health, races", [(2.9999, 1), (3.0, 0)])
+@pytest.mark.parametrize("fire_out_first", [True, False])
+def test_a_fire_out_at_a_holds_rounded_end_is_a_race(engine, t_health, races, fire_out_first):
+    """FS-1: UAV 0 holds 2.9 s on fire 0 from 1e-5 (due 2.90001, at 3). T_health 2.9999: the fire
+    is due out at 2.99991, also at 3: a race, whatever the order. T_health 3.0: due at 3.00001, at
+    4, but UAV 0 flies off at 3.00001 and the fire waits for a party: no race. The others hold
+    10 s and 20 s alone; the episode ends at UAV 1's second decision's end (max_decisions 2)."""
+    cfg = WildfireConfig(dt=1.0, t_health=t_health, fire_out_first=fire_out_first,
+                         max_decisions=2)
+    r = run(engine, cfg, [FIRE0, FAR, FAR], [[2.9], [10.0], [20.0]], [[HOLD, 3], [HOLD], [HOLD]],
+            count_races=True)
+    assert r.info["races"].tolist() == [races]
+    assert r.info["end_time"][0] == pytest.approx(15.0)

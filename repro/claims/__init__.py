@@ -34,7 +34,7 @@ LEGEND = {
 }
 """What each verdict means."""
 TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
-          "repro.claims.wildfire", "repro.claims.beyond")
+          "repro.claims.wildfire", "repro.claims.beyond", "repro.claims.beyond_races")
 BEYOND = "X"
 """Id prefix of the claims beyond the paper (issue 20): questions the paper raises and leaves open.
 They are rendered in a section of their own, and a scale's results are complete without them (so

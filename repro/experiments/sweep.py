@@ -121,16 +121,22 @@ def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
                 done.add(next_epoch(job))
 
 
-def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
-              scheduler: str | None = None) -> list[Path]:
-    """Run every job that is not done yet; returns every job's folder (in the order given)."""
+def check_jobs(jobs: list[TrainJob], root: Path) -> None:
+    """Refuse (UsageError naming --runs-dir) a sweep whose folders under ``root`` hold runs of
+    other settings; checked before anything runs, so that a finished run of other settings is
+    neither taken for this sweep's nor left half-overwritten by a sweep that stops at the first
+    clash (a driver of several sweeps checks them all first)."""
     names = [j.name for j in jobs]
     if len(set(names)) != len(names):
         raise ValueError("job names must be unique within a sweep")
-    # checked before anything runs, so that a finished run of other settings is neither taken for
-    # this sweep's nor left half-overwritten by a sweep that stops at the first clash
     for j in jobs:
         check_run_folder(run_dir(root, j), j.train, j.env_config, j.train.env, "--runs-dir")
+
+
+def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
+              scheduler: str | None = None) -> list[Path]:
+    """Run every job that is not done yet; returns every job's folder (in the order given)."""
+    check_jobs(jobs, root)
     pending = [j for j in jobs if not is_done(root, j)]
     if pending and scheduler:
         _run_on_dask(pending, Path(root), scheduler)

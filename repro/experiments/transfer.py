@@ -16,7 +16,9 @@ Per simulator the summary gives the mean over the trained policies with its stan
 paper's error bars), the IQM, and a bootstrap CI of the mean (``repro.core.stats``).
 
 ``--corrected`` trains and tests with quirks Q1-Q6 switched off (the paper's prose) and writes
-``transfer_corrected*.csv`` and ``figures/transfer_corrected.*`` instead.
+``transfer_corrected*.csv`` and ``figures/transfer_corrected.*`` instead; ``--no-quirk Q`` switches
+one quirk off (``transfer_no_<Q>*``), ``--no-fire-out-first`` reverses the same-instant order of a
+macro-action's end and a fire's extinguishing (``*_no_fire_out_first``; claim X4).
 
 Training runs are checkpointed under ``--runs-dir``/transfer[-corrected]/<scale>/; re-running
 skips finished runs and resumes interrupted ones (``repro.experiments.sweep``).
@@ -79,6 +81,9 @@ class TransferConfig(Validated):
     quirks_off: tuple[str, ...] = ()
     """Quirks switched off in every simulator, by short name ("q3"): an ablation between the
     released semantics (none) and the corrected ones (all, ``corrected``)."""
+    fire_out_first: bool = True
+    """The released same-instant order of a UAV's macro-action end and a fire's extinguishing in
+    every simulator; False reverses it (``WildfireConfig.fire_out_first``; claim X4)."""
     only: tuple[str, ...] = ()
     """Training simulators to run, by label ("FS-1"); empty: all of them."""
     n_boot: int = 2000
@@ -109,27 +114,37 @@ class TransferConfig(Validated):
         """The quirk switches of every simulator of the study (train and test alike)."""
         return {q: not self.corrected and q.split("_")[1] not in self.quirks_off for q in QUIRKS}
 
+    def simulator(self, **fields) -> WildfireConfig:
+        """A simulator of the study: its quirks and same-instant order, and ``fields``."""
+        return WildfireConfig(**self.quirks(), fire_out_first=self.fire_out_first, **fields)
+
     def simulators(self, every: bool = False) -> dict[str, WildfireConfig]:
         """Training simulators by label (the paper's figure order): those of ``only``, or
         ``every`` one."""
-        sims = {"ED": WildfireConfig(**self.quirks())}
+        sims = {"ED": self.simulator()}
         for x in self.log10_dts:
-            sims[fs_label(10.0 ** x)] = WildfireConfig(dt=10.0 ** x, **self.quirks())
-        dt = 10.0 ** self.variant_log10_dt
-        sims[f"{fs_label(dt)} (T_health={self.variant_t_health:g})"] = WildfireConfig(
-            dt=dt, t_health=self.variant_t_health, **self.quirks())
+            sims[fs_label(10.0 ** x)] = self.simulator(dt=10.0 ** x)
+        sims[self.variant_pair()[0]] = self.simulator(dt=10.0 ** self.variant_log10_dt,
+                                                      t_health=self.variant_t_health)
         return sims if every or not self.only else {k: v for k, v in sims.items() if k in self.only}
+
+    def variant_pair(self) -> tuple[str, str]:
+        """C9's two simulators: the T_health variant and the FS simulator of its dT."""
+        fs = fs_label(10.0 ** self.variant_log10_dt)
+        return f"{fs} (T_health={self.variant_t_health:g})", fs
 
     def test_simulator(self) -> WildfireConfig:
         """ED with T_health = 3.0, the simulator every policy is tested on."""
-        return WildfireConfig(**self.quirks())
+        return self.simulator()
 
     @property
     def name(self) -> str:
-        """File stem of the results: transfer, transfer_corrected, or transfer_no_q3 (say)."""
-        if self.corrected:
-            return "transfer_corrected"
-        return "_".join(("transfer", *(f"no_{q}" for q in sorted(self.quirks_off))))
+        """File stem of the results: transfer, transfer_corrected, or transfer_no_q3 (say), then
+        _no_fire_out_first for the reversed order."""
+        parts = ("corrected",) if self.corrected else tuple(f"no_{q}" for q in
+                                                             sorted(self.quirks_off))
+        order = () if self.fire_out_first else ("no_fire_out_first",)
+        return "_".join(("transfer", *parts, *order))
 
 
 def fs_label(dt: float) -> str:
@@ -256,11 +271,25 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem)
 
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
+def add_size_arguments(p: argparse.ArgumentParser) -> None:
+    """The transfer study's sizes and its sweep's options (``beyond-order`` trains transfer
+    studies too)."""
     add_study_arguments(p, "policies per training simulator (paper: 5)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
     p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
     p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
+
+
+def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
+    """The config of :func:`add_size_arguments`'s options at ``args.scale``, with ``fields``
+    (None: the scale's)."""
+    return for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
+                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
+                     **fields)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_size_arguments(p)
     p.add_argument("--corrected", action="store_true",
                    help="quirks Q1-Q6 off (paper's prose); writes transfer_corrected*")
     p.add_argument("--no-quirk", action="append", default=[], metavar="Q",
@@ -268,6 +297,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "transfer_no_<Q>*")
     p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
                    help="train and test only this simulator (e.g. FS-1), repeatable")
+    p.add_argument("--no-fire-out-first", action="store_true",
+                   help="a UAV whose macro-action ends as a fire goes out observes first (the "
+                        "released order reversed, X4); writes *_no_fire_out_first")
 
 
 def runs_folder(runs_dir: str | Path, cfg: TransferConfig, scale: str) -> Path:
@@ -295,23 +327,22 @@ def train_and_test(cfg: TransferConfig, args: argparse.Namespace,
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                    batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
-                    corrected=args.corrected or None,
-                    quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
-                    only=tuple(args.simulator) or None)
+    cfg = study_config(args, corrected=args.corrected or None,
+                       quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
+                       only=tuple(args.simulator) or None,
+                       fire_out_first=False if args.no_fire_out_first else None)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
     summary = summarise(per_policy, cfg.n_boot, args.seed)
-    wall = time.perf_counter() - t0
     prov = provenance(dataclasses.asdict(cfg), command="fig-transfer", scale=args.scale,
-                      seed=args.seed, wall_seconds=wall, extra=extra)
+                      seed=args.seed, wall_seconds=time.perf_counter() - t0, extra=extra)
     write_result(results / f"{cfg.name}.csv", per_policy, prov)
     write_result(results / f"{cfg.name}_summary.csv", summary, prov)
     semantics = ("quirks Q1-Q6 corrected" if cfg.corrected else
                  f"released semantics, {', '.join(cfg.quirks_off).upper()} off" if cfg.quirks_off
                  else "released semantics (Q1-Q6 on)")
+    semantics += "" if cfg.fire_out_first else ", UAV before fire at one instant"
     plot(per_policy, summary, figures / cfg.name,
          f"Transfer to ED, {semantics}; {args.scale} scale: {cfg.seeds} policies x "
          f"{cfg.epochs} epochs x {cfg.batch_episodes} episodes")

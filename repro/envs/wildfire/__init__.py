@@ -47,6 +47,10 @@ def add_env_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--same-instant-order", default=WildfireConfig.same_instant_order,
                         help="order of events at one instant: released (the released code's "
                              "process structure) or scheduling (before issue 18)")
+    parser.add_argument("--fire-out-first", action=argparse.BooleanOptionalAction,
+                        default=WildfireConfig.fire_out_first,
+                        help="at one instant a fire goes out before a UAV whose macro-action "
+                             "ends then observes (released); --no-fire-out-first: the UAV first")
     parser.add_argument("--fs-round-negative-delays", action=argparse.BooleanOptionalAction,
                         default=WildfireConfig.fs_round_negative_delays,
                         help="FS: a fire re-planned after its health ran out is rounded like any "
@@ -73,6 +77,7 @@ def config_from_args(args: argparse.Namespace) -> WildfireConfig:
     quirks = {f: getattr(args, f"quirk_{f.split('_')[1]}") for f in QUIRKS}
     cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, gamma=args.gamma, **quirks,
                          same_instant_order=args.same_instant_order,
+                         fire_out_first=args.fire_out_first,
                          fs_round_negative_delays=args.fs_round_negative_delays,
                          cut_flight_continues=args.cut_flight_continues,
                          ranking_resolution=args.ranking_resolution,
@@ -80,11 +85,12 @@ def config_from_args(args: argparse.Namespace) -> WildfireConfig:
     return cfg
 
 
-def make_env(cfg: WildfireConfig):
-    """The fast engine."""
+def make_env(cfg: WildfireConfig, count_races: bool = False):
+    """The fast engine; ``count_races``: each episode's races (docs/semantics.md section 3.12) in
+    its rollouts' ``info["races"]``."""
     from repro.envs.wildfire.engine import WildfireEnv
 
-    return WildfireEnv(cfg)
+    return WildfireEnv(cfg, count_races)
 
 
 def make_vector_env(n_envs: int, seed: int | np.random.SeedSequence, **config):
@@ -95,11 +101,11 @@ def make_vector_env(n_envs: int, seed: int | np.random.SeedSequence, **config):
     return WildfireVectorEnv(WildfireConfig(**config), n_envs, seed)
 
 
-def make_reference_env(cfg: WildfireConfig):
+def make_reference_env(cfg: WildfireConfig, count_races: bool = False):
     """The SimPy reference (same ``rollout`` signature, much slower)."""
     from repro.envs.wildfire.reference import ReferenceEnv
 
-    return ReferenceEnv(cfg)
+    return ReferenceEnv(cfg, count_races)
 
 
 __all__ = ["WildfireConfig", "QUIRKS", "EpisodeDraws", "draw_episodes", "fire_positions",

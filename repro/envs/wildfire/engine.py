@@ -57,17 +57,18 @@ from repro.core.paths import path_layout, path_order
 from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
-                                        OWN_Y, STATUS, EpisodeDraws, WildfireConfig,
-                                        draw_episodes, fire_positions, rank_key)
+                                        OWN_Y, RACE_TOLERANCE, STATUS, EpisodeDraws,
+                                        WildfireConfig, draw_episodes, fire_positions, rank_key)
 
 (LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK, ACT_START, INT_ACT, ACT_END, ANY_OF,
- BURN_FAIL, BURN_START, BURN_END, END_HOP) = range(14)
+ BURN_FAIL, BURN_START, BURN_END, END_HOP, OUT_WAIT1, OUT_WAIT2) = range(16)
 """Event kinds: decision latency over, macro-action over, fire out, UAV process interrupted (its
 fire went out: in scheduling order, or in the latency without Q4), fire interrupted (its party
 changed), T_max reached. The released order's hops, SimPy's intermediate events there: the action
 sub-process starts (URGENT), is interrupted (URGENT), ends or fails, then the AnyOf the UAV waits
 on triggers; the burn sub-process fails (interrupted), restarts (URGENT), ends (its fire is out);
-the episode's end condition (END_HOP: ``who`` more hops to go)."""
+the episode's end condition (END_HOP: ``who`` more hops to go); without ``fire_out_first``, the
+two zero-delay timeouts a fire waits after its burn sub-process ended."""
 OK, GROW_LOG, HEAP_FULL, BAD_ACTION = range(4)
 """Status codes of ``_advance``."""
 def heap_capacity(cfg: WildfireConfig) -> int:
@@ -90,9 +91,10 @@ jit = njit(cache=True)
 rank_key_nb = jit(rank_key)
 
 
-def params_record(cfg: WildfireConfig) -> np.ndarray:
+def params_record(cfg: WildfireConfig, count_races: bool = False) -> np.ndarray:
     """The (1,) structured array of the kernels' parameters, named as the config's fields
-    (``released_order``: the released same-instant order; ``latency``: the decision latency)."""
+    (``released_order``: the released same-instant order; ``latency``: the decision latency), and
+    whether the kernels count races (:class:`WildfireEnv`)."""
     fires = fire_positions(cfg)
     rec = np.zeros(1, np.dtype([
         ("n_agents", np.int64), ("n_fires", np.int64), ("n_observed", np.int64),
@@ -105,8 +107,8 @@ def params_record(cfg: WildfireConfig) -> np.ndarray:
         ("quirk_q5_discount_from_action_start", np.bool_),
         ("quirk_q6_short_flight_stays", np.bool_),
         ("released_order", np.bool_), ("fs_round_negative_delays", np.bool_),
-        ("cut_flight_continues", np.bool_),
-        ("fires", np.float64, fires.shape)], align=True))
+        ("cut_flight_continues", np.bool_), ("fire_out_first", np.bool_),
+        ("count_races", np.bool_), ("fires", np.float64, fires.shape)], align=True))
     rec[0] = (cfg.n_agents, len(fires), cfg.n_observed, cfg.v_uav, cfg.dt or 0.0,
               cfg.decision_latency, cfg.at_fire_tol, cfg.gamma, cfg.r_ext, cfg.r_pen,
               cfg.t_health, cfg.t_max, cfg.max_decisions or 0, cfg.ranking_resolution,
@@ -114,7 +116,8 @@ def params_record(cfg: WildfireConfig) -> np.ndarray:
               cfg.quirk_q3_unclamped_health, cfg.quirk_q4_latency_not_interrupted,
               cfg.quirk_q5_discount_from_action_start, cfg.quirk_q6_short_flight_stays,
               cfg.same_instant_order == "released",
-              cfg.fs_round_negative_delays, cfg.cut_flight_continues, fires)
+              cfg.fs_round_negative_delays, cfg.cut_flight_continues, cfg.fire_out_first,
+              count_races, fires)
     return rec
 
 
@@ -152,6 +155,14 @@ def state_dtype(cfg: WildfireConfig) -> np.dtype:
         # scratch of an observation: the observing UAV's distance to every fire and its ranking
         # key, the fires in ranking order, the size of every fire's interest party
         ("fire_dist", f8, k), ("fire_key", f8, k), ("fire_order", i4, k), ("fire_party", i4, k),
+        # the race count (only with ``count_races``, last: the default path never touches it):
+        # the exact time of the event being processed (see _exact_time); the exact due times of
+        # each UAV's latency and macro-action, and of what cut it; of each fire's extinguishing,
+        # and of its latest party change; the races so far; the instant of the latest expiry,
+        # the exact due time of the first timeout that expired then, and whether it was counted
+        ("exact_now", f8), ("latency_due", f8, n), ("action_due", f8, n), ("cut_due", f8, n),
+        ("out_due", f8, k), ("change_due", f8, k), ("races", i8), ("race_time", f8),
+        ("race_due", f8), ("race_counted", np.bool_),
     ], align=True)
 
 
@@ -322,6 +333,8 @@ def _observe(state, params, record, row, e, i):
         state.t_disc[i] = now
     state.rew[i] = 0.0
     state.in_lat[i] = True
+    if params.count_races:
+        state.latency_due[i] = state.exact_now + params.latency
     state.uav_wait[i] = _push(state, params.latency, NORMAL, LATENCY, i)
 
 
@@ -339,6 +352,8 @@ def _party_change(state, params, j, delta):
     state.health[j] = state.health[j] - state.party[j] * (now - state.t_update[j])
     state.t_update[j] = now
     state.party[j] += delta
+    if params.count_races:
+        state.change_due[j] = state.exact_now
     if not params.released_order:
         _push(state, 0.0, URGENT, INT_FIRE, j)
     elif state.burning[j]:  # else it ended at this instant: the fire goes out all the same
@@ -386,7 +401,7 @@ def _start_action(state, params, i, a, hold):
         state.t_dep[i] = now
         state.length[i] = length
         state.flying[i] = True
-        delay = fs_delay(now, length / params.v_uav, params.dt, params.fs_round_negative_delays)
+        duration = length / params.v_uav
     else:
         x, y = state.pos[i, 0], state.pos[i, 1]
         for j in range(params.n_fires):
@@ -400,7 +415,10 @@ def _start_action(state, params, i, a, hold):
                         _penalise(state, params, j)
                 break
         state.n_holds[i] += 1
-        delay = fs_delay(now, hold, params.dt, params.fs_round_negative_delays)
+        duration = hold
+    if params.count_races:
+        state.action_due[i] = state.exact_now + duration
+    delay = fs_delay(now, duration, params.dt, params.fs_round_negative_delays)
     state.uav_wait[i] = _push(state, delay, NORMAL, ACTION, i)
 
 
@@ -421,14 +439,18 @@ def _replan(state, params, j):
     if state.party[j] == 0:
         state.fire_wait[j] = -1  # idle until the party changes
     else:
-        delay = fs_delay(state.now, state.health[j] / state.party[j], params.dt,
-                         params.fs_round_negative_delays)
+        duration = state.health[j] / state.party[j]
+        if params.count_races:
+            state.out_due[j] = state.exact_now + duration
+        delay = fs_delay(state.now, duration, params.dt, params.fs_round_negative_delays)
         state.fire_wait[j] = _push(state, delay, NORMAL, EXTINGUISH, j)
 
 
 @jit
 def _interrupt(state, params, i):
     """A fire UAV i is interested in went out."""
+    if params.count_races:
+        state.cut_due[i] = state.exact_now
     if state.in_lat[i]:
         if not params.quirk_q4_latency_not_interrupted:
             _push(state, 0.0, URGENT, INT_UAV, i)  # drop the pending decision
@@ -469,6 +491,54 @@ def _fire_out(state, log, params, j):
     _extinguish(state, params, j)
     if state.n_alive == 0:
         _push(state, 0.0, NORMAL, END_HOP, 2)
+
+
+@jit
+def _burn_ended(state, log, params, j):
+    """Released order: the end of fire j's burn sub-process reaches the fire, which goes out now
+    (``fire_out_first``), or waits two zero-delay timeouts first (OUT_WAIT1, OUT_WAIT2), so that
+    a UAV whose macro-action ends at this instant observes before (two hops after its timeout)."""
+    if params.fire_out_first:
+        _fire_out(state, log, params, j)
+    else:
+        _push(state, 0.0, NORMAL, OUT_WAIT1, j)
+
+
+@jit
+def _exact_time(state, kind, who):
+    """Races: ``exact_now``, the exact time of the event just popped (of ``kind``, about
+    ``who``): the due time of the timeout it follows from, as ED would time it along this FS run
+    (each due time is the exact time of the event that scheduled it plus the delay before FS
+    rounding). A hop or interrupt has the time of the event that caused it."""
+    if kind == LATENCY or kind == ACT_START:
+        state.exact_now = state.latency_due[who]
+    elif kind == ACTION:
+        state.exact_now = state.action_due[who]
+    elif kind == INT_UAV or kind == INT_ACT:
+        state.exact_now = state.cut_due[who]
+    elif kind == ACT_END or kind == ANY_OF:
+        state.exact_now = state.cut_due[who] if state.cut[who] else state.action_due[who]
+    elif kind == EXTINGUISH or kind == BURN_END or kind == OUT_WAIT1 or kind == OUT_WAIT2:
+        state.exact_now = state.out_due[who]
+    elif kind == INT_FIRE or kind == BURN_FAIL or kind == BURN_START:
+        state.exact_now = state.change_due[who]
+    elif kind == CLOCK:  # T_max is never rounded
+        state.exact_now = state.now
+
+
+@jit
+def _note_expiry(state):
+    """A timeout expires now, exactly due at ``exact_now``: the instant (the expiries within
+    RACE_TOLERANCE of its first) is a race once one of them was due at another time than its
+    first (counted once per instant)."""
+    due = state.exact_now
+    if abs(state.now - state.race_time) > RACE_TOLERANCE:
+        state.race_time = state.now
+        state.race_due = due
+        state.race_counted = False
+    elif abs(due - state.race_due) > RACE_TOLERANCE and not state.race_counted:
+        state.races += 1
+        state.race_counted = True
 
 
 @jit
@@ -572,6 +642,10 @@ def _setup(states, log, used, params_array, starts, slots):
             state.party[j] = 0
             state.fire_wait[j] = -1
             state.burning[j] = True  # the burn sub-process waits for a party
+        state.exact_now = 0.0
+        state.races = 0
+        state.race_time = -1.0  # no expiry yet (times are >= 0)
+        state.race_counted = False
         if params.released_order:
             _push(state, params.t_max, NORMAL, CLOCK, 0)
         for i in range(params.n_agents):
@@ -624,8 +698,12 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
             seq, kind, who = key_fields(key)
             state.now = t
             state.events += 1
+            if params.count_races:
+                _exact_time(state, kind, who)
             if kind == LATENCY:
                 if seq == state.uav_wait[who]:
+                    if params.count_races:
+                        _note_expiry(state)
                     state.in_lat[who] = False
                     if not params.released_order:
                         _act(state, params, holds, e, who)
@@ -640,6 +718,8 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                 _act(state, params, holds, e, who)
             elif kind == ACTION:
                 if seq == state.uav_wait[who]:
+                    if params.count_races:
+                        _note_expiry(state)
                     if params.released_order:  # the sub-process ends
                         state.acting[who] = False
                         state.cut[who] = False
@@ -660,6 +740,8 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                 row = _macro_action_over(state, log, params, e, row, who, state.cut[who])
             elif kind == EXTINGUISH:
                 if seq == state.fire_wait[who]:
+                    if params.count_races:
+                        _note_expiry(state)
                     if not params.released_order:
                         _extinguish(state, params, who)
                         if state.n_alive == 0:
@@ -668,10 +750,14 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                         state.burning[who] = False
                         if _next_anyway(state, NORMAL):
                             state.events += 1
-                            _fire_out(state, log, params, who)
+                            _burn_ended(state, log, params, who)
                         else:
                             _push(state, 0.0, NORMAL, BURN_END, who)
             elif kind == BURN_END:
+                _burn_ended(state, log, params, who)
+            elif kind == OUT_WAIT1:
+                _push(state, 0.0, NORMAL, OUT_WAIT2, who)
+            elif kind == OUT_WAIT2:
                 _fire_out(state, log, params, who)
             elif kind == INT_FIRE:
                 if params.released_order:
@@ -691,10 +777,13 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
                     _push(state, 0.0, NORMAL, END_HOP, who - 1)
                 else:
                     _end(state, log, params)
-            elif params.released_order:  # CLOCK: then the condition "all out or T_max"
-                _push(state, 0.0, NORMAL, END_HOP, 0)
-            else:
-                _end(state, log, params)
+            else:  # CLOCK
+                if params.count_races:
+                    _note_expiry(state)
+                if params.released_order:  # then the condition "all out or T_max"
+                    _push(state, 0.0, NORMAL, END_HOP, 0)
+                else:
+                    _end(state, log, params)
         if not state.done:
             live[1 + n_live] = e
             n_live += 1
@@ -840,28 +929,33 @@ class WildfireBatch:
         obs, time = np.empty((d, self.env.obs_dim)), np.empty(d)
         actions, rewards, durations = np.empty(d, np.int64), np.empty(d), np.empty(d)
         _gather(rows, order, obs, actions, rewards, durations, time)
+        info = {"decision_time": time, "end_time": self.states["t_end"].copy(),
+                "events": self.states["events"].copy()}
+        if self.env.count_races:
+            info["races"] = self.states["races"].copy()
         return Rollout(
             obs=obs, actions=actions, rewards=rewards, durations=durations, path_start=path_start,
             path_episode=path_episode, path_agent=path_agent,
             episode_return=self.states["returns"].mean(axis=1),
-            truncated=self.states["truncated"].copy(),
-            info={"decision_time": time, "end_time": self.states["t_end"].copy(),
-                  "events": self.states["events"].copy()})
+            truncated=self.states["truncated"].copy(), info=info)
 
 
 class WildfireEnv:
-    """docs/semantics.md section 3, fast: implements :class:`repro.core.rollout.BatchEnv`."""
+    """docs/semantics.md section 3, fast: implements :class:`repro.core.rollout.BatchEnv`.
+    ``count_races``: each episode's races (docs/semantics.md section 3.12) in ``info["races"]``
+    (an instrumentation the kernels skip otherwise)."""
 
     name = "wildfire"
 
-    def __init__(self, cfg: WildfireConfig):
+    def __init__(self, cfg: WildfireConfig, count_races: bool = False):
         cfg.validate()
         self.cfg = cfg
+        self.count_races = count_races
         self.obs_dim = cfg.obs_dim
         self.n_actions = cfg.n_actions
         self.n_agents = cfg.n_agents
         self.gamma = cfg.gamma
-        self.params = params_record(cfg)
+        self.params = params_record(cfg, count_races)
         self.state_dtype = state_dtype(cfg)
         self.log_dtype = log_dtype(cfg.obs_dim)
 

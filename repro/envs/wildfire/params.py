@@ -37,6 +37,12 @@ SAME_INSTANT_ORDERS = ("released", "scheduling")
 """Values of :attr:`WildfireConfig.same_instant_order`."""
 
 
+RACE_TOLERANCE = 1e-9
+"""Expiry times, and exact due times, closer than this (s) count as one in the race count
+(docs/semantics.md section 3.12): two events on one grid point can differ in the last bit, and
+two flights of equal length (in clusters rotated onto each other) in the last bits."""
+
+
 MAX_T_MAX = 1e5
 """The longest episode cap T_max (s) a config may ask for (through a small gamma)."""
 
@@ -76,6 +82,11 @@ class WildfireConfig(Validated):
     """Distance from the origin of the two outer fires' midpoint in each cluster (m)."""
     fire_spacing: float = 0.02
     """Side of the equilateral triangle each cluster of three fires forms (m)."""
+    n_clusters: int = 3
+    """Clusters of three fires: cluster A, then A rotated about the origin by 360/n_clusters deg,
+    twice that, and so on (:func:`fire_positions`). 3 is the paper's layout of 9 fires; more
+    clusters keep the fires per UAV of the paper when N grows (the race study X2 runs
+    n_clusters = N)."""
     dt: float | None = None
     """Fixed step dT of the FS simulator (s); None is the event-driven (ED) simulator."""
     quirk_q1_stale_attack: bool = True
@@ -131,6 +142,14 @@ class WildfireConfig(Validated):
     the order they joined its interest party). "scheduling": each process waits on its own timeouts
     and the episode ends at once (the suite's order before issue 18). Not a quirk: the corrected
     semantics keep "released"."""
+    fire_out_first: bool = True
+    """Released order: at one instant, a fire's extinguishing comes before the observation of a UAV
+    whose macro-action ends then (its extinguish timeout reaches it one event later, a
+    macro-action's end reaches its UAV two later; docs/semantics.md section 3.9), so the UAV sees
+    the fire out and its r_ext belongs to the macro-action that ended. False reverses the two
+    (claim X4): the fire goes out two zero-delay events later still (SimPy: two ``timeout(0)``),
+    after such UAVs observed: they see it alive, and it goes out in their decision latency (Q4
+    decides whether that interrupts them). Only in the "released" same-instant order."""
     max_decisions: int | None = 1000
     """The episode also ends when a UAV's macro-action ends after its ``max_decisions``-th decision
     (instead of that UAV deciding again), as at T_max: every running macro-action is cut, and the
@@ -188,12 +207,17 @@ class WildfireConfig(Validated):
                 self.hold_mean)
         require(self.hold_std >= 0 and math.isfinite(self.hold_std), "hold_std", "a number >= 0",
                 self.hold_std)
-        require(1 <= self.n_observed <= 9, "n_observed", "between 1 and the number of fires",
-                self.n_observed)
+        # a fire's index is a heap key's subject, like an agent's
+        require(isinstance(self.n_clusters, numbers.Integral) and 1 <= self.n_clusters < 2**18,
+                "n_clusters", "an integer from 1 to 2^18 - 1", self.n_clusters)
+        require(1 <= self.n_observed <= self.n_fires, "n_observed",
+                f"between 1 and the number of fires ({self.n_fires})", self.n_observed)
         require(self.ranking_resolution >= 0 and math.isfinite(self.ranking_resolution),
                 "--ranking-resolution", "a number >= 0", self.ranking_resolution)
         require(self.same_instant_order in SAME_INSTANT_ORDERS, "--same-instant-order",
                 " or ".join(SAME_INSTANT_ORDERS), self.same_instant_order)
+        require(self.fire_out_first or self.same_instant_order == "released",
+                "--no-fire-out-first", "used with --same-instant-order released")
         require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
                 "a positive integer (0: no limit)", self.max_decisions)
         require(self.hold_table_size >= 1, "hold_table_size", "an integer >= 1",
@@ -213,6 +237,11 @@ class WildfireConfig(Validated):
         shortest = self.hold_mean - 3.0 * self.hold_std
         need = math.ceil(self.t_max / shortest) if shortest > 0 else 0
         return max(self.hold_table_size, need)
+
+    @property
+    def n_fires(self) -> int:
+        """Three per cluster."""
+        return 3 * self.n_clusters
 
     @property
     def n_actions(self) -> int:
@@ -237,7 +266,8 @@ cut flights going on stay as released; they are not quirks."""
 
 
 def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
-    """(9, 2) fire locations: cluster A, then A rotated by +120 deg (B) and by -120 deg (C).
+    """(n_fires, 2) fire locations: cluster A, then A rotated about the origin by k 360/n_clusters
+    deg for k = 1, ..., n_clusters - 1 (the paper's three: A, B at +120 deg, C at -120 deg).
 
     Cluster A is (-s/2, R), (s/2, R), (0, R - s sin 60deg) with s = fire_spacing,
     R = cluster_radius.
@@ -245,7 +275,11 @@ def fire_positions(cfg: WildfireConfig = WildfireConfig()) -> np.ndarray:
     s, r = cfg.fire_spacing, cfg.cluster_radius
     a = np.array([[-s / 2, r], [s / 2, r], [0.0, r - s * math.sin(math.radians(60))]])
     out = [a]
-    for deg in (120.0, -120.0):
+    for k in range(1, cfg.n_clusters):
+        deg = 360.0 * k / cfg.n_clusters
+        # angles in (-180, 180]: 240 deg as -120, whose sine and cosine give the paper's layout
+        # bit for bit (those of 240 differ in the last bit)
+        deg = deg - 360.0 if deg > 180.0 else deg
         c, sn = math.cos(math.radians(deg)), math.sin(math.radians(deg))
         out.append(a @ np.array([[c, sn], [-sn, c]]))
     return np.concatenate(out)

@@ -27,9 +27,10 @@ URGENT before NORMAL, then scheduling order; starting a process and interrupting
 - a fire interrupts the UAVs of its interest party in the order they joined it.
 
 E.g. a fire that goes out at the instant a UAV's hold ends is out before that UAV observes, and
-its r_ext belongs to the hold that just ended. "scheduling" is the suite's order before issue 18:
-the processes wait on their own timeouts, interrupts go in agent-index order, and the episode
-ends at once.
+its r_ext belongs to the hold that just ended (``fire_out_first``; False: the fire waits two more
+zero-delay timeouts, so that the UAV observes first). "scheduling" is the suite's order before
+issue 18: the processes wait on their own timeouts, interrupts go in agent-index order, and the
+episode ends at once.
 
 Choices the paper leaves open, made once here and mirrored by the fast engine (docs/semantics.md
 sections 3.3-3.7, 3.11):
@@ -58,8 +59,8 @@ import simpy
 from repro.core.fixed_step import fs_delay
 from repro.core.paths import path_layout, path_order
 from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions
-from repro.envs.wildfire.params import (EpisodeDraws, WildfireConfig, draw_episodes,
-                                        fire_positions, rank_key)
+from repro.envs.wildfire.params import (RACE_TOLERANCE, EpisodeDraws, WildfireConfig,
+                                        draw_episodes, fire_positions, rank_key)
 
 class WildfireModel:
     """One episode. Drive it with :meth:`advance` and :meth:`act` (or let :class:`ReferenceEnv`)."""
@@ -101,13 +102,23 @@ class WildfireModel:
         self.t_end = math.nan
         self.events = 0
         self.joins = 0
+        # races: the exact time of the event being processed, as ED would time it along this run
+        # (see _timeout); the exact due times of each UAV's latency and macro-action, of each
+        # fire's extinguishing and latest party change, which a process reads as it resumes; the
+        # (time, exact due time) of each timeout that expired
+        self.exact_now = 0.0
+        self.latency_due, self.action_due = [0.0] * n, [0.0] * n
+        self.out_due, self.change_due = [0.0] * k, [0.0] * k
+        self.expired: list[tuple[float, float]] = []
         self.fire_procs = [self.env.process(self._fire(j)) for j in range(k)]
         self.uav_procs = [self.env.process(self._uav(i)) for i in range(n)]
         self.over = self.env.event()  # the episode ended (what a UAV's AnyOf also waits on)
         if self.released:
             self.fire_out = [self.env.event() for _ in range(k)]
             # as the released code runs until (all fires out) or (T_max)
-            ending = self.env.all_of(self.fire_out) | self.env.timeout(cfg.t_max)
+            clock = self.env.timeout(cfg.t_max)
+            clock.callbacks.append(lambda _: self._clock_expired())
+            ending = self.env.all_of(self.fire_out) | clock
             ending.callbacks.append(lambda _: self._end())
         else:
             self.env.process(self._clock())
@@ -136,20 +147,24 @@ class WildfireModel:
                 return
             self._observe(i)
             try:
-                yield self.env.timeout(self.cfg.decision_latency)
+                yield from self._timeout(self.cfg.decision_latency, self.latency_due, i,
+                                         rounded=False)
                 self.in_latency[i] = False
                 if self.released:
                     self.action_procs[i] = self.env.process(self._macro_action(i))
                     yield self.env.any_of([self.action_procs[i], self.over])
+                    self.exact_now = self.action_due[i]
                 else:
                     yield from self._macro_action(i)
                 self._land(i, cut=False)
-            except simpy.Interrupt:
+            except simpy.Interrupt as stop:
+                self.exact_now = stop.cause
                 if not self.cfg.cut_flight_continues:
                     self._land(i, cut=True)
 
     def _macro_action(self, i: int):
-        yield self.env.timeout(self._start_action(i))
+        self.exact_now = self.latency_due[i]  # released: a sub-process starts a step later
+        yield from self._timeout(self._start_action(i), self.action_due, i)
 
     def _fire(self, j: int):
         while True:
@@ -162,17 +177,36 @@ class WildfireModel:
                 break
             except simpy.Interrupt:
                 pass  # the party changed: re-plan
+        if not self.cfg.fire_out_first:  # after the UAVs whose macro-action ends now observed
+            yield self.env.timeout(0)
+            yield self.env.timeout(0)
+        self.exact_now = self.out_due[j]
         self._extinguish(j)
 
     def _burn(self, j: int):
+        self.exact_now = self.change_due[j]  # released: a sub-process starts a step later
         if self.party[j] == 0:
             yield self.env.event()  # idle until the party changes
         else:
-            yield self.env.timeout(self._delay(self.health[j] / self.party[j]))
+            yield from self._timeout(self.health[j] / self.party[j], self.out_due, j)
 
     def _clock(self):
         yield self.env.timeout(self.cfg.t_max)
+        self._clock_expired()
         self._end()
+
+    def _timeout(self, delay: float, dues: list[float], index: int, rounded: bool = True):
+        """Wait ``delay`` (FS: rounded to the grid, unless not ``rounded``). Its exact due time,
+        ``dues[index]``, is the exact time of what scheduled it plus ``delay``: ED's time for it
+        along this run. If the wait is not interrupted, it is noted at the instant it expires."""
+        dues[index] = self.exact_now + delay
+        yield self.env.timeout(self._delay(delay) if rounded else delay)
+        self.exact_now = dues[index]
+        self._note_expiry()
+
+    def _clock_expired(self) -> None:
+        self.exact_now = self.env.now  # T_max is never rounded
+        self._note_expiry()
 
     # --- UAV -------------------------------------------------------------------------------------
 
@@ -203,7 +237,7 @@ class WildfireModel:
             self.t_disc[i] = now
 
     def _start_action(self, i: int) -> float:
-        """Act; return the macro-action's (rounded) duration."""
+        """Act; return the macro-action's duration (before FS rounding)."""
         cfg, now = self.cfg, self.env.now
         if cfg.quirk_q5_discount_from_action_start:
             self.t_disc[i] = now
@@ -222,7 +256,7 @@ class WildfireModel:
             length = math.sqrt((goal[0] - origin[0]) * (goal[0] - origin[0])
                                + (goal[1] - origin[1]) * (goal[1] - origin[1]))
             self.flight[i] = (origin, goal, now, length)
-            return self._delay(length / cfg.v_uav)
+            return length / cfg.v_uav
         x, y = self.pos[i]
         for j, (fx, fy) in enumerate(self.fires):
             if math.sqrt((fx - x) * (fx - x) + (fy - y) * (fy - y)) < cfg.at_fire_tol:
@@ -236,7 +270,7 @@ class WildfireModel:
                 break
         hold = self.holds[i, self.n_holds[i] % len(self.holds[i])]
         self.n_holds[i] += 1
-        return self._delay(hold)
+        return hold
 
     def _join_interest(self, i: int, j: int) -> None:
         self.interest[i] = j
@@ -269,11 +303,11 @@ class WildfireModel:
         """A fire UAV i is interested in went out."""
         if self.in_latency[i]:
             if not self.cfg.quirk_q4_latency_not_interrupted:
-                self.uav_procs[i].interrupt()  # drop the pending decision
+                self.uav_procs[i].interrupt(self.exact_now)  # drop the pending decision
         elif not self.released:
-            self.uav_procs[i].interrupt()
+            self.uav_procs[i].interrupt(self.exact_now)
         elif self.action_procs[i].is_alive:  # else it ended at this instant: the UAV will observe
-            self.action_procs[i].interrupt()
+            self.action_procs[i].interrupt(self.exact_now)
 
     # --- fires -----------------------------------------------------------------------------------
 
@@ -291,6 +325,7 @@ class WildfireModel:
         self.health[j] = self.health[j] - self.party[j] * (now - self.t_update[j])
         self.t_update[j] = now
         self.party[j] += delta
+        self.change_due[j] = self.exact_now
         burning = self.burn_procs[j] if self.released else self.fire_procs[j]
         if burning.is_alive:  # else it ended at this instant: the fire goes out all the same
             burning.interrupt()
@@ -327,6 +362,23 @@ class WildfireModel:
     def _delay(self, d: float) -> float:
         return fs_delay(self.env.now, d, self.dt, self.cfg.fs_round_negative_delays)
 
+    def _note_expiry(self) -> None:
+        self.expired.append((self.env.now, self.exact_now))
+
+    @property
+    def races(self) -> int:
+        """Instants at which timeouts of different exact due times expired (docs/semantics.md
+        section 3.12): FS put together what ED separates. An instant is a run of expiries within
+        RACE_TOLERANCE of its first; due times within it of the first's are the same."""
+        instants: list[list[tuple[float, float]]] = []
+        for t, due in self.expired:
+            if instants and abs(t - instants[-1][0][0]) <= RACE_TOLERANCE:
+                instants[-1].append((t, due))
+            else:
+                instants.append([(t, due)])
+        return sum(any(abs(due - run[0][1]) > RACE_TOLERANCE for _, due in run)
+                   for run in instants)
+
     def _accrue(self, i: int, r: float) -> None:
         rec = self.rec[self.current[i]]
         rec["reward"] += math.exp(-self.cfg.gamma * (self.env.now - self.t_disc[i])) * r
@@ -343,13 +395,16 @@ class WildfireModel:
 
 class ReferenceEnv:
     """The SimPy model behind the BatchEnv interface: episodes one after another, the policy asked
-    once per decision (a one-row DecisionBatch)."""
+    once per decision (a one-row DecisionBatch). ``count_races``: each episode's races (docs/
+    semantics.md section 3.12) in ``info["races"]``, counted apart from the fast engine's count
+    (a set of exact due times per instant), to check it."""
 
     name = "wildfire"
 
-    def __init__(self, cfg: WildfireConfig):
+    def __init__(self, cfg: WildfireConfig, count_races: bool = False):
         cfg.validate()
         self.cfg = cfg
+        self.count_races = count_races
         self.obs_dim = cfg.obs_dim
         self.n_actions = cfg.n_actions
         self.n_agents = cfg.n_agents
@@ -366,7 +421,7 @@ class ReferenceEnv:
         The event counts are each engine's own work measure and differ between them: the fast
         engine counts the events it pops from its heap, SimPy also counts process starts, process
         ends and interrupts (94 against 73 in one episode of the nearest-fire policy)."""
-        recs, returns, ends, events, truncated = [], [], [], [], []
+        recs, returns, ends, events, truncated, races = [], [], [], [], [], []
         for e in range(draws.n_episodes):
             model = WildfireModel(self.cfg, draws.starts[e], draws.holds[e])
             while True:
@@ -383,6 +438,7 @@ class ReferenceEnv:
             ends.append(model.t_end)
             events.append(model.events)
             truncated.append(model.truncated)
+            races.append(model.races)
         col = lambda key, dtype=float: np.array([r[key] for r in recs], dtype=dtype)  # noqa: E731
         n = self.n_agents
         episode, agent = col("episode", np.int64), col("agent", np.int64)
@@ -390,7 +446,7 @@ class ReferenceEnv:
         path_start, path_episode, path_agent = path_layout(counts.reshape(-1, n))
         order = path_order(episode, agent, col("index", np.int64), n, path_start)
         obs = np.array([r["obs"] for r in recs]).reshape(len(recs), self.obs_dim)
-        return Rollout(
+        rollout = Rollout(
             obs=obs[order], actions=col("action", np.int64)[order], rewards=col("reward")[order],
             durations=col("duration")[order], path_start=path_start, path_episode=path_episode,
             path_agent=path_agent,
@@ -398,3 +454,6 @@ class ReferenceEnv:
             truncated=np.array(truncated, dtype=bool),
             info={"decision_time": col("time")[order], "end_time": np.array(ends),
                   "events": np.array(events, dtype=np.int64)})
+        if self.count_races:
+            rollout.info["races"] = np.array(races, dtype=np.int64)
+        return rollout
