@@ -182,6 +182,16 @@ def test_x4_check(tmp_path, q3_off_reversed, n, verdict):
     v = x4.evaluate(tmp_path)
     assert v.verdict == verdict, v
     assert "degrades in: released, Q3 off" in v.detail
+    assert "Only the reversed order" not in v.detail
+
+
+def test_x4_says_where_only_the_reversed_order_degrades(tmp_path):
+    _x4_results(tmp_path, {("released", "released"): False, ("released", "reversed"): True,
+                           ("released, Q3 off", "released"): True,
+                           ("released, Q3 off", "reversed"): True})
+    v = _claim("X4").evaluate(tmp_path)
+    assert v.verdict == "PASS"
+    assert "Only the reversed order degrades in: released:" in v.detail
 
 
 @pytest.mark.parametrize("command, argv, param", [

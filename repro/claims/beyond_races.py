@@ -77,10 +77,14 @@ def check_x4(results: Path) -> Verdict:
         caveat = " One policy per simulator: the intervals are points, so at most PARTIAL."
     parts = [f"{s}, {o} order: {r.difference:+.3f} [{r.ci_low:+.3f}, {r.ci_high:+.3f}] "
              f"({r.adr_variant:.3f} vs {r.adr_fs:.3f})" for (s, o), r in e.iterrows()]
+    # the other direction answers "does C9 depend on the order?" as much as survival does
+    appears = [s for s in semantics if s not in degrades and e.loc[(s, "reversed"), "degrades"]]
     why = (f"The released order degrades in: {', '.join(degrades) or 'no semantics'}; it "
            f"survives the reversal in: {', '.join(survives) or 'none'}"
            + ("" if degrades else " (with no degradation under the released order there is "
-              "nothing to survive)"))
+              "nothing to survive)")
+           + (f". Only the reversed order degrades in: {', '.join(appears)}: there the order "
+              f"decides whether C9 shows" if appears else ""))
     detail = (f"FS-1 trained with T_health 2.9999 and 3.0, {int(e.n_policies.min())} policies "
               f"each, tested on ED; mean ADR difference (2.9999 minus 3.0) with its 95% "
               f"bootstrap CI: {'; '.join(parts)}. {why}.{caveat}")
