@@ -150,6 +150,15 @@ def test_x3_check(tmp_path):
     assert beyond.check_x3(tmp_path).verdict == "FAIL"  # races begin a decade later
 
 
+def test_x3_names_an_overlap_beyond_the_break(tmp_path):
+    """A CI that overlaps ED's again above the break does not move "holds up to" past it."""
+    dts = [0.1, 1.0, 3.0, 10.0]
+    write_result_csv(_grid({0.0: 3.0, **dict(zip(dts, [3.0, 3.0, 2.5, 3.0]))}),
+                     tmp_path / "transfer_dt_grid_summary.csv")
+    assert beyond.check_x3(tmp_path).ours == ("holds up to 1 s, breaks from 3 s (overlaps again "
+                                              "at 10 s)")
+
+
 def test_x1_check(tmp_path):
     def summary(bus_alt: float, fire_alt: float, n: int = 5) -> pd.DataFrame:
         rows = [("bus", "m-gae", -100.0), ("bus", "decision-gae", bus_alt),
