@@ -126,8 +126,9 @@ class WildfireConfig(Validated):
     arrival by a grid step. False (before issue 18): it stops where it is at the cut."""
     ranking_resolution: float = 1e-9
     """Fires are ranked by distance rounded to multiples of this (m), ties to the lower fire index:
-    a UAV at a fire sees its two cluster-mates at the same distance up to round-off, and this
-    ranks them by index, whatever the round-off. A deliberate deviation: the released code ranks
+    a UAV at a fire sees its two cluster-mates, and its 5th and 6th closest fires (other
+    clusters), at equal distances up to round-off, and this ranks them by index, whatever the
+    round-off. A deliberate deviation: the released code ranks
     them by floating-point noise. 0: exact distances (before issue 18; the noise decides)."""
     quirk_q6_short_flight_stays: bool = True
     """Q6: a flight shorter than ``at_fire_tol`` takes its travel time but leaves the UAV where it
