@@ -93,6 +93,15 @@ def scale_of(result: Path) -> str:
     return read_provenance(result).get("scale", "unknown")
 
 
+def at_most_partial(verdict: str, n_min: int) -> tuple[str, str]:
+    """With one policy (or run) per cell, ``n_min`` = 1, the CIs are points: no interval, so no
+    PASS. Returns the verdict and the caveat to append to the detail."""
+    if n_min >= 2:
+        return verdict, ""
+    return ("PARTIAL" if verdict == "PASS" else verdict,
+            " One policy per simulator: the intervals are points, so at most PARTIAL.")
+
+
 def registry() -> list[Claim]:
     claims: list[Claim] = []
     for mod in TOPICS:

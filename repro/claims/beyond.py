@@ -12,8 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from repro.claims import NOT_RUN, Claim, Verdict, scale_of
-from repro.claims.wildfire import _at_most_partial
+from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
 from repro.experiments.beyond_mgae import REFERENCE, ci_side
 from repro.experiments.transfer_dt import RACES, TransferDtConfig, read_races
 
@@ -51,7 +50,7 @@ def check_x1(results: Path) -> Verdict:
         ours.append(f"{env}: " + ", ".join(f"{r.estimator} {_num(r.mean)}"
                                            for r in grp.itertuples()))
     verdict = "PASS" if all(beats) else "PARTIAL" if any(beats) else "FAIL"
-    verdict, caveat = _at_most_partial(verdict, s.rename(columns={"n_runs": "n_policies"}))
+    verdict, caveat = at_most_partial(verdict, int(s.n_runs.min()))
     detail = ("Score per run: bus final return (mean of the last epochs, as C1), wildfire ADR on "
               "ED (as C8); mean [95% bootstrap CI] over runs. " + ". ".join(parts) + "." + caveat)
     return Verdict("; ".join(ours), verdict, detail, scale_of(path))
@@ -104,7 +103,7 @@ def check_x3(results: Path) -> Verdict:
     onset = next((r.dt for r in nearest.itertuples() if r.races_per_decision >= RACE_ONSET), None)
     ok = (breaks is not None and onset is not None
           and abs(math.log10(onset) - math.log10(breaks)) <= ONSET_WINDOW + 1e-9)
-    verdict, caveat = _at_most_partial("PASS" if ok else "FAIL", s)
+    verdict, caveat = at_most_partial("PASS" if ok else "FAIL", int(s.n_policies.min()))
     detail += (f" Races begin (nearest policy, {RACE_ONSET:g} races per decision) at "
                f"{_dt(onset)}.{_rates_at(races, holds)}{_rates_at(races, breaks)}{caveat}")
     return Verdict(f"{ours}; races begin at {_dt(onset)}", verdict, detail, scale_of(path))

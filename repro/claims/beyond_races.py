@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from repro.claims import NOT_RUN, Claim, Verdict, scale_of
+from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
 from repro.claims.race import PAPER_BETA
 
 X2_TOLERANCE = 0.2
@@ -71,10 +71,7 @@ def check_x4(results: Path) -> Verdict:
     degrades = [s for s in semantics if e.loc[(s, "released"), "degrades"]]
     survives = [s for s in degrades if e.loc[(s, "reversed"), "degrades"]]
     verdict = ("FAIL" if not survives else "PASS" if survives == degrades else "PARTIAL")
-    caveat = ""
-    if e.n_policies.min() < 2:  # the intervals are points
-        verdict = "PARTIAL" if verdict == "PASS" else verdict
-        caveat = " One policy per simulator: the intervals are points, so at most PARTIAL."
+    verdict, caveat = at_most_partial(verdict, int(e.n_policies.min()))
     parts = [f"{s}, {o} order: {r.difference:+.3f} [{r.ci_low:+.3f}, {r.ci_high:+.3f}] "
              f"({r.adr_variant:.3f} vs {r.adr_fs:.3f})" for (s, o), r in e.iterrows()]
     # the other direction answers "does C9 depend on the order?" as much as survival does

@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from repro.claims import NOT_RUN, Claim, Verdict, scale_of
+from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
 from repro.core.io import read_provenance
 from repro.core.stats import bootstrap_ci
 
@@ -119,14 +119,6 @@ def check_c7(results: Path) -> Verdict:
     return Verdict(f"{_pct(mean)} worse", verdict, detail, scale_of(path))
 
 
-def _at_most_partial(verdict: str, s: pd.DataFrame) -> tuple[str, str]:
-    """With one policy per simulator the CIs are points: no interval, so no PASS."""
-    if s.n_policies.min() >= 2:
-        return verdict, ""
-    return ("PARTIAL" if verdict == "PASS" else verdict,
-            " One policy per simulator: the intervals are points, so at most PARTIAL.")
-
-
 def _summary(results: Path, stem: str) -> tuple[pd.DataFrame, Path]:
     path = results / f"{stem}_summary.csv"
     return pd.read_csv(path).set_index("simulator"), path
@@ -159,7 +151,7 @@ def _cis(s: pd.DataFrame) -> str:
 def check_c8(results: Path) -> Verdict:
     s, path = _summary(results, "transfer")
     verdict, why = c8_verdict(s)
-    verdict, caveat = _at_most_partial(verdict, s)
+    verdict, caveat = at_most_partial(verdict, int(s.n_policies.min()))
     detail = (f"{int(s.n_policies.min())} policies per simulator, tested on ED (T_health = 3.0); "
               f"95% bootstrap CIs of the mean: {_cis(s)}. {why}.{caveat}")
     detail += _cut_line(results / "transfer.csv")
@@ -192,7 +184,7 @@ def c9_verdict(s: pd.DataFrame) -> tuple[str, str]:
 def check_c9(results: Path) -> Verdict:
     s, path = _summary(results, "transfer")
     verdict, why = c9_verdict(s)
-    verdict, caveat = _at_most_partial(verdict, s)
+    verdict, caveat = at_most_partial(verdict, int(s.n_policies.min()))
     detail = f"FS-1 trained with T_health = 2.9999 vs 3.0, both tested on ED: {why}.{caveat}"
     detail += _corrected_line(results, c9_verdict, means=False)
     detail += _ablation_lines(results)
@@ -221,7 +213,7 @@ def _corrected_line(results: Path, judge, means: bool) -> str:
         return (" Corrected semantics (Q1-Q6 off): not yet run "
                 "(`make fig-transfer ARGS=--corrected`).")
     verdict, why = judge(s)
-    verdict, caveat = _at_most_partial(verdict, s)
+    verdict, caveat = at_most_partial(verdict, int(s.n_policies.min()))
     shown = f"{_means(s)}; " if means else ""
     if made_before_released_semantics(path):
         return (f" Corrected semantics: not yet rerun since issue 18 (Q3-Q6 and the released order "
