@@ -13,7 +13,8 @@ from pathlib import Path
 import pandas as pd
 
 from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
-from repro.experiments.beyond_mgae import REFERENCE, ci_side
+from repro.core.stats import ci_side
+from repro.experiments.beyond_mgae import REFERENCE
 from repro.experiments.transfer_dt import RACES, TransferDtConfig, read_races
 
 RACE_ONSET = 0.1

@@ -10,6 +10,8 @@ import pandas as pd
 
 from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
 from repro.claims.race import PAPER_BETA
+from repro.experiments.beyond_order import NAME as ORDER
+from repro.experiments.beyond_races import FIT, RACES, c10_beta
 
 X2_TOLERANCE = 0.2
 """X2: a policy's beta is near C10's within this (twice the width of C10's own band, 2.1-2.3)."""
@@ -18,11 +20,11 @@ PAPER_C10_BETA = float(np.mean([b for b, _ in PAPER_BETA.values()]))
 
 
 def check_x2(results: Path) -> Verdict:
-    path = results / "races_fit.csv"
+    path = results / f"{FIT}.csv"
     fit = pd.read_csv(path)
-    cells = pd.read_csv(results / "races.csv")
-    c10_path = results / "table_race.csv"
-    c10, source = ((float(pd.read_csv(c10_path).beta.mean()), "our C10") if c10_path.exists()
+    cells = pd.read_csv(results / f"{RACES}.csv")
+    ours = c10_beta(results)
+    c10, source = ((ours, "our C10") if np.isfinite(ours)
                    else (PAPER_C10_BETA, "the paper's C10 (ours not run)"))
     per_policy = fit.groupby("policy", sort=False).first()
     unresolved = fit[~np.isfinite(fit.dt_star)]
@@ -65,7 +67,7 @@ def _pairs(frame: pd.DataFrame) -> str:
 
 
 def check_x4(results: Path) -> Verdict:
-    path = results / "order_reversal_effect.csv"
+    path = results / f"{ORDER}_effect.csv"
     e = pd.read_csv(path).set_index(["semantics", "order"])
     semantics = list(dict.fromkeys(e.index.get_level_values(0)))
     degrades = [s for s in semantics if e.loc[(s, "released"), "degrades"]]

@@ -14,7 +14,7 @@ import pandas as pd
 
 from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
 from repro.core.io import read_provenance
-from repro.core.stats import bootstrap_ci
+from repro.core.stats import bootstrap_ci, ci_side
 
 C6_TOLERANCE = 0.10
 """Each C6 frequency must lie within 10 percentage points of the paper's."""
@@ -130,9 +130,7 @@ def c8_verdict(s: pd.DataFrame) -> tuple[str, str]:
     "As well as" is read as the paper found it, indistinguishable from ED: a CI entirely above
     ED's fails too, and the detail says so, since it is a different finding from a CI below."""
     ed = s.loc["ED"]
-    side = {k: "above" if s.loc[k, "ci_low"] > ed.ci_high else
-            "below" if s.loc[k, "ci_high"] < ed.ci_low else "overlapping"
-            for k in (*C8_SAME, *C8_WORSE)}
+    side = {k: ci_side(s.loc[k], ed) for k in (*C8_SAME, *C8_WORSE)}
     checks = {**{k: side[k] == "overlapping" for k in C8_SAME},
               **{k: side[k] == "below" for k in C8_WORSE}}
     verdict = "PASS" if all(checks.values()) else "PARTIAL" if any(checks.values()) else "FAIL"

@@ -13,7 +13,7 @@ details give the intervals.
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 from scipy import stats as sps
@@ -52,3 +52,10 @@ def sem(x: np.ndarray) -> float:
     """Standard error of the mean (0 for fewer than two values)."""
     x = np.asarray(x, dtype=float)
     return float(x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else 0.0
+
+
+def ci_side(a: Any, b: Any) -> str:
+    """Where the CI of ``a`` lies against that of ``b`` (rows with ci_low and ci_high): "above",
+    "below" or "overlapping"."""
+    return ("above" if a.ci_low > b.ci_high else "below" if a.ci_high < b.ci_low
+            else "overlapping")

@@ -32,7 +32,7 @@ import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 import pandas as pd
@@ -40,7 +40,7 @@ import pandas as pd
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
-from repro.core.stats import bootstrap_ci, iqm, sem
+from repro.core.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.envs.bus import BusConfig
 from repro.experiments import bus_sweeps, transfer
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
@@ -154,13 +154,6 @@ def summarise(runs: pd.DataFrame, n_boot: int, seed: int) -> pd.DataFrame:
     table["mgae_ci"] = [
         "" if r.estimator == REFERENCE else ci_side(ref.loc[r.env], r) for r in table.itertuples()]
     return table
-
-
-def ci_side(a: Any, b: Any) -> str:
-    """Where the CI of ``a`` lies against that of ``b`` (summary rows, with ci_low and ci_high):
-    "above", "below" or "overlapping"."""
-    return ("above" if a.ci_low > b.ci_high else "below" if a.ci_high < b.ci_low
-            else "overlapping")
 
 
 def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> None:

@@ -31,11 +31,11 @@ import pandas as pd
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import provenance, save_figure, write_result
-from repro.experiments import transfer
+from repro.experiments import beyond_races, transfer
 from repro.experiments.sweep import add_study_arguments, check_study_arguments
 
-RACES = "races.csv"
-"""Claim X2's result (another driver): at least the columns policy, n_agents, dt,
+RACES = f"{beyond_races.RACES}.csv"
+"""Claim X2's result (``beyond-races``): at least the columns policy, n_agents, dt,
 p_race_episode and races_per_decision."""
 RACE_POLICIES = {"nearest": "-", "random": "--"}
 """The policies of races.csv drawn, with their line styles."""
