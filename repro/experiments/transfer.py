@@ -157,11 +157,6 @@ class TransferConfig(Validated):
         """ED with T_health = 3.0, the simulator every policy is tested on."""
         return self.simulator()
 
-    def train_sizes(self) -> dict[str, int]:
-        """Epochs and the batch size in the learner's unit, for ``train_config``."""
-        unit = LEARNERS[self.learner]["batch_unit"]
-        return dict(epochs=self.epochs, **{unit: getattr(self, unit)})
-
     @property
     def name(self) -> str:
         """File stem of the results: transfer, transfer_corrected, or transfer_no_q3 (say), then
@@ -200,12 +195,13 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     """(simulator label, job) for every simulator and training seed seed .. seed + seeds - 1.
 
     Replicate r uses the same training seed on every simulator (common initial policies)."""
-    from repro.learn.config import train_config
+    from repro.learn.config import study_train_config
 
     jobs = []
     for label, env in cfg.simulators().items():
         for s in range(seed, seed + cfg.seeds):
-            train = train_config(scale, "wildfire", cfg.learner, seed=s, **cfg.train_sizes())
+            train = study_train_config(scale, "wildfire", cfg.learner, cfg.batch_decisions,
+                                       cfg.batch_episodes, seed=s, epochs=cfg.epochs)
             jobs.append((label, TrainJob(job_name(env, s), train, env)))
     return jobs
 

@@ -141,7 +141,8 @@ LEARNERS: dict[str, dict[str, Any]] = {
 rurllab.py, runner.sh); "suite" this suite's set-up before the authors' was derived: observation
 normalisation, two hidden layers, orthogonal initialisation, a fifth of the decisions for the
 Fisher products and batches of the paper's episode counts (the environment's ``batch_episodes``).
-Both use the linear feature baseline, centred advantages and rllab's conjugate-gradient constants."""
+Both use the linear feature baseline, centred advantages and rllab's conjugate-gradient
+constants."""
 LEARNER_FIELDS = ("hidden", "init", "normalize_obs", "fvp_subsample")
 """The TrainConfig fields a learner name sets."""
 DEFAULT_LEARNER = "authors"
@@ -177,6 +178,15 @@ def train_config(scale: str, env: str, learner: str = DEFAULT_LEARNER,
     fields.setdefault("batch_decisions", TrainConfig.batch_decisions)
     fields[next(u for u in units if u != unit)] = None
     return TrainConfig(**fields)
+
+
+def study_train_config(scale: str, env: str, learner: str, batch_decisions: int,
+                       batch_episodes: int, **fields: Any) -> TrainConfig:
+    """A study's TrainConfig: the study sizes its batch in both units, the learner counts it in
+    its own (``LEARNERS[learner]["batch_unit"]``)."""
+    unit = LEARNERS[learner]["batch_unit"]
+    size = batch_decisions if unit == "batch_decisions" else batch_episodes
+    return train_config(scale, env, learner, **{unit: size}, **fields)
 
 
 def add_learner_arguments(p: Any) -> None:

@@ -112,6 +112,7 @@ def make_reference_env(cfg: WildfireConfig, count_races: bool = False):
     return ReferenceEnv(cfg, count_races)
 
 
-__all__ = ["WildfireConfig", "QUIRKS", "SIM_VERSIONS", "EpisodeDraws", "draw_episodes", "fire_positions",
+__all__ = ["WildfireConfig", "QUIRKS", "SIM_VERSIONS", "EpisodeDraws", "draw_episodes",
+           "fire_positions",
            "add_env_arguments", "config_from_args", "make_env", "make_reference_env",
            "make_vector_env"]
