@@ -44,6 +44,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                            "transfer to ED against dT on a log grid, race rate beside it (X3)"),
     "beyond-races": ("repro.experiments.beyond_races",
                      "races in the wildfire simulator, dT against N (X2)"),
+    "learner-ablation": ("repro.experiments.learner_ablation",
+                         "transfer to ED, one learner setting at a time from the authors' (X5)"),
     "beyond-order": ("repro.experiments.beyond_order",
                      "C9 under both same-instant orders (X4)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),

@@ -42,7 +42,7 @@ from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import QUIRKS, SIM_VERSIONS, WildfireConfig, make_env
-from repro.learn.config import LEARNERS
+from repro.learn.config import LEARNERS, SETTING_FIELDS, setting_tag
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -74,6 +74,9 @@ class TransferConfig(Validated):
     batch_episodes: int = 150
     """Training episodes per epoch when the learner counts its batch in episodes (the paper's
     table: 600 to 1,200)."""
+    settings: tuple[tuple[str, Any], ...] = ()
+    """Learner settings changed from the learner's, as (TrainConfig field, value) pairs (an
+    ablation, ``learner-ablation``); each adds a tag to the file stem."""
     sim_version: str = "2017-05-16"
     """The released simulator's version every simulator of the study follows
     (``repro.envs.wildfire.SIM_VERSIONS``): the released HEAD, or "2017-04-22", the one the
@@ -120,6 +123,8 @@ class TransferConfig(Validated):
                 self.learner)
         require(self.sim_version in SIM_VERSIONS, "--sim-version",
                 "one of " + ", ".join(SIM_VERSIONS), self.sim_version)
+        require(all(k in SETTING_FIELDS for k, _ in self.settings), "settings",
+                "fields among " + ", ".join(SETTING_FIELDS), list(self.settings))
         require(self.variant_t_health > 0, "variant_t_health", "> 0", self.variant_t_health)
         require(self.n_boot >= 1, "n_boot", "an integer >= 1", self.n_boot)
         short = [q.split("_")[1] for q in QUIRKS]
@@ -170,14 +175,17 @@ def study_suffixes(cfg: TransferConfig) -> tuple[str, ...]:
     parts = ("corrected",) if cfg.corrected else tuple(f"no_{q}" for q in sorted(cfg.quirks_off))
     order = () if cfg.fire_out_first else ("no_fire_out_first",)
     learner = () if cfg.learner == "authors" else (cfg.learner,)
+    settings = tuple(setting_tag(k, v) for k, v in cfg.settings)
     version = () if cfg.sim_version == "2017-05-16" else (cfg.sim_version.replace("-", ""),)
-    return (*parts, *order, *learner, *version)
+    return (*parts, *order, *learner, *settings, *version)
 
 
 def batch_label(cfg: TransferConfig) -> str:
     """The batch as a figure title says it: "12000 decisions" or "600 episodes"."""
-    unit = LEARNERS[cfg.learner]["batch_unit"]
-    return f"{getattr(cfg, unit)} {unit.split('_')[1]}"
+    given = dict(cfg.settings)
+    unit = next((u for u in ("batch_decisions", "batch_episodes") if u in given),
+                LEARNERS[cfg.learner]["batch_unit"])
+    return f"{given.get(unit, getattr(cfg, unit))} {unit.split('_')[1]}"
 
 
 def fs_label(dt: float) -> str:
@@ -201,7 +209,8 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     for label, env in cfg.simulators().items():
         for s in range(seed, seed + cfg.seeds):
             train = study_train_config(scale, "wildfire", cfg.learner, cfg.batch_decisions,
-                                       cfg.batch_episodes, seed=s, epochs=cfg.epochs)
+                                       cfg.batch_episodes, cfg.settings, seed=s,
+                                       epochs=cfg.epochs)
             jobs.append((label, TrainJob(job_name(env, s), train, env)))
     return jobs
 

@@ -181,12 +181,30 @@ def train_config(scale: str, env: str, learner: str = DEFAULT_LEARNER,
 
 
 def study_train_config(scale: str, env: str, learner: str, batch_decisions: int,
-                       batch_episodes: int, **fields: Any) -> TrainConfig:
+                       batch_episodes: int, settings: tuple[tuple[str, Any], ...] = (),
+                       **fields: Any) -> TrainConfig:
     """A study's TrainConfig: the study sizes its batch in both units, the learner counts it in
-    its own (``LEARNERS[learner]["batch_unit"]``)."""
+    its own (``LEARNERS[learner]["batch_unit"]``); ``settings``, (field, value) pairs, override
+    the learner's (a batch size among them also sets the unit)."""
     unit = LEARNERS[learner]["batch_unit"]
     size = batch_decisions if unit == "batch_decisions" else batch_episodes
-    return train_config(scale, env, learner, **{unit: size}, **fields)
+    batch = {} if any(k.startswith("batch_") for k, _ in settings) else {unit: size}
+    return train_config(scale, env, learner, **batch, **dict(settings), **fields)
+
+
+SETTING_FIELDS = (*LEARNER_FIELDS, "batch_decisions", "batch_episodes", "batch_workers")
+"""The learner settings a study may change one at a time (``settings`` of a study config)."""
+
+
+def setting_tag(field: str, value: Any) -> str:
+    """A file-name-safe tag of one learner setting, e.g. ``hidden32x32``, ``normalize_obs1``."""
+    if isinstance(value, (tuple, list)):
+        text = "x".join(str(v) for v in value)
+    elif isinstance(value, bool):
+        text = str(int(value))
+    else:
+        text = f"{value:g}" if isinstance(value, float) else str(value)
+    return field.replace("_", "") + text
 
 
 def add_learner_arguments(p: Any) -> None:
