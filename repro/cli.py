@@ -46,6 +46,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                      "races in the wildfire simulator, dT against N (X2)"),
     "learner-ablation": ("repro.experiments.learner_ablation",
                          "transfer to ED, one learner setting at a time from the authors' (X5)"),
+    "c9-inputs": ("repro.experiments.c9_inputs",
+                  "C9's policies tested with out-of-range inputs clamped (the mechanism)"),
     "beyond-order": ("repro.experiments.beyond_order",
                      "C9 under both same-instant orders (X4)"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
