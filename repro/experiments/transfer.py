@@ -40,6 +40,7 @@ import pandas as pd
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.rollout import children
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import QUIRKS, SIM_VERSIONS, WildfireConfig, make_env
 from repro.learn.config import LEARNERS, SETTING_FIELDS, setting_tag
@@ -229,7 +230,10 @@ def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
     - ``adr_ed`` (SEM ``adr_ed_sem``): the final policy on ``test_episodes`` episodes;
     - ``adr_ed_kept``: the released runner's evaluation: the policies after each of the run's last
       ``KEPT_POLICIES`` epochs (the snapshots of iterations 260-299 of 300), each on one stochastic
-      ED episode, averaged; kept policy j of every run plays the same episode j.
+      ED episode of its own, averaged. The episodes are the run's own, not common to all runs as
+      the final policy's are: the released runner drew them afresh, so its error bars include
+      the episodes' spread, and 40 common episodes would shift every run alike (by about 0.1 ADR
+      in a trial).
 
     The policies are tested in parallel like a sweep (``map_tasks``); each has its own stream, so
     the numbers do not depend on where or in which order they run."""
@@ -266,21 +270,22 @@ def score_policy(env_cfg: WildfireConfig, checkpoint: bytes, kept: list[bytes], 
                  ) -> tuple[float, float, int, float]:
     """ADR, its standard error and the episodes cut at the decision limit, of the policy of
     ``checkpoint`` (its bytes, so that a worker without the client's disk can test it) on
-    ``episodes`` episodes of ``env_cfg``; then the mean ADR of the ``kept`` policies, kept policy j
-    on episode j of the same stream (the released runner's evaluation)."""
+    ``episodes`` episodes of ``env_cfg``; then the mean ADR of the ``kept`` policies, each on
+    one episode drawn from ``policy_stream`` (the released runner's evaluation)."""
     from repro.learn.run_folder import load_checkpoint
     from repro.learn.trained_policy import policy_from_state
 
     env = make_env(env_cfg)
-    final, *kept_streams = policy_stream.spawn(1 + len(kept))
+    final, *kept_streams = children(policy_stream, 1 + len(kept))
     policy = policy_from_state(load_checkpoint(io.BytesIO(checkpoint)),
                                np.random.default_rng(final))
     rollout = evaluate(env, policy, episodes, env_seed, keep_obs=False)
-    kept_adr = [adr(env.rollout(policy_from_state(load_checkpoint(io.BytesIO(data)),
-                                                  np.random.default_rng(stream)),
-                                1, np.random.SeedSequence([env_seed, 1], spawn_key=(j,))),
-                    env.gamma)[0]
-                for j, (data, stream) in enumerate(zip(kept, kept_streams))]
+    kept_adr = []
+    for data, stream in zip(kept, kept_streams):
+        actions, episode = children(stream, 2)
+        kept_policy = policy_from_state(load_checkpoint(io.BytesIO(data)),
+                                        np.random.default_rng(actions))
+        kept_adr.append(adr(env.rollout(kept_policy, 1, episode), env.gamma)[0])
     return (*adr(rollout, env.gamma), rollout.n_truncated,
             float(np.mean(kept_adr)) if kept_adr else float("nan"))
 

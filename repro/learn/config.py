@@ -172,9 +172,9 @@ def train_config(scale: str, env: str, learner: str = DEFAULT_LEARNER,
     fields = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], **preset,
               "env": env, **given}
     units = ("batch_decisions", "batch_episodes")
-    unit = LEARNERS[learner]["batch_unit"]
-    if sum(u in given for u in units) == 1:
-        unit = next(u for u in units if u in given)
+    require(not all(u in given for u in units), "--batch-decisions",
+            "given instead of --batch-episodes, not with it", given.get("batch_decisions"))
+    unit = next((u for u in units if u in given), LEARNERS[learner]["batch_unit"])
     fields.setdefault("batch_decisions", TrainConfig.batch_decisions)
     fields[next(u for u in units if u != unit)] = None
     return TrainConfig(**fields)
