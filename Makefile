@@ -15,7 +15,7 @@ STAMP  := $(VENV)/.installed
 .PHONY: setup reproduce test lint claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
 	fig-bus-arrivals fig-bus-load wildfire-heuristics \
 	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour render \
-	beyond-races beyond-mgae beyond-order beyond-transfer-dt clean
+	beyond-races beyond-mgae beyond-order beyond-transfer-dt learner-ablation c9-inputs clean
 .DEFAULT_GOAL := help
 
 help:
@@ -52,6 +52,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) fig-bus-load SCALE=$(SCALE)
 	$(MAKE) fig-scaling SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS="--sim-version 2017-04-22"
 	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
 	$(MAKE) wildfire-heuristics SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
@@ -59,6 +60,8 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) beyond-mgae SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) beyond-order SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) beyond-transfer-dt SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) learner-ablation SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) c9-inputs SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) claims
 
 claims: $(STAMP) ## render paper_claims.md from results/<largest complete scale>/
@@ -100,7 +103,7 @@ bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS=
 fig-scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and figure (C11)
 	$(REPRO) scaling --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-fig-transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARGS="--corrected")
+fig-transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARGS="--sim-version 2017-04-22", "--learner suite", "--corrected")
 	$(REPRO) fig-transfer --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 wildfire-heuristics: $(STAMP) ## heuristic policies on the transfer study's ED test episodes (C8, C9)
@@ -114,6 +117,12 @@ beyond-races: $(STAMP) ## X2: races in the wildfire simulator, dT against N, bes
 
 beyond-order: $(STAMP) ## X4: C9's pair under both same-instant orders (reuses fig-transfer's runs)
 	$(REPRO) beyond-order --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+learner-ablation: $(STAMP) ## X5: the transfer study, one learner setting at a time from the authors' (reuses fig-transfer's runs)
+	$(REPRO) learner-ablation --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+c9-inputs: $(STAMP) ## C9's policies tested with health and sojourn clamped (after fig-transfer --sim-version 2017-04-22)
+	$(REPRO) c9-inputs --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 beyond-mgae: $(STAMP) ## X1: M-GAE vs two other advantage estimators (reuses fig-bus-lambda's, fig-transfer's runs)
 	$(REPRO) beyond-mgae --scale $(SCALE) --seed $(SEED) $(ARGS)
