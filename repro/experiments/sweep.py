@@ -19,9 +19,13 @@ building the environment and loading the checkpoint on the worker, tens of milli
 from __future__ import annotations
 
 import argparse
+import asyncio
 import dataclasses
 import os
+import re
+import socket
 import tempfile
+import threading
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -161,15 +165,91 @@ def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None 
     return Parallel(n_jobs=workers, backend="loky")(delayed(fn)(*task) for task in tasks)
 
 
+SCHEDULER_DEADLINE = 30.0
+"""Seconds that finding, reaching and hearing from ``--scheduler`` may take, whatever answers at
+the address (a Dask client's own timeout does not cover a listener that never answers)."""
+_ADDRESS = re.compile(r"(?:(tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*"
+                      r"[A-Za-z0-9])?):([0-9]{1,5})")
+_SCHEDULER_FORM = "the address of a running Dask scheduler, tcp://HOST:PORT (or tls://)"
+
+
+def check_scheduler(scheduler: str) -> tuple[str, str, int]:
+    """(scheme, host, port) of a ``--scheduler`` address in the form tcp://HOST:PORT, tls://HOST:PORT
+    or HOST:PORT; a UsageError otherwise, before any connection is tried."""
+    m = _ADDRESS.fullmatch(scheduler)
+    port = int(m.group(3)) if m else 0
+    if not m or not 1 <= port <= 65535:
+        raise UsageError("--scheduler", _SCHEDULER_FORM, scheduler)
+    return m.group(1) or "tcp", m.group(2).strip("[]"), port
+
+
+def _within(deadline: float, what: Callable[[], Any]) -> tuple[bool, Any]:
+    """(True, what()) if it returns or raises within ``deadline`` seconds (its exception as the
+    value), else (False, None). It runs on a daemon thread: one that never returns (a name lookup
+    or a read from a listener that never answers) is left behind and ends with the process."""
+    out: list[Any] = []
+
+    def call() -> None:
+        try:
+            out.append(what())
+        except BaseException as err:  # handed to the caller as a value
+            out.append(err)
+
+    thread = threading.Thread(target=call, daemon=True, name="repro-scheduler-probe")
+    thread.start()
+    thread.join(deadline)
+    return (bool(out), out[0] if out else None)
+
+
+def _identity(address: str, deadline: float) -> Any:
+    """What the Dask server at ``address`` says it is (a dict with ``type``), on an event loop of
+    its own."""
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def ask() -> Any:
+        comm = await connect(address, timeout=deadline,
+                             **Security().get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity"})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    loop = asyncio.new_event_loop()
+    try:
+        return loop.run_until_complete(asyncio.wait_for(ask(), deadline))
+    finally:
+        loop.close()
+
+
 def _dask_client(scheduler: str) -> Any:
-    """A client of the running Dask scheduler at ``scheduler`` (UsageError if there is none)."""
+    """A client of the running Dask scheduler at ``scheduler``. The address's form is checked
+    first, then its host is looked up, the server asked what it is, and the client connected,
+    each within :data:`SCHEDULER_DEADLINE`; anything else at the address (nothing, a listener that
+    never answers, a web server, a Dask worker) is a UsageError naming --scheduler."""
     from dask.distributed import Client
 
-    try:
-        return Client(scheduler, timeout=30)
-    except (OSError, ValueError, TypeError):  # a malformed address, or no scheduler there
-        raise UsageError("--scheduler", "the address of a running Dask scheduler",
-                         scheduler) from None
+    scheme, host, port = check_scheduler(scheduler)
+    deadline = SCHEDULER_DEADLINE
+    answered, found = _within(deadline, lambda: socket.getaddrinfo(host, port,
+                                                                    type=socket.SOCK_STREAM))
+    if not answered or isinstance(found, BaseException) or not found:
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} whose host can be found (within "
+                         f"{deadline:g} s)", scheduler)
+    ip = found[0][4][0]
+    numeric = f"{scheme}://{'[' + ip + ']' if ':' in ip else ip}:{port}"
+    answered, identity = _within(deadline, lambda: _identity(numeric, deadline))
+    if not answered or not isinstance(identity, dict) or identity.get("type") != "Scheduler":
+        what = ("nothing answered within " f"{deadline:g} s" if not answered
+                else f"a {identity.get('type')} answered" if isinstance(identity, dict)
+                else "no Dask scheduler answered")
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} ({what})", scheduler)
+    answered, client = _within(deadline, lambda: Client(scheduler, timeout=deadline))
+    if not answered or isinstance(client, BaseException):
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} (it did not take a client within "
+                         f"{deadline:g} s)", scheduler)
+    return client
 
 
 def add_sweep_arguments(p: argparse.ArgumentParser) -> None:
@@ -191,6 +271,8 @@ def add_study_arguments(p: argparse.ArgumentParser, seeds_help: str) -> None:
 def check_sweep_arguments(args: argparse.Namespace) -> None:
     if args.n_jobs is not None and args.n_jobs < 1:
         raise UsageError("--n-jobs", "an integer >= 1", args.n_jobs)
+    if args.scheduler is not None:
+        check_scheduler(args.scheduler)
 
 
 def check_study_arguments(args: argparse.Namespace) -> tuple[Path, Path]:
