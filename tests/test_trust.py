@@ -4,6 +4,7 @@ sizes and paths."""
 
 from __future__ import annotations
 
+import pickle
 import socket
 import threading
 import time
@@ -11,8 +12,10 @@ import time
 import pytest
 
 from repro.cli import main
-from repro.core.errors import UsageError
+from repro.core.errors import UsageError, require
+from repro.core.locks import folder_lock
 from repro.experiments import sweep
+from repro.learn.run_folder import writer_lock
 
 
 def _main(argv: list[str]) -> int:
@@ -97,3 +100,47 @@ def test_a_listener_that_is_not_dask_is_refused_within_the_deadline(reply, monke
     _one_line(capsys, "--scheduler")
     assert not (tmp_path / "res").exists()
     assert not any(p.is_file() for p in (tmp_path / "runs").rglob("*"))
+
+
+# --- refusals across processes -------------------------------------------------------------------
+
+def test_a_refusal_pickles_as_itself():
+    err = pickle.loads(pickle.dumps(UsageError("--runs-dir", "x", "/x")))
+    assert type(err) is UsageError and str(err) == "--runs-dir: must be x, got '/x'"
+    assert (err.param, err.allowed, err.got) == ("--runs-dir", "x", "/x")
+
+
+def test_a_refusal_in_a_worker_process_reaches_the_caller_intact():
+    with pytest.raises(UsageError) as caught:
+        sweep.map_tasks(require, [(True, "--a", "b"), (False, "--runs-dir", "free", "/r")],
+                        n_jobs=2)
+    assert str(caught.value) == "--runs-dir: must be free, got '/r'"
+
+
+def _transfer(tmp_path, *more: str) -> list[str]:
+    return ["fig-transfer", "--scale", "smoke", "--simulator", "ED", "--test-episodes", "5",
+            "--runs-dir", str(tmp_path / "runs"), "--results-dir", str(tmp_path / "res"),
+            "--figures-dir", str(tmp_path / "fig"), *more]
+
+
+def test_a_sweep_meeting_a_run_folder_in_use_is_refused_naming_runs_dir(tmp_path, capsys,
+                                                                         monkeypatch):
+    """Two jobs pending, one of them being written by another process: one line naming
+    --runs-dir, exit 2, and nothing trained."""
+    monkeypatch.setenv("REPRO_QUIET", "1")
+    root = tmp_path / "runs" / "transfer" / "smoke"
+    with writer_lock(root / "ed-th3-seed1"):
+        assert _main(_transfer(tmp_path, "--seeds", "2", "--n-jobs", "2")) == 2
+    line = _one_line(capsys, "--runs-dir")
+    assert "ed-th3-seed1" in line and "pid" in line
+    assert not (root / "ed-th3-seed0").exists() and not (tmp_path / "res").exists()
+
+
+def test_a_second_sweep_over_the_same_runs_is_refused_naming_runs_dir(tmp_path, capsys,
+                                                                      monkeypatch):
+    monkeypatch.setenv("REPRO_QUIET", "1")
+    root = tmp_path / "runs" / "transfer" / "smoke"
+    with folder_lock(root, sweep.SWEEP_LOCK, "--runs-dir", "a folder of runs"):
+        assert _main(_transfer(tmp_path, "--n-jobs", "2")) == 2
+    assert "sweep.lock" in _one_line(capsys, "--runs-dir")
+    assert [p.name for p in root.iterdir()] == []

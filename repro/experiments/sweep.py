@@ -31,12 +31,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from repro.core.errors import UsageError
+from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, write_bytes
+from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
 from repro.experiments.options import add_common
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, epochs_done,
-                                    is_finished, writer_lock)
+                                    is_finished, locked_by, writer_lock)
 from repro.envs import env_package
 from repro.learn.trainer import Trainer, check_run_folder
 
@@ -68,7 +69,8 @@ def run_job(job: TrainJob, root: Path) -> str:
     os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
     die_with_parent()
     env = env_package(job.train.env).make_env(job.env_config)
-    Trainer(job.train, env, run_dir(root, job), env_config=job.env_config).train()
+    Trainer(job.train, env, run_dir(root, job), env_config=job.env_config,
+            param="--runs-dir").train()
     return job.name
 
 
@@ -82,7 +84,7 @@ def run_shipped_job(job: TrainJob, files: dict[str, bytes]) -> dict[str, bytes]:
         for name, data in files.items():
             (folder / name).write_bytes(data)
         env = env_package(job.train.env).make_env(job.env_config)
-        Trainer(job.train, env, folder, env_config=job.env_config).train()
+        Trainer(job.train, env, folder, env_config=job.env_config, param="--runs-dir").train()
         return folder_files(folder)
 
 
@@ -137,18 +139,35 @@ def check_jobs(jobs: list[TrainJob], root: Path) -> None:
         check_run_folder(run_dir(root, j), j.train, j.env_config, j.train.env, "--runs-dir")
 
 
+SWEEP_LOCK = "sweep.lock"
+"""Held in a sweep's root folder while it trains: one sweep at a time per folder of runs."""
+
+
 def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
               scheduler: str | None = None) -> list[Path]:
-    """Run every job that is not done yet; returns every job's folder (in the order given)."""
+    """Run every job that is not done yet; returns every job's folder (in the order given).
+
+    A sweep that has runs to train holds ``root``'s sweep.lock meanwhile: a second sweep over the
+    same runs (two identical commands started together) is refused in one line naming
+    --runs-dir, as is one that finds a run of its own being trained by another process (a
+    ``train`` in it), before any worker starts."""
     check_jobs(jobs, root)
     pending = [j for j in jobs if not is_done(root, j)]
-    if pending and scheduler:
-        _run_on_dask(pending, Path(root), scheduler)
-    elif pending:
-        from joblib import Parallel, delayed
+    if not pending:
+        return [run_dir(root, j) for j in jobs]
+    with folder_lock(root, SWEEP_LOCK, "--runs-dir", "a folder of runs"):
+        for job in pending:
+            holder = locked_by(run_dir(root, job))
+            require(holder is None, "--runs-dir", f"a folder of runs no other process is "
+                    f"writing to ({holder} holds {job.name}/{LOCK})", str(root))
+        if scheduler:
+            _run_on_dask(pending, Path(root), scheduler)
+        else:
+            from joblib import Parallel, delayed
 
-        workers = min(len(pending), n_jobs or os.cpu_count() or 1)
-        Parallel(n_jobs=workers, backend="loky")(delayed(run_job)(j, Path(root)) for j in pending)
+            workers = min(len(pending), n_jobs or os.cpu_count() or 1)
+            Parallel(n_jobs=workers, backend="loky")(delayed(run_job)(j, Path(root))
+                                                     for j in pending)
     return [run_dir(root, j) for j in jobs]
 
 

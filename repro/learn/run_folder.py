@@ -25,21 +25,18 @@ it, ``run.lock``.
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import io
 import json
-import os
-import socket
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import pandas as pd
 import torch
 
 from repro.core.errors import UsageError, require
 from repro.core.io import append_csv, write_bytes, write_csv, write_json, write_text
+from repro.core.locks import folder_lock, is_locked
 
 CONFIG = "config.json"
 PROGRESS = "progress.csv"
@@ -215,31 +212,12 @@ def is_finished(folder: str | Path, epochs: int) -> bool:
 
 # --- one writer ----------------------------------------------------------------------------------
 
-@contextmanager
-def writer_lock(folder: Path, param: str = "--out") -> Iterator[None]:
+def writer_lock(folder: Path, param: str = "--out") -> AbstractContextManager[None]:
     """Hold ``folder``'s run.lock while the block runs; a UsageError naming the holder if another
-    process holds it. The lock file is removed on release; a holder that finds the file it locked
-    unlinked (by a releasing writer) locks the new one instead."""
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / LOCK
-    while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as err:
-            holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
-            os.close(fd)
-            if err.errno not in (errno.EAGAIN, errno.EACCES):
-                raise
-            raise UsageError(param, f"a run folder no other process is writing to ({holder} "
-                             f"holds {LOCK})", str(folder)) from None
-        if os.path.exists(path) and os.stat(path).st_ino == os.fstat(fd).st_ino:
-            break
-        os.close(fd)  # the file was removed by a releasing writer: lock the new one
-    try:
-        os.ftruncate(fd, 0)
-        os.write(fd, f"pid {os.getpid()} on {socket.gethostname()}".encode())
-        yield
-    finally:
-        os.unlink(path)
-        os.close(fd)
+    process holds it (:func:`repro.core.locks.folder_lock`)."""
+    return folder_lock(folder, LOCK, param, "a run folder")
+
+
+def locked_by(folder: Path) -> str | None:
+    """The holder of ``folder``'s run.lock if another process holds it now, else None."""
+    return is_locked(folder, LOCK)

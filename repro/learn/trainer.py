@@ -63,10 +63,12 @@ class Trainer:
     """Owns the policy, baseline, normaliser and sampling generator of one run."""
 
     def __init__(self, cfg: TrainConfig, env: BatchEnv, out: str | Path | None = None,
-                 env_config: Any = None):
+                 env_config: Any = None, param: str = "--out"):
         require(env.gamma > 0 and math.isfinite(env.gamma), "--gamma", "a number > 0", env.gamma)
         self.cfg, self.env = cfg, env
         self.out = None if out is None else Path(out)
+        self.param = param
+        """The option that named ``out`` (a sweep's is --runs-dir): refusals name it."""
         self.env_config = env_config
         self.run_config = run_config(cfg, env_config, env.name)
         torch.set_num_threads(1)
@@ -138,7 +140,7 @@ class Trainer:
             self._epochs()
             return self.progress()
         t_start = time.perf_counter()
-        with writer_lock(self.out):
+        with writer_lock(self.out, self.param):
             first_epoch = self._start_or_resume()
             self._epochs()
             write_json(self.out / PROVENANCE, provenance(
@@ -192,7 +194,7 @@ class Trainer:
         config.json keeps the larger number."""
         assert self.out is not None
         defaults = run_config(TrainConfig(), _saved_env_defaults(self.env_config), self.env.name)
-        state = resume_state(self.out, self.run_config, defaults)
+        state = resume_state(self.out, self.run_config, defaults, self.param)
         epochs = 0 if state is None else int(state["epoch"])
         config = self.run_config
         if state is not None:
