@@ -4,18 +4,29 @@ sizes and paths."""
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import pickle
+import shutil
 import socket
+import subprocess
+import sys
 import threading
 import time
 
+import pandas as pd
 import pytest
 
+from repro.claims import NOT_RUN, registry
 from repro.cli import main
 from repro.core.errors import UsageError, require
+from repro.core.io import (CSV_HASH, RESULTS_LOCK, csv_bytes, read_provenance, read_result,
+                           sidecar_path, write_result)
 from repro.core.locks import folder_lock
 from repro.experiments import sweep
 from repro.learn.run_folder import writer_lock
+from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
 
 def _main(argv: list[str]) -> int:
@@ -144,3 +155,107 @@ def test_a_second_sweep_over_the_same_runs_is_refused_naming_runs_dir(tmp_path, 
         assert _main(_transfer(tmp_path, "--n-jobs", "2")) == 2
     assert "sweep.lock" in _one_line(capsys, "--runs-dir")
     assert [p.name for p in root.iterdir()] == []
+
+
+# --- results folders and their pairs -------------------------------------------------------------
+
+def _pair(folder, name="t.csv", scale="smoke", overwrite=False):
+    return write_result(folder / name, pd.DataFrame(dict(x=[1.0])), {"scale": scale},
+                        overwrite=overwrite)
+
+
+def test_a_sidecar_records_its_csv_and_a_pair_that_does_not_match_reads_not_yet_run(tmp_path):
+    path = _pair(tmp_path, "table_race.csv")
+    side = json.loads(sidecar_path(path).read_text())
+    assert side[CSV_HASH] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert path.read_bytes() == csv_bytes(pd.DataFrame(dict(x=[1.0])))  # the CSV as before
+    assert read_result(path).x.tolist() == [1.0]
+    path.write_text("x\n2\n")  # another writer's CSV (or a hand edit) beside this sidecar
+    with pytest.raises(FileNotFoundError):
+        read_result(path)
+    c10 = next(c for c in registry() if c.id == "C10")
+    assert c10.evaluate(tmp_path).verdict == NOT_RUN
+
+
+def test_a_sidecar_without_a_hash_is_taken_as_it_is(tmp_path):
+    """The committed results' sidecars were written before the hash: they stay readable."""
+    write_result_csv(pd.DataFrame(dict(x=[3])), tmp_path / "old.csv")
+    assert CSV_HASH not in read_provenance(tmp_path / "old.csv")
+    assert read_result(tmp_path / "old.csv").x.tolist() == [3]
+
+
+WRITER = """
+import sys
+import pandas as pd
+from pathlib import Path
+from repro.core.io import write_result
+folder, me = Path(sys.argv[1]), int(sys.argv[2])
+for i in range(100):
+    write_result(folder / f"slot{i % 6}.csv", pd.DataFrame(dict(writer=[me] * 50, i=range(50))),
+                 {"scale": "smoke", "writer": me})
+"""
+
+
+def test_two_writers_never_leave_a_torn_pair_and_a_reader_never_takes_one(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    writers = [subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path), str(k)], env=env)
+               for k in (1, 2)]
+    reads = torn = 0
+    while any(w.poll() is None for w in writers):
+        for i in range(6):
+            try:
+                table = read_result(tmp_path / f"slot{i}.csv")
+            except FileNotFoundError:
+                torn += 1  # not yet written, or a pair being written: "not yet run"
+                continue
+            reads += 1
+            assert len(set(table.writer)) == 1 and len(table) == 50
+    assert [w.wait(timeout=60) for w in writers] == [0, 0]
+    for i in range(6):
+        path = tmp_path / f"slot{i}.csv"
+        prov = read_provenance(path)
+        assert prov[CSV_HASH] == hashlib.sha256(path.read_bytes()).hexdigest()
+        assert read_result(path).writer.iloc[0] == prov["writer"]
+    assert reads > 0 and sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [f"slot{i}.csv" for i in range(6)] + [f"slot{i}.provenance.json" for i in range(6)])
+
+
+RACE = ("race", "--scale", "smoke", "--n-sets", "400", "--n-max", "5", "--distribution",
+        "exponential", "--no-figure")
+
+
+def test_a_second_writer_of_a_results_folder_is_refused(tmp_path, capsys):
+    with folder_lock(tmp_path / "res", RESULTS_LOCK, "--results-dir", "a results folder"):
+        assert _main([*RACE, "--results-dir", str(tmp_path / "res")]) == 2
+    assert RESULTS_LOCK in _one_line(capsys, "--results-dir")
+    assert list((tmp_path / "res").iterdir()) == []
+
+
+def test_results_of_a_larger_scale_are_replaced_only_when_told(tmp_path, capsys):
+    """Committed paper-scale results in the folder a smoke run names: refused before any work,
+    nothing changed; --overwrite replaces them. The guard is the sidecars' scale, whatever the
+    folder is called."""
+    res, fig = tmp_path / "anywhere", tmp_path / "fig"
+    res.mkdir()
+    for name in ("table_race", "race_exact"):
+        for ext in (".csv", ".provenance.json"):
+            shutil.copy(ROOT / "results" / "paper" / (name + ext), res)
+    before = tree_snapshot(res)
+    assert _main([*RACE[:-1], "--results-dir", str(res), "--figures-dir", str(fig)]) == 2
+    line = _one_line(capsys, "--results-dir")
+    assert "paper" in line and "--overwrite" in line
+    assert tree_snapshot(res) == before and not fig.exists()
+    with pytest.raises(UsageError, match="--results-dir"):  # a pair written outside a driver
+        _pair(res, "table_race.csv", scale="quick")
+    assert tree_snapshot(res) == before
+    assert _main([*RACE, "--results-dir", str(res), "--overwrite"]) == 0
+    assert read_provenance(res / "table_race.csv")["scale"] == "smoke"
+    assert not (res / RESULTS_LOCK).exists()
+
+
+def test_a_smaller_scale_run_may_write_beside_nothing_larger(tmp_path):
+    _pair(tmp_path, "a.csv", scale="smoke")
+    _pair(tmp_path, "a.csv", scale="paper")  # larger replaces smaller
+    with pytest.raises(UsageError, match="paper"):
+        _pair(tmp_path, "a.csv", scale="smoke")
+    _pair(tmp_path, "a.csv", scale="smoke", overwrite=True)

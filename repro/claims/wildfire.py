@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
-from repro.core.io import read_provenance
+from repro.core.io import read_provenance, read_result
 from repro.core.stats import bootstrap_ci, ci_side
 
 C6_TOLERANCE = 0.10
@@ -66,7 +66,7 @@ def _pct(x: float) -> str:
 
 def check_c6(results: Path) -> Verdict:
     path = results / "wildfire_behaviour.csv"
-    t = pd.read_csv(path)
+    t = read_result(path)
     parts, ok = [], []
     for key, paper in C6_PAPER.items():
         mean, lo, hi = _ci(t[key].to_numpy())
@@ -93,7 +93,7 @@ def _without_stays(t: pd.DataFrame, results: Path) -> str:
     flow_path = results / "wildfire_behaviour_flowchart.csv"
     if "stay_flight" not in t or not flow_path.exists():
         return ""
-    flow = pd.read_csv(flow_path).iloc[0]
+    flow = read_result(flow_path).iloc[0]
     pairs = "; ".join(f"{k} {_pct(t[k + '_ex_stay'].mean())} vs {_pct(flow[k + '_ex_stay'])}"
                       for k in C6_PAPER)
     return (f" Stay flights (to the fire the UAV is at; they take no time) are "
@@ -104,7 +104,7 @@ def _without_stays(t: pd.DataFrame, results: Path) -> str:
 
 def check_c7(results: Path) -> Verdict:
     path = results / "wildfire_behaviour.csv"
-    t = pd.read_csv(path)
+    t = read_result(path)
     if (t.adr_learned <= 0).any():  # the ratio's sign no longer says which policy is better
         return Verdict("-", "FAIL", f"a learned policy's ADR is not positive "
                        f"({t.adr_learned.min():.3f}): the ratio of ADRs is undefined",
@@ -121,7 +121,7 @@ def check_c7(results: Path) -> Verdict:
 
 def _summary(results: Path, stem: str) -> tuple[pd.DataFrame, Path]:
     path = results / f"{stem}_summary.csv"
-    return pd.read_csv(path).set_index("simulator"), path
+    return read_result(path).set_index("simulator"), path
 
 
 def c8_verdict(s: pd.DataFrame) -> tuple[str, str]:
@@ -162,7 +162,7 @@ def _heuristics_line(results: Path) -> str:
     """The heuristic policies' ADR on the same ED test episodes, the baselines of the learned."""
     path = results / "wildfire_heuristics.csv"
     try:
-        h = pd.read_csv(path)
+        h = read_result(path)
         scale_of(path)
     except FileNotFoundError:
         return " Heuristics on the same test episodes: not yet run (`make wildfire-heuristics`)."
@@ -194,7 +194,7 @@ def _ablation_lines(results: Path) -> str:
     """C9 on the ablations that switch single quirks off (``fig-transfer --no-quirk Q``)."""
     lines = []
     for path in sorted(results.glob("transfer_no_*_summary.csv")):
-        s = pd.read_csv(path).set_index("simulator")
+        s = read_result(path).set_index("simulator")
         if set(C9_PAIR) <= set(s.index) and not made_before_released_semantics(path):
             off = path.name.removeprefix("transfer_no_").removesuffix("_summary.csv")
             verdict, why = c9_verdict(s)
@@ -223,7 +223,10 @@ def _corrected_line(results: Path, judge, means: bool) -> str:
 def _cut_line(per_policy: Path) -> str:
     """How many training and test episodes the decision limit cut (docs/semantics.md section
     3.7), when the per-policy table records it."""
-    t = pd.read_csv(per_policy) if per_policy.exists() else pd.DataFrame()
+    try:
+        t = read_result(per_policy)
+    except FileNotFoundError:  # not yet run, or a torn pair
+        t = pd.DataFrame()
     if not {"train_truncated", "test_truncated"} <= set(t.columns):
         return ""
     train = int((t.epochs * t.batch_episodes).sum())

@@ -48,10 +48,10 @@ import numpy as np
 import pandas as pd
 import torch
 
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, write_result
+from repro.core.io import provenance, write_result
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
 from repro.envs import env_package, make_vector_env, train_defaults
@@ -215,7 +215,7 @@ def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
                     reference_episodes=args.reference_episodes, repeats=args.repeats)
     trained = (None if args.checkpoint is None
                else load_trained_run(args.checkpoint, command.removeprefix("bench-")))
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     load_before = os.getloadavg()[0]
     t0 = time.perf_counter()
     frame = measure_env(cfg, args.seed, trained)

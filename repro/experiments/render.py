@@ -103,7 +103,8 @@ def _bus(name: str, path: str | None, args: argparse.Namespace, rng: np.random.G
     else:
         cfg = BusConfig()
         policy = bus_policies.make_policy(name, cfg, results_dir=args.results_dir,
-                                          mlp_run=path)
+                                          mlp_run=path, results_param="--results-dir",
+                                          mlp_param="--policy")
     batch = BusBatch(cfg, 1)
     pending = [batch.advance(np.zeros(0, np.int64))]
 

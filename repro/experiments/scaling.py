@@ -31,7 +31,7 @@ from typing import Callable, ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -217,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
                     repeats=args.repeats,
                     n_agents=tuple(sorted(args.n_agents)) if args.n_agents else None,
                     distributions=tuple(args.distributions) if args.distributions else None)
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     warm_up()
     t0 = time.perf_counter()

@@ -35,7 +35,7 @@ from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, write_bytes
 from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, epochs_done,
                                     is_finished, locked_by, writer_lock)
 from repro.envs import env_package
@@ -290,13 +290,14 @@ def add_study_arguments(p: argparse.ArgumentParser, seeds_help: str) -> None:
 def check_sweep_arguments(args: argparse.Namespace) -> None:
     if args.n_jobs is not None and args.n_jobs < 1:
         raise UsageError("--n-jobs", "an integer >= 1", args.n_jobs)
-    if args.scheduler is not None:
+    if getattr(args, "scheduler", None) is not None:
         check_scheduler(args.scheduler)
 
 
 def check_study_arguments(args: argparse.Namespace) -> tuple[Path, Path]:
     """Check the options of :func:`add_study_arguments` before any work: the sweep's, and that
-    the results and figures folders can be written; returns those two folders."""
+    the results and figures folders can be written; returns those two folders, the results folder
+    held until the command ends (:func:`~repro.experiments.options.results_folder`)."""
     check_sweep_arguments(args)
-    return (check_writable_dir(args.results_dir, "--results-dir"),
-            check_writable_dir(args.figures_dir, "--figures-dir"))
+    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    return results_folder(args), figures
