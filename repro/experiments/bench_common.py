@@ -56,7 +56,7 @@ from repro.core.rollout import BatchEnv, DecisionBatch, Policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
 from repro.envs import env_package, make_vector_env, train_defaults
 from repro.learn.config import TrainConfig
-from repro.learn.trained_policy import load_trained_run, policy_from_state
+from repro.learn.trained_policy import check_fits, load_trained_run, policy_from_state
 
 
 CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
@@ -171,6 +171,7 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
             cheap_name: cheap,
         }
     else:
+        check_fits(trained, fast, "--checkpoint", None)
         fast.rollout(cheap(fast, np.random.default_rng(seed)), 1, seed)  # compiles the engine
         policies = {"checkpoint": lambda env, rng: policy_from_state(trained, rng),
                     cheap_name: cheap}

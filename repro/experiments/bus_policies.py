@@ -15,7 +15,9 @@ from repro.envs.bus.params import SWITCHES, BusConfig
 from repro.envs.bus.policies import (AUTHORS_THRESHOLDS, ThresholdPolicy, check_thresholds,
                                      no_holding)
 from repro.learn.run_folder import CHECKPOINT
-from repro.learn.trained_policy import load_trained_run, policy_from_state, trained_env_config
+from repro.envs.bus import make_env
+from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
+                                        trained_env_config)
 
 
 class GreedyPolicy:
@@ -29,7 +31,8 @@ class GreedyPolicy:
 
     def __init__(self, run: str | Path, cfg: BusConfig, param: str = "--mlp-run"):
         state = load_trained_run(Path(run) / CHECKPOINT, "bus", param)
-        trained = trained_env_config(state, BusConfig)
+        trained = trained_env_config(state, BusConfig, param)
+        check_fits(state, make_env(trained), param, run)
         differ = [f for f in SWITCHES if getattr(trained, f) != getattr(cfg, f)]
         require(not differ, param, "a run trained with this command's switches B1-B5 "
                 f"(it differs in {', '.join(differ)})", str(run))

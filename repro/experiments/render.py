@@ -19,7 +19,8 @@ import numpy as np
 
 from repro.core.errors import require
 from repro.experiments import bus_policies
-from repro.learn.trained_policy import load_trained_run, policy_from_state, trained_env_config
+from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
+                                        trained_env_config)
 
 POLICIES = {"wildfire": ("random", "nearest", "flowchart", "checkpoint"),
             "bus": (*bus_policies.POLICIES, "checkpoint")}
@@ -67,8 +68,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _trained(path: str, env_name: str, config_type: type, rng: np.random.Generator):
     """The environment config and the policy of a trained run's checkpoint."""
+    from repro.envs import env_package
+
     state = load_trained_run(path, env_name, "--policy")
-    return trained_env_config(state, config_type), policy_from_state(state, rng)
+    cfg = trained_env_config(state, config_type, "--policy")
+    check_fits(state, env_package(env_name).make_env(cfg), "--policy", path)
+    return cfg, policy_from_state(state, rng)
 
 
 def _wildfire(name: str, path: str | None, args: argparse.Namespace, rng: np.random.Generator):

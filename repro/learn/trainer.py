@@ -194,7 +194,8 @@ class Trainer:
         config.json keeps the larger number."""
         assert self.out is not None
         defaults = run_config(TrainConfig(), _saved_env_defaults(self.env_config), self.env.name)
-        state = resume_state(self.out, self.run_config, defaults, self.param)
+        state = resume_state(self.out, self.run_config, defaults, self.param,
+                             obs_dim=self.env.obs_dim, n_actions=self.env.n_actions)
         epochs = 0 if state is None else int(state["epoch"])
         config = self.run_config
         if state is not None:
