@@ -22,15 +22,23 @@ import torch
 
 from repro.claims import NOT_RUN, registry
 from repro.cli import main
+from repro.core import memory
 from repro.core.errors import UsageError, require
 from repro.core.io import (CSV_HASH, RESULTS_LOCK, csv_bytes, read_provenance, read_result,
                            sidecar_path, write_result)
 from repro.core.locks import folder_lock
+from repro.core.rollout import rollout_bytes
 from repro.experiments import sweep
 from repro.learn.run_folder import (CHECKPOINT, load_checkpoint, save_checkpoint, state_problem,
                                     writer_lock)
 from repro.learn.trained_policy import policy_from_checkpoint
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
+
+
+@pytest.fixture(autouse=True)
+def quiet(monkeypatch):
+    """No progress bars on stderr, where each refusal is checked to be one line."""
+    monkeypatch.setenv("REPRO_QUIET", "1")
 
 
 def _main(argv: list[str]) -> int:
@@ -101,7 +109,6 @@ def test_a_listener_that_is_not_dask_is_refused_within_the_deadline(reply, monke
     """A silent listener (the Dask client's own timeout does not end that wait) and a web server
     are both refused in one line, exit 2, once the deadline has passed, before anything trains."""
     monkeypatch.setattr(sweep, "SCHEDULER_DEADLINE", 1.0)
-    monkeypatch.setenv("REPRO_QUIET", "1")
     listener = Listener(reply)
     try:
         t0 = time.perf_counter()
@@ -142,7 +149,6 @@ def test_a_sweep_meeting_a_run_folder_in_use_is_refused_naming_runs_dir(tmp_path
                                                                          monkeypatch):
     """Two jobs pending, one of them being written by another process: one line naming
     --runs-dir, exit 2, and nothing trained."""
-    monkeypatch.setenv("REPRO_QUIET", "1")
     root = tmp_path / "runs" / "transfer" / "smoke"
     with writer_lock(root / "ed-th3-seed1"):
         assert _main(_transfer(tmp_path, "--seeds", "2", "--n-jobs", "2")) == 2
@@ -153,7 +159,6 @@ def test_a_sweep_meeting_a_run_folder_in_use_is_refused_naming_runs_dir(tmp_path
 
 def test_a_second_sweep_over_the_same_runs_is_refused_naming_runs_dir(tmp_path, capsys,
                                                                       monkeypatch):
-    monkeypatch.setenv("REPRO_QUIET", "1")
     root = tmp_path / "runs" / "transfer" / "smoke"
     with folder_lock(root, sweep.SWEEP_LOCK, "--runs-dir", "a folder of runs"):
         assert _main(_transfer(tmp_path, "--n-jobs", "2")) == 2
@@ -322,7 +327,6 @@ def test_a_damaged_checkpoint_is_refused_in_one_line_everywhere(damage, wildfire
                                                                   capsys, monkeypatch):
     """Built with the suite's own save_checkpoint, so it loads: train (resume), render,
     bench-wildfire and the API refuse it in one line, and the run folder is left as it was."""
-    monkeypatch.setenv("REPRO_QUIET", "1")
     run = tmp_path / "run"
     shutil.copytree(wildfire_run, run)
     state = load_checkpoint(run / CHECKPOINT)
@@ -346,9 +350,115 @@ def test_a_damaged_checkpoint_is_refused_in_one_line_everywhere(damage, wildfire
 
 
 def test_a_whole_checkpoint_still_resumes(wildfire_run, tmp_path, monkeypatch):
-    monkeypatch.setenv("REPRO_QUIET", "1")
     run = tmp_path / "run"
     shutil.copytree(wildfire_run, run)
     assert state_problem(load_checkpoint(run / CHECKPOINT), 28, 6) is None
     assert _main([*TRAIN, "--epochs", "2", "--out", str(run)]) == 0
     assert load_checkpoint(run / CHECKPOINT)["epoch"] == 2
+
+
+# --- sizes and paths -----------------------------------------------------------------------------
+
+REQUIRED = {"train": ["--env", "toy"], "render": ["--out", "x.gif"],
+            "wildfire-eval": ["--policy", "nearest"], "bus-eval": ["--policy", "nohold"]}
+"""The options a command needs besides the path under test."""
+
+
+def _path_options(command: str) -> list[str]:
+    import importlib
+
+    from repro.cli import COMMANDS, PATH_OPTIONS, OneLineParser
+
+    parser = OneLineParser(prog=command)
+    module = importlib.import_module(COMMANDS[command][0])
+    module.add_arguments(parser)
+    if hasattr(module, "extend_arguments"):
+        module.extend_arguments(parser, REQUIRED.get(command, []))
+    return [a.option_strings[0] for a in parser._actions if a.dest in PATH_OPTIONS]
+
+
+def test_every_path_option_of_every_command_refuses_long_and_undecodable_paths(
+        tmp_path, monkeypatch, capsys):
+    """Over 4,096 bytes, or not UTF-8 (``train --out $'/tmp/run_\\xff\\xfe'``): one line naming
+    the option, exit 2, nothing written."""
+    from repro.cli import COMMANDS
+
+    monkeypatch.chdir(tmp_path)
+    long = "/".join(["d" * 200] * 21)  # 4,220 bytes, every name within the 255 a name may have
+    undecodable = os.fsdecode(b"run_\xff\xfe")
+    tried = 0
+    for command in COMMANDS:
+        for option in _path_options(command):
+            for bad in (long, undecodable):
+                argv = [command, *REQUIRED.get(command, []), option, bad]
+                assert _main(argv) == 2, argv
+                line = _one_line(capsys, option)
+                assert ("4096 bytes" if bad == long else "UTF-8") in line, line
+                tried += 1
+    assert tried >= 40 and list(tmp_path.iterdir()) == []
+
+
+SIXTEEN_GIB = 16 << 30
+
+
+@pytest.mark.parametrize("argv, param", [
+    (["train", "--env", "wildfire", "--scale", "smoke", "--batch-episodes", "100000000"],
+     "--batch-episodes"),
+    (["train", "--env", "bus", "--scale", "smoke", "--batch-episodes", "100000000"],
+     "--batch-episodes"),
+    (["train", "--env", "wildfire", "--scale", "smoke", "--hidden", "100000", "100000"],
+     "--hidden"),
+    (["wildfire-eval", "--policy", "nearest", "--episodes", "100000000"], "--episodes"),
+    (["bench-bus", "--scale", "smoke", "--fast-episodes", "100000000"], "--fast-episodes"),
+    (["bench-wildfire", "--scale", "smoke", "--reference-episodes", "100000000"],
+     "--reference-episodes"),
+    (["fig-transfer", "--scale", "smoke", "--batch-episodes", "100000000"], "--batch-episodes"),
+    (["scaling", "--scale", "smoke", "--n-agents", "2", "3", "100000000"], "--n-agents"),
+    (["scaling", "--scale", "smoke", "--duration", "inf"], "--duration"),
+    (["scaling", "--scale", "smoke", "--duration", "1e12"], "--duration"),
+    (["fig-bus-arrivals", "--scale", "smoke", "--policies", "nohold", "--thresholds", "nan",
+      "nan", "nan"], "--thresholds"),
+    (["render", "--policy", "nearest", "--out", "/proc/a.gif"], "--out"),
+])
+def test_sizes_the_machine_cannot_hold_are_refused_up_front(argv, param, tmp_path, monkeypatch,
+                                                             capsys):
+    """Memory estimates are checked against 16 GiB here, whatever this machine has, so that the
+    probe's sizes are refused alike everywhere; nothing runs, nothing is written."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(memory, "available_memory", lambda: SIXTEEN_GIB)
+    t0 = time.perf_counter()
+    assert _main(argv) == 2
+    assert time.perf_counter() - t0 < 20
+    line = _one_line(capsys, param)
+    if "memory" in line:
+        assert "16.0 GiB available" in line
+    assert not [p for p in tmp_path.rglob("*") if p.is_file()]
+
+
+def test_the_sizes_of_the_paper_scale_fit():
+    """The estimates are lower bounds: nothing the paper's scale asks for comes near a limit."""
+    from repro.core.config import for_scale
+    from repro.envs.bus import make_env as bus_env
+    from repro.envs.wildfire import WildfireConfig, make_env
+    from repro.experiments.scaling import ScalingConfig, check_work
+    from repro.learn.config import train_config
+    from repro.learn.sizes import training_bytes
+
+    for env in (make_env(WildfireConfig()), bus_env()):
+        assert sum(training_bytes(train_config("paper", env.name), env)) < 1 << 30
+        assert rollout_bytes(env, 10_000, keep_obs=False, batch=1000) < 1 << 30
+    check_work(for_scale(ScalingConfig, "paper"))
+
+
+def test_a_full_disk_names_the_file(tmp_path, monkeypatch, capsys):
+    """A write to an open file that fails (a full disk) carries no file name of its own."""
+    import errno
+    from pathlib import Path
+
+    def full(self, data):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(Path, "write_bytes", full)
+    assert _main([*RACE, "--results-dir", str(tmp_path / "r")]) == 1
+    line = _one_line(capsys, "No space left on device")
+    assert line.endswith(str(tmp_path / "r" / "table_race.csv")), line

@@ -85,7 +85,7 @@ def check_names(path: str | Path, param: str) -> Path:
     try:
         text.encode()
     except UnicodeEncodeError:  # argv's undecodable bytes arrive as lone surrogates
-        raise UsageError(param, "a path in UTF-8", _shown(text)) from None
+        raise UsageError(param, "a path in UTF-8", _raw(text)) from None
     size = len(os.path.abspath(text).encode()) if text else 0
     require(size < PATH_MAX, param, f"a path of fewer than {PATH_MAX} bytes",
             f"{text[:20]}... ({size} bytes)")
@@ -95,10 +95,10 @@ def check_names(path: str | Path, param: str) -> Path:
     return Path(path)
 
 
-def _shown(text: str) -> str:
-    """``text`` with bytes that are not UTF-8 written as escapes (\\xff)."""
+def _raw(text: str) -> bytes | str:
+    """The bytes a path of argv stands for (its undecodable bytes arrive as lone surrogates)."""
     try:
-        return text.encode(errors="surrogateescape").decode(errors="backslashreplace")
+        return os.fsencode(text)
     except UnicodeEncodeError:
         return text.encode(errors="backslashreplace").decode()
 

@@ -52,7 +52,8 @@ from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import provenance, write_result
-from repro.core.rollout import BatchEnv, DecisionBatch, Policy
+from repro.core.memory import require_memory
+from repro.core.rollout import BatchEnv, DecisionBatch, Policy, rollout_bytes
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
 from repro.envs import env_package, make_vector_env, train_defaults
 from repro.learn.config import TrainConfig
@@ -157,7 +158,11 @@ def _timed_batches(run: Callable[[_Timed, np.random.SeedSequence], int], policy:
 def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,
             cfg: BenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
     """One row per engine and policy (see the module docstring); ``trained``: a loaded
-    checkpoint (:func:`load_trained_run`) whose policy is timed instead of a fresh network."""
+    checkpoint (:func:`load_trained_run`) whose policy is timed instead of a fresh network.
+    Batches that cannot fit in memory are refused first."""
+    for env, episodes, param in ((fast, cfg.fast_episodes, "--fast-episodes"),
+                                 (reference, cfg.reference_episodes, "--reference-episodes")):
+        require_memory(rollout_bytes(env, episodes), param, episodes, "a batch of episodes")
     if trained is None:
         warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
         normalizer = ObsNormalizer(fast.obs_dim)

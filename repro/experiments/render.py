@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from repro.core.errors import require
+from repro.core.io import check_writable_dir
 from repro.experiments import bus_policies
 from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
                                         trained_env_config)
@@ -55,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     require(out.suffix == ".gif", "--out", "a .gif file", args.out)
     require(out.parent.is_dir(), "--out", "in an existing folder", args.out)
+    check_writable_dir(out.parent, "--out")  # before the episode runs
     require(args.frames >= 2, "--frames", "an integer >= 2", args.frames)
     require(args.fps >= 1, "--fps", "an integer >= 1", args.fps)
     rng = np.random.default_rng(args.seed)

@@ -39,6 +39,7 @@ from repro.experiments.options import add_common, results_folder
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, epochs_done,
                                     is_finished, locked_by, writer_lock)
 from repro.envs import env_package
+from repro.learn.sizes import check_training_size, training_bytes
 from repro.learn.trainer import Trainer, check_run_folder
 
 
@@ -62,6 +63,10 @@ def is_done(root: Path, job: TrainJob) -> bool:
     """A run is done when it has every epoch the job asks for and its last ``train`` call ended
     (its settings are checked by :func:`run_sweep`)."""
     return is_finished(run_dir(root, job), job.train.epochs)
+
+
+def _env(job: TrainJob) -> Any:
+    return env_package(job.train.env).make_env(job.env_config)
 
 
 def run_job(job: TrainJob, root: Path) -> str:
@@ -155,6 +160,10 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
     pending = [j for j in jobs if not is_done(root, j)]
     if not pending:
         return [run_dir(root, j) for j in jobs]
+    workers = min(len(pending), n_jobs or os.cpu_count() or 1)
+    if not scheduler:  # the runs train on this machine, ``workers`` at a time
+        largest = max(pending, key=lambda j: sum(training_bytes(j.train, _env(j))))
+        check_training_size(largest.train, _env(largest), runs=workers)
     with folder_lock(root, SWEEP_LOCK, "--runs-dir", "a folder of runs"):
         for job in pending:
             holder = locked_by(run_dir(root, job))
@@ -165,7 +174,6 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
         else:
             from joblib import Parallel, delayed
 
-            workers = min(len(pending), n_jobs or os.cpu_count() or 1)
             Parallel(n_jobs=workers, backend="loky")(delayed(run_job)(j, Path(root))
                                                      for j in pending)
     return [run_dir(root, j) for j in jobs]

@@ -41,6 +41,7 @@ from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
                                 blas_on_one_thread)
+from repro.learn.sizes import check_training_size
 from repro.learn.run_folder import (CHECKPOINT, PROVENANCE, append_row, check_same_run,
                                     restore, resume_state, save_checkpoint,
                                     writer_lock)
@@ -71,6 +72,7 @@ class Trainer:
         """The option that named ``out`` (a sweep's is --runs-dir): refusals name it."""
         self.env_config = env_config
         self.run_config = run_config(cfg, env_config, env.name)
+        check_training_size(cfg, env)  # before the networks are built
         torch.set_num_threads(1)
         keep_freed_memory()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
