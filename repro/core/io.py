@@ -315,8 +315,8 @@ def _refuse_larger(folder: Path, larger: list[tuple[str, str]], scale: str | Non
         name, theirs = larger[0]
         more = f" and {len(larger) - 1} more" if len(larger) > 1 else ""
         raise UsageError(param, f"a folder without results of a larger scale than this run's "
-                         f"({scale}): {name}{more} is {theirs} (--overwrite replaces them)",
-                         str(path))
+                         f"({scale}): it holds {theirs}-scale {name}{more} (--overwrite replaces "
+                         "them)", str(path))
 
 
 def open_results(path: str | Path, param: str, *, scale: str | None,
