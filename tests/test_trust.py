@@ -395,6 +395,9 @@ def test_every_path_option_of_every_command_refuses_long_and_undecodable_paths(
                 line = _one_line(capsys, option)
                 assert ("4096 bytes" if bad == long else "UTF-8") in line, line
                 tried += 1
+    for bad in (long, undecodable):  # render's checkpoint comes after its --policy
+        assert _main(["render", "--policy", "checkpoint", bad, "--out", "x.gif"]) == 2
+        _one_line(capsys, "--policy")
     assert tried >= 40 and list(tmp_path.iterdir()) == []
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from repro.core.errors import require
-from repro.core.io import check_writable_dir
+from repro.core.io import check_names, check_writable_dir
 from repro.experiments import bus_policies
 from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
                                         trained_env_config)
@@ -53,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
     require(len(path) <= (need is not None) and (need != "required" or path), "--policy",
             f"{name} {'PATH' if need == 'required' else '[RUN]' if need else 'with no path'}",
             " ".join([name, *path]))
+    if path:
+        check_names(path[0], "--policy")
     out = Path(args.out)
     require(out.suffix == ".gif", "--out", "a .gif file", args.out)
     require(out.parent.is_dir(), "--out", "in an existing folder", args.out)
