@@ -15,6 +15,7 @@ import pytest
 import torch
 
 from repro.cli import main
+from tests.conftest import tree_snapshot
 from repro.envs import toy
 from repro.learn.policy import Sampler
 from repro.learn.config import train_config
@@ -136,12 +137,12 @@ def test_resume_refuses_a_progress_table_missing_checkpointed_rows(tmp_path, cap
         progress.unlink()
     else:
         progress.write_text("".join(progress.read_text().splitlines(keepends=True)[:2]))
-    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    before = tree_snapshot(tmp_path)
     capsys.readouterr()
     assert main([*opts, "--epochs", "3"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--out" in err and "holds the 2 epochs" in err
-    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    assert tree_snapshot(tmp_path) == before
 
 
 def test_cli_smoke_and_checkpoint_policy(tmp_path):

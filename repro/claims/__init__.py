@@ -11,6 +11,7 @@ never PASS. Each experiment module contributes its claims in
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import textwrap
 from dataclasses import dataclass
@@ -34,7 +35,8 @@ LEGEND = {
 }
 """What each verdict means."""
 TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
-          "repro.claims.wildfire", "repro.claims.beyond", "repro.claims.beyond_races")
+          "repro.claims.wildfire", "repro.claims.learner", "repro.claims.beyond",
+          "repro.claims.beyond_races")
 BEYOND = "X"
 """Id prefix of the claims beyond the paper (issue 20): questions the paper raises and leaves open.
 They are rendered in a section of their own, and a scale's results are complete without them (so
@@ -100,6 +102,63 @@ def at_most_partial(verdict: str, n_min: int) -> tuple[str, str]:
         return verdict, ""
     return ("PARTIAL" if verdict == "PASS" else verdict,
             " One policy per simulator: the intervals are points, so at most PARTIAL.")
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One set-up a claim is checked on: a learner (and simulator version), whose result files
+    carry ``suffix`` after their stem."""
+
+    label: str
+    suffix: str
+
+
+def side_by_side(check: Callable[[Path, str], Verdict],
+                 readings: tuple[Reading, ...]) -> Callable[[Path], Verdict]:
+    """A check decided on the first reading, the others beside it: the table shows each one's
+    value, the detail each one's verdict and detail. A reading whose files are missing says
+    "not yet run"; when it is the deciding one, so does the claim."""
+    def checked(results: Path) -> Verdict:
+        seen: list[tuple[Reading, Verdict | None]] = []
+        for reading in readings:
+            try:
+                seen.append((reading, check(results, reading.suffix)))
+            except FileNotFoundError:
+                seen.append((reading, None))
+        first = seen[0][1]
+        ours = "; ".join(f"{r.label}: {v.ours if v else NOT_RUN}" + (
+            f" ({v.verdict})" if v and i else "") for i, (r, v) in enumerate(seen))
+        parts = [f"**{r.label}**" + (f" ({v.scale} scale): {v.verdict}. {v.detail}" if v
+                                     else f": {NOT_RUN}.") for r, v in seen]
+        detail = "Decided on the first set-up. " + " ".join(parts)
+        if first is None:
+            return Verdict(ours, NOT_RUN, detail)
+        return Verdict(ours, first.verdict, detail, first.scale, first.outdated)
+    return checked
+
+
+def learner_of(result: Path) -> str:
+    """The named learner of a result's runs, as its sidecar's config records it (at any depth of
+    a study made of studies); results made before the learner was a setting were the suite's."""
+    def find(config: object) -> str | None:
+        if not isinstance(config, dict):
+            return None
+        if isinstance(config.get("learner"), str):
+            return config["learner"]
+        return next(filter(None, map(find, config.values())), None)
+    return find(read_provenance(result).get("config", {})) or "suite"
+
+
+def learned_by(check: Callable[[Path], Verdict], stem: str) -> Callable[[Path], Verdict]:
+    """``check``, its value and detail saying which learner trained the policies of its result
+    file ``stem``."""
+    def checked(results: Path) -> Verdict:
+        v = check(results)
+        learner = learner_of(results / stem)
+        return dataclasses.replace(v, ours=f"{v.ours} ({learner}'s learner)",
+                                   detail=f"{v.detail} Policies trained with the {learner}'s "
+                                          f"learner (docs/semantics.md section 5.7).")
+    return checked
 
 
 def registry() -> list[Claim]:

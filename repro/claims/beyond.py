@@ -13,7 +13,7 @@ from pathlib import Path
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
+from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, learned_by, scale_of
 from repro.core.stats import ci_side
 from repro.experiments.beyond_mgae import REFERENCE
 from repro.experiments.transfer_dt import RACES, TransferDtConfig, read_races
@@ -116,10 +116,11 @@ CLAIMS = [
           "batch's mean duration) and duration-discounted GAE (lambda per decision), all else "
           "equal", "M-GAE beats both alternatives in both environments",
           "PASS: M-GAE's 95% CI lies above each alternative's; PARTIAL: above some; FAIL: none",
-          "make beyond-mgae", check_x1, where="Sec. 3.2"),
+          "make beyond-mgae", learned_by(check_x1, "beyond_mgae_summary.csv"), where="Sec. 3.2"),
     Claim("X3", "Where does transfer from FS-dT to ED break (13 dT from 0.01 to 10 s), and does it "
           "break where races begin?", "transfer breaks where races begin (X2's rate, N = 3)",
           f"PASS: the smallest dT whose CI lies below ED's is within {ONSET_WINDOW:g} decades of "
           f"the dT at which the nearest policy's races reach {RACE_ONSET:g} per decision",
-          "make beyond-transfer-dt", check_x3, where="Fig. 7, Sec. 5.3"),
+          "make beyond-transfer-dt", learned_by(check_x3, "transfer_dt_grid_summary.csv"),
+          where="Fig. 7, Sec. 5.3"),
 ]

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
+from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, learned_by, scale_of
 from repro.claims.race import PAPER_BETA
 from repro.experiments.beyond_order import NAME as ORDER
 from repro.experiments.beyond_races import FIT, RACES, c10_beta
@@ -104,5 +104,5 @@ CLAIMS = [
           "C9: 1.937 vs 2.789 (the order is not discussed)",
           "where the released order degrades (95% bootstrap CI of the ADR difference below 0), "
           "the reversed order's CI lies below 0 too; PARTIAL: in some semantics",
-          "make beyond-order", check_x4),
+          "make beyond-order", learned_by(check_x4, f"{ORDER}_effect.csv")),
 ]

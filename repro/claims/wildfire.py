@@ -12,7 +12,8 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, scale_of
+from repro.claims import (NOT_RUN, Claim, Reading, Verdict, at_most_partial, scale_of,
+                          side_by_side)
 from repro.core.io import read_provenance, read_result
 from repro.core.stats import bootstrap_ci, ci_side
 
@@ -42,12 +43,14 @@ def made_before_released_semantics(path: Path) -> bool:
     return read_provenance(path).get("finished_utc", "") < RELEASED_SINCE
 
 
-def on_current_semantics(check: Callable[[Path], Verdict], stem: str) -> Callable[[Path], Verdict]:
-    """``check``, unless its result file ``stem`` predates the released semantics: then "not yet
-    run", keeping the old verdict and numbers in the detail."""
-    def checked(results: Path) -> Verdict:
-        v = check(results)
-        if not made_before_released_semantics(results / stem):
+def on_current_semantics(check: Callable[[Path, str], Verdict],
+                         stem: str) -> Callable[[Path, str], Verdict]:
+    """``check``, unless its result file ``stem`` (``{}`` standing for the reading's suffix)
+    predates the released semantics: then "not yet run", keeping the old verdict and numbers in
+    the detail."""
+    def checked(results: Path, suffix: str = "") -> Verdict:
+        v = check(results, suffix)
+        if not made_before_released_semantics(results / stem.format(suffix)):
             return v
         return Verdict(f"earlier semantics: {v.ours}", NOT_RUN,
                        f"Not yet rerun since the engines follow the released simulator (issue 18); "
@@ -64,8 +67,8 @@ def _pct(x: float) -> str:
     return f"{100 * x:.0f}%"
 
 
-def check_c6(results: Path) -> Verdict:
-    path = results / "wildfire_behaviour.csv"
+def check_c6(results: Path, suffix: str = "") -> Verdict:
+    path = results / f"wildfire_behaviour{suffix}.csv"
     t = read_result(path)
     parts, ok = [], []
     for key, paper in C6_PAPER.items():
@@ -76,21 +79,28 @@ def check_c6(results: Path) -> Verdict:
     outside = [k for k, good in zip(C6_PAPER, ok) if not good]
     ours = ", ".join(f"{_pct(t[k].mean())}" for k in C6_PAPER)
     limit = int(t.get("max_decisions", pd.Series([0])).iloc[0])
-    detail = (f"{len(t)} policies x {t.epochs.iloc[0]} epochs x {t.batch_episodes.iloc[0]} "
-              f"episodes on ED{_limit(limit)}, measured on {t.test_episodes.iloc[0]} ED episodes "
+    detail = (f"{len(t)} policies x {t.epochs.iloc[0]} epochs x {_batch(t)} on ED{_limit(limit)}, "
+              f"measured on {t.test_episodes.iloc[0]} ED episodes "
               f"each; mean over policies [95% bootstrap CI]: " + "; ".join(parts)
-              + f". Outside tolerance: {outside or 'none'}." + _without_stays(t, results))
+              + f". Outside tolerance: {outside or 'none'}."
+              + _without_stays(t, results / f"wildfire_behaviour{suffix}_flowchart.csv"))
     return Verdict(ours, verdict, detail, scale_of(path))
+
+
+def _batch(t: pd.DataFrame) -> str:
+    """A behaviour table's batch: decisions for a learner that counts them, else episodes."""
+    decisions = int(t.get("batch_decisions", pd.Series([0])).iloc[0])
+    return (f"{decisions} decisions" if decisions else f"{int(t.batch_episodes.iloc[0])} episodes")
 
 
 def _limit(max_decisions: int) -> str:
     return f" (at most {max_decisions} decisions per UAV and episode)" if max_decisions else ""
 
 
-def _without_stays(t: pd.DataFrame, results: Path) -> str:
+def _without_stays(t: pd.DataFrame, flow_path: Path) -> str:
     """The frequencies without stay flights (flights to the fire the UAV is at), the learned
-    policies' beside the flowchart's (the paper's probabilities); empty for older results."""
-    flow_path = results / "wildfire_behaviour_flowchart.csv"
+    policies' beside the flowchart's (the paper's probabilities, ``flow_path``); empty for older
+    results."""
     if "stay_flight" not in t or not flow_path.exists():
         return ""
     flow = read_result(flow_path).iloc[0]
@@ -102,8 +112,8 @@ def _without_stays(t: pd.DataFrame, results: Path) -> str:
             f"paper's probabilities, same test episodes): {pairs}.")
 
 
-def check_c7(results: Path) -> Verdict:
-    path = results / "wildfire_behaviour.csv"
+def check_c7(results: Path, suffix: str = "") -> Verdict:
+    path = results / f"wildfire_behaviour{suffix}.csv"
     t = read_result(path)
     if (t.adr_learned <= 0).any():  # the ratio's sign no longer says which policy is better
         return Verdict("-", "FAIL", f"a learned policy's ADR is not positive "
@@ -146,16 +156,28 @@ def _cis(s: pd.DataFrame) -> str:
     return "; ".join(f"{k} [{r.ci_low:.3f}, {r.ci_high:.3f}]" for k, r in s.iterrows())
 
 
-def check_c8(results: Path) -> Verdict:
-    s, path = _summary(results, "transfer")
+def check_c8(results: Path, suffix: str = "") -> Verdict:
+    s, path = _summary(results, f"transfer{suffix}")
     verdict, why = c8_verdict(s)
     verdict, caveat = at_most_partial(verdict, int(s.n_policies.min()))
     detail = (f"{int(s.n_policies.min())} policies per simulator, tested on ED (T_health = 3.0); "
               f"95% bootstrap CIs of the mean: {_cis(s)}. {why}.{caveat}")
-    detail += _cut_line(results / "transfer.csv")
-    detail += _heuristics_line(results)
-    detail += _corrected_line(results, c8_verdict, means=True)
+    detail += _kept_line(s)
+    detail += _cut_line(results / f"transfer{suffix}.csv")
+    if suffix == AUTHORS_HEAD.suffix:  # the heuristics were tested on the released simulator
+        detail += _heuristics_line(results)
+    detail += _corrected_line(results, c8_verdict, means=True, suffix=suffix)
     return Verdict(_means(s.drop(index=C9_PAIR[0])), verdict, detail, scale_of(path))
+
+
+def _kept_line(s: pd.DataFrame) -> str:
+    """The same policies under the released runner's evaluation (the mean over the last 40
+    epochs' policies, one episode each), when the summary has it."""
+    if "mean_kept" not in s:
+        return ""
+    return (" Under the released runner's evaluation (last 40 policies, one ED episode each): "
+            + ", ".join(f"{k} {r.mean_kept:.3f}+-{r.sem_kept:.3f}" for k, r in s.iterrows())
+            + ".")
 
 
 def _heuristics_line(results: Path) -> str:
@@ -179,37 +201,41 @@ def c9_verdict(s: pd.DataFrame) -> tuple[str, str]:
             f"{ref['mean']:.3f} [{ref.ci_low:.3f}, {ref.ci_high:.3f}]")
 
 
-def check_c9(results: Path) -> Verdict:
-    s, path = _summary(results, "transfer")
+def check_c9(results: Path, suffix: str = "") -> Verdict:
+    s, path = _summary(results, f"transfer{suffix}")
     verdict, why = c9_verdict(s)
     verdict, caveat = at_most_partial(verdict, int(s.n_policies.min()))
     detail = f"FS-1 trained with T_health = 2.9999 vs 3.0, both tested on ED: {why}.{caveat}"
-    detail += _corrected_line(results, c9_verdict, means=False)
-    detail += _ablation_lines(results)
+    if "mean_kept" in s:
+        low, ref = s.loc[C9_PAIR[0]], s.loc[C9_PAIR[1]]
+        detail += (f" Released runner's evaluation: {low.mean_kept:.3f}+-{low.sem_kept:.3f} vs "
+                   f"{ref.mean_kept:.3f}+-{ref.sem_kept:.3f}.")
+    detail += _corrected_line(results, c9_verdict, means=False, suffix=suffix)
+    detail += _ablation_lines(results, suffix)
     low, ref = s.loc[C9_PAIR[0]], s.loc[C9_PAIR[1]]
     return Verdict(f"{low['mean']:.3f} vs {ref['mean']:.3f}", verdict, detail, scale_of(path))
 
 
-def _ablation_lines(results: Path) -> str:
+def _ablation_lines(results: Path, suffix: str) -> str:
     """C9 on the ablations that switch single quirks off (``fig-transfer --no-quirk Q``)."""
     lines = []
-    for path in sorted(results.glob("transfer_no_*_summary.csv")):
+    for path in sorted(results.glob(f"transfer_no_q*{suffix}_summary.csv")):
         s = read_result(path).set_index("simulator")
-        if set(C9_PAIR) <= set(s.index) and not made_before_released_semantics(path):
-            off = path.name.removeprefix("transfer_no_").removesuffix("_summary.csv")
+        off = path.name.removeprefix("transfer_no_").removesuffix(f"{suffix}_summary.csv")
+        if (set(C9_PAIR) <= set(s.index) and not made_before_released_semantics(path)
+                and "_" not in off.replace("_no_", "")):
             verdict, why = c9_verdict(s)
             lines.append(f" Released semantics with {off.replace('_no_', ', ').upper()} off "
                          f"({int(s.n_policies.min())} policies each): {verdict}: {why}.")
     return "".join(lines)
 
 
-def _corrected_line(results: Path, judge, means: bool) -> str:
+def _corrected_line(results: Path, judge, means: bool, suffix: str) -> str:
     """The same check on the run with quirks Q1-Q6 corrected, when it exists."""
     try:
-        s, path = _summary(results, "transfer_corrected")
+        s, path = _summary(results, f"transfer_corrected{suffix}")
     except FileNotFoundError:
-        return (" Corrected semantics (Q1-Q6 off): not yet run "
-                "(`make fig-transfer ARGS=--corrected`).")
+        return ""
     verdict, why = judge(s)
     verdict, caveat = at_most_partial(verdict, int(s.n_policies.min()))
     shown = f"{_means(s)}; " if means else ""
@@ -217,7 +243,7 @@ def _corrected_line(results: Path, judge, means: bool) -> str:
         return (f" Corrected semantics: not yet rerun since issue 18 (Q3-Q6 and the released order "
                 f"were added); before, with Q1, Q2 off, it read {verdict}: {shown}{why}.{caveat}")
     return (f" Corrected semantics (Q1-Q6 off; {scale_of(path)} scale): {verdict}: {shown}{why}."
-            f"{caveat}{_cut_line(results / 'transfer_corrected.csv') if means else ''}")
+            f"{caveat}{_cut_line(results / f'transfer_corrected{suffix}.csv') if means else ''}")
 
 
 def _cut_line(per_policy: Path) -> str:
@@ -240,22 +266,37 @@ def _cut_line(per_policy: Path) -> str:
             f"{cut_test:,} of {test:,} test episodes ({cut_test / max(test, 1):.1%}).")
 
 
-BEHAVIOUR, TRANSFER = "wildfire_behaviour.csv", "transfer_summary.csv"
+BEHAVIOUR, TRANSFER = "wildfire_behaviour{}.csv", "transfer{}_summary.csv"
+AUTHORS_HEAD = Reading("authors' learner, released simulator (2017-05-16)", "")
+AUTHORS_APRIL = Reading("authors' learner, simulator of 2017-04-22 (crowding penalty 1)",
+                        "_20170422")
+SUITE = Reading("suite's learner, released simulator", "_suite")
+TRANSFER_READINGS = (AUTHORS_APRIL, AUTHORS_HEAD, SUITE)
+"""C8 and C9 are decided on the simulator the transfer runs were trained on (2017-04-22)."""
+BEHAVIOUR_READINGS = (AUTHORS_HEAD, AUTHORS_APRIL, SUITE)
+"""C6 and C7 are decided on the released simulator, the version their evidence points to
+(docs/semantics.md section 3.13)."""
 
 CLAIMS = [
     Claim("C6", "Long ED training: hold shared 27%, alone 84%; fly 1st/2nd/3rd 15/15/68%; "
           "closest cluster 98%",
           "27%, 84%, 15/15/68%, 98%", "each within 10 percentage points (mean over policies)",
-          "make wildfire-behaviour", on_current_semantics(check_c6, BEHAVIOUR),
+          "make wildfire-behaviour", side_by_side(on_current_semantics(check_c6, BEHAVIOUR),
+                                                  BEHAVIOUR_READINGS),
           where="Sec. 5.2, Fig. 6"),
     Claim("C7", "The flowchart of C6 does 28% worse than the learned policy (ADR)",
           "28% worse", "PASS: 18-38% worse; PARTIAL: worse for every policy",
-          "make wildfire-behaviour", on_current_semantics(check_c7, BEHAVIOUR), where="Sec. 5.2"),
+          "make wildfire-behaviour", side_by_side(on_current_semantics(check_c7, BEHAVIOUR),
+                                                  BEHAVIOUR_READINGS), where="Sec. 5.2"),
     Claim("C8", "Trained on FS with dT <= 1 s transfers to ED; dT = 3.16, 10 s degrade",
           "ED 2.780, FS-0.1 2.771, FS-0.316 2.745, FS-1 2.789, FS-3.16 2.212, FS-10 1.841",
           "95% CIs of FS-0.1/0.316/1 overlap ED's; those of FS-3.16/10 lie below ED's",
-          "make fig-transfer", on_current_semantics(check_c8, TRANSFER), where="Fig. 7"),
+          "make fig-transfer ARGS='--sim-version 2017-04-22'",
+          side_by_side(on_current_semantics(check_c8, TRANSFER), TRANSFER_READINGS),
+          where="Fig. 7"),
     Claim("C9", "FS-1 with T_health = 2.9999 degrades on ED", "1.937 vs 2.789",
-          "95% CI of FS-1(2.9999) entirely below FS-1(3.0)'s", "make fig-transfer",
-          on_current_semantics(check_c9, TRANSFER), where="Fig. 7"),
+          "95% CI of FS-1(2.9999) entirely below FS-1(3.0)'s",
+          "make fig-transfer ARGS='--sim-version 2017-04-22'",
+          side_by_side(on_current_semantics(check_c9, TRANSFER), TRANSFER_READINGS),
+          where="Fig. 7"),
 ]

@@ -117,6 +117,21 @@ class Rollout:
         return discounted_path_returns(self.rewards, self.durations, self.path_start, gamma)
 
 
+def head(rollout: Rollout, n_episodes: int) -> Rollout:
+    """The first ``n_episodes`` episodes of ``rollout`` (whose paths are in episode order, as every
+    engine packs them); ``info`` is not kept."""
+    n_paths = int(np.searchsorted(rollout.path_episode, n_episodes))
+    if n_paths < rollout.n_paths and not (rollout.path_episode[n_paths:] >= n_episodes).all():
+        raise ValueError("the rollout's paths are not in episode order")
+    d = int(rollout.path_start[n_paths])
+    return Rollout(obs=rollout.obs[:d], actions=rollout.actions[:d], rewards=rollout.rewards[:d],
+                   durations=rollout.durations[:d], path_start=rollout.path_start[:n_paths + 1],
+                   path_episode=rollout.path_episode[:n_paths],
+                   path_agent=rollout.path_agent[:n_paths],
+                   episode_return=rollout.episode_return[:n_episodes],
+                   truncated=None if rollout.truncated is None else rollout.truncated[:n_episodes])
+
+
 def discounted_path_returns(rewards: np.ndarray, durations: np.ndarray, path_start: np.ndarray,
                             gamma: float) -> np.ndarray:
     """Each path's return discounted in continuous time to the path's start.

@@ -28,7 +28,7 @@ from repro.core.io import provenance, write_result
 from repro.envs import BUILT_IN, env_package
 from repro.experiments import train
 from repro.learn import trainer
-from repro.learn.config import train_config
+from repro.learn.config import DEFAULT_LEARNER, LEARNERS, train_config
 from repro.learn.m_gae import m_gae_paths
 from repro.learn.network import TanhMLP, log_softmax
 from repro.learn.policy import DTYPE, Sampler, blas_on_one_thread
@@ -139,6 +139,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     p.add_argument("--env", default="toy", help="environment: " + ", ".join(BUILT_IN)
                    + ", or an importable module that provides the environment contract")
+    p.add_argument("--learner", default=DEFAULT_LEARNER,
+                   help="named learner whose network and Fisher products are timed: "
+                        + ", ".join(LEARNERS) + " (default %(default)s; its batch is counted in "
+                        "episodes here)")
     p.add_argument("--episodes", type=int, help="episodes per epoch (1000)")
     p.add_argument("--epochs", type=int, help="epochs timed (3)")
     p.add_argument("--repeats", type=int, help="calls of each piece, median reported (15)")
@@ -152,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = for_scale(BenchConfig, args.scale, episodes=args.episodes, epochs=args.epochs,
                     repeats=args.repeats)
     pkg = env_package(args.env)
-    train_cfg = train_config("quick", args.env, seed=args.seed, epochs=cfg.epochs,
+    train_cfg = train_config("quick", args.env, args.learner, seed=args.seed, epochs=cfg.epochs,
                              batch_episodes=cfg.episodes)
     env_cfg = pkg.config_from_args(args)
     results = results_folder(args)

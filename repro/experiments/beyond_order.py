@@ -37,8 +37,9 @@ import pandas as pd
 from repro.core.io import provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci
 from repro.experiments.sweep import check_jobs, check_study_arguments
-from repro.experiments.transfer import (TransferConfig, add_size_arguments, make_jobs, runs_folder,
-                                        study_config, summarise, train_and_test)
+from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
+                                        make_jobs, runs_folder, study_config, summarise,
+                                        train_and_test)
 
 NAME = "order_reversal"
 """Stem of the result files and the figure."""
@@ -58,21 +59,22 @@ def studies(base: TransferConfig) -> list[tuple[str, str, TransferConfig]]:
             for semantics, off in SEMANTICS.items() for order, first in ORDERS.items()]
 
 
-def effects(per_policy: pd.DataFrame, pair: tuple[str, str], n_boot: int,
-            seed: int) -> pd.DataFrame:
-    """Per semantics and order: mean ADR of the T_health variant (``pair[0]``) minus that of FS
-    (``pair[1]``), with a percentile bootstrap CI that resamples each simulator's policies
-    within itself."""
-    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_EFFECT_STREAM,)))
+def effects(per_policy: pd.DataFrame, pair: tuple[str, str], n_boot: int, seed: int,
+            by: tuple[str, ...] = ("semantics", "order"), score: str = "adr_ed",
+            stream: int = _EFFECT_STREAM) -> pd.DataFrame:
+    """Per group of the ``by`` columns: mean ``score`` of the T_health variant (``pair[0]``) minus
+    that of FS (``pair[1]``), with a percentile bootstrap CI that resamples each simulator's
+    policies within itself (from child ``stream`` of the root seed)."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(stream,)))
     rows = []
-    for (semantics, order), g in per_policy.groupby(["semantics", "order"], sort=False):
-        low, ref = (g[g.simulator == label].adr_ed.to_numpy() for label in pair)
+    for key, g in per_policy.groupby(list(by), sort=False):
+        low, ref = (g[g.simulator == label][score].to_numpy() for label in pair)
         diff, lo, hi = bootstrap_ci(np.column_stack([low, ref]),
                                     lambda x: x[:, 0].mean() - x[:, 1].mean(), n_boot=n_boot,
                                     rng=rng)
-        rows.append(dict(semantics=semantics, order=order, n_policies=len(low),
-                         adr_variant=float(low.mean()), adr_fs=float(ref.mean()), difference=diff,
-                         ci_low=lo, ci_high=hi, degrades=bool(hi < 0)))
+        rows.append(dict(zip(by, key), n_policies=len(low), adr_variant=float(low.mean()),
+                         adr_fs=float(ref.mean()), difference=diff, ci_low=lo, ci_high=hi,
+                         degrades=bool(hi < 0)))
     return pd.DataFrame(rows)
 
 
@@ -138,6 +140,6 @@ def run(args: argparse.Namespace) -> int:
     write_result(results / f"{NAME}_effect.csv", effect, prov)
     plot(per_policy, summary, figures / NAME,
          f"C9's pair under both same-instant orders; {args.scale} scale: {base.seeds} policies x "
-         f"{base.epochs} epochs x {base.batch_episodes} episodes")
+         f"{base.epochs} epochs x {batch_label(base)}, {base.learner}'s learner")
     print(effect.to_string(index=False))
     return 0

@@ -43,7 +43,7 @@ from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.experiments.bus_policies import read_thresholds
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
-from repro.learn.config import train_config
+from repro.learn.config import LEARNERS, train_config
 
 SWEEPS = ("lambda", "batch")
 
@@ -52,23 +52,25 @@ SWEEPS = ("lambda", "batch")
 class BusSweepConfig(Validated):
     """What the two bus sweeps train, and how their final returns are summarised."""
 
-    lambdas: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0)
-    """M-GAE lambdas of the lambda sweep (paper Fig. bbtraining)."""
-    lambda_batch: int = 540
-    """Episodes per epoch in the lambda sweep (the paper's batch size)."""
-    batches: tuple[int, ...] = (54, 135, 270, 540)
-    """Episodes per epoch of the batch sweep (paper Fig. bbtest)."""
+    learner: str = "authors"
+    """The named learner of every run (``repro.learn.config.LEARNERS``); it counts the batch
+    sizes below in its own unit (authors: decisions, suite: episodes)."""
+    lambdas: tuple[float, ...] = (1.0, 2.0, 4.0, 8.0)
+    """M-GAE lambdas of the lambda sweep (the released BusBunching/runner.sh's)."""
+    lambda_batch: int = 12000
+    """Batch size in the lambda sweep (the released runner's 12,000 decisions)."""
+    batches: tuple[int, ...] = (120, 1200, 12000)
+    """Batch sizes of the batch sweep (paper Fig. bbtest: the released batchsizetests.jl's)."""
     batch_lambda: float = 2.0
     """lambda in the batch sweep (the paper's bus lambda)."""
     seeds: int = 5
     """Training runs per setting (seeds seed, seed + 1, ...)."""
-    epochs: int = 100
-    """Policy updates per run; the paper gives none: the curves plateau from about epoch 25."""
+    epochs: int = 500
+    """Policy updates per run (the released runner.sh: 500)."""
     final_epochs: int = 10
     """A run's final return is the mean average return of its last final_epochs epochs."""
-    fvp_subsample: float = 0.1
-    """Fraction of decisions for TRPO's Fisher-vector products (rllab's subsample_factor); at 540
-    episodes (~1.1e5 decisions) the full-batch products would take ~75% of an epoch."""
+    fvp_subsample: float | None = None
+    """Fraction of decisions for TRPO's Fisher-vector products; None: the learner's."""
     n_boot: int = 2000
     """Bootstrap replicates of the confidence intervals."""
 
@@ -79,10 +81,18 @@ class BusSweepConfig(Validated):
         "quick": dict(seeds=3, epochs=30, final_epochs=5),
         "paper": {},
     }
+    SUITE: ClassVar[dict[str, Any]] = dict(lambdas=(0.5, 1.0, 2.0, 4.0), lambda_batch=540,
+                                           batches=(54, 135, 270, 540), epochs=100,
+                                           fvp_subsample=0.1)
+    """The suite learner's sweeps: the paper's 540 episodes per epoch and fractions of it, 100
+    epochs (its curves plateau from about epoch 25), a tenth of the decisions for the Fisher
+    products (at 540 episodes, ~1.1e5 decisions, the full products took ~75% of an epoch)."""
 
     def validate(self) -> None:
         require(len(self.lambdas) >= 1 and min(self.lambdas) >= 0, "lambdas", ">= 0", self.lambdas)
         require(len(self.batches) >= 1 and min(self.batches) >= 1, "batches", ">= 1", self.batches)
+        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
+                self.learner)
         require(self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
         require(1 <= self.final_epochs <= self.epochs, "--final-epochs", "in [1, epochs]",
@@ -95,6 +105,26 @@ class BusSweepConfig(Validated):
         return [(self.batch_lambda, b) for b in self.batches]
 
 
+    @property
+    def unit(self) -> str:
+        """The TrainConfig field the batch sizes fill: batch_decisions or batch_episodes."""
+        return LEARNERS[self.learner]["batch_unit"]
+
+    def stem(self, sweep: str) -> str:
+        """File stem of a sweep's results: bus_<sweep>, then _suite for the suite's learner."""
+        return f"bus_{sweep}" + ("" if self.learner == "authors" else f"_{self.learner}")
+
+
+def sweep_config(scale: str, learner: str | None = None, **overrides: Any) -> BusSweepConfig:
+    """The sweeps at ``scale`` for ``learner``: its sizes, then the scale's, then ``overrides``
+    (None: not given)."""
+    scaled = BusSweepConfig.SCALES.get(scale, {})
+    sizes = ({k: v for k, v in BusSweepConfig.SUITE.items() if k not in scaled}
+             if learner == "suite" else {})
+    given = {k: v for k, v in overrides.items() if v is not None}
+    return for_scale(BusSweepConfig, scale, learner=learner, **{**sizes, **given})
+
+
 def runs_folder(bus: BusConfig) -> str:
     """The folder, under ``--runs-dir``, of the sweeps' runs on ``bus``'s semantics: runs from
     before the switches existed, in runs/bus, ran the corrected semantics."""
@@ -105,9 +135,10 @@ def jobs(cfg: BusSweepConfig, sweep: str, seed: int, bus: BusConfig) -> list[Tra
     out = []
     for lam, batch in cfg.settings(sweep):
         for s in range(seed, seed + cfg.seeds):
-            train = train_config("quick", "bus", seed=s, epochs=cfg.epochs, batch_episodes=batch,
-                                 lam=lam, fvp_subsample=cfg.fvp_subsample)
-            out.append(TrainJob(f"lam{lam:g}_batch{batch}_seed{s}", train, bus))
+            train = train_config("quick", "bus", cfg.learner, seed=s, epochs=cfg.epochs,
+                                 **{cfg.unit: batch}, lam=lam, fvp_subsample=cfg.fvp_subsample)
+            size = "batch" if cfg.unit == "batch_episodes" else "dec"
+            out.append(TrainJob(f"lam{lam:g}_{size}{batch}_seed{s}", train, bus))
     return out
 
 
@@ -117,7 +148,7 @@ def curves(cfg: BusSweepConfig, job_list: list[TrainJob], root: Path) -> pd.Data
     for job in job_list:
         prog = pd.read_csv(run_dir(root, job) / "progress.csv").iloc[:cfg.epochs]
         frames.append(pd.DataFrame({
-            "lambda": job.train.lam, "batch": job.train.batch_episodes, "seed": job.train.seed,
+            "lambda": job.train.lam, "batch": getattr(job.train, cfg.unit), "seed": job.train.seed,
             "epoch": prog.epoch, "average_return": prog.average_return,
             "average_discounted_return": prog.average_discounted_return}))
     return pd.concat(frames, ignore_index=True)
@@ -178,9 +209,10 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
         ax.fill_between(mean.index, mean - half, mean + half, color=line.get_color(), alpha=0.2)
     ax.axhline(baselines["thresholds"], color="k", ls="--", lw=1, label="Optimized Thresholds")
     ax.axhline(baselines["nohold"], color="k", ls=":", lw=1, label="No Holding")
-    fixed = (f"batch {cfg.lambda_batch} episodes/epoch" if sweep == "lambda"
+    fixed = (f"batch {cfg.lambda_batch} {cfg.unit.split('_')[1]}/epoch" if sweep == "lambda"
              else f"$\\lambda$ = {cfg.batch_lambda:g}")
-    ax.set_title(f"Bus holding, PS-TRPO + M-GAE ({fixed}; {cfg.seeds} seeds, 95% CI)")
+    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {cfg.learner}'s learner ({fixed}; {cfg.seeds} "
+                 "seeds, 95% CI)", fontsize=9)
     ax.set_xlabel("Epoch")
     ax.set_ylabel("Average return per episode")
     ax.grid(True, alpha=0.3)
@@ -190,14 +222,16 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, "runs per setting")
+    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
+                   + " (default authors; suite writes bus_<sweep>_suite*)")
     p.add_argument("--epochs", type=int, help="policy updates per run")
     p.add_argument("--final-epochs", type=int, help="epochs averaged into a run's final return")
     add_switch_arguments(p)
 
 
 def run_named(sweep: str, args: argparse.Namespace) -> int:
-    cfg = for_scale(BusSweepConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                    final_epochs=args.final_epochs)
+    cfg = sweep_config(args.scale, args.learner, seeds=args.seeds, epochs=args.epochs,
+                       final_epochs=args.final_epochs)
     results, figures = check_study_arguments(args)
     bus = config_from_args(args)
     root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")
@@ -208,12 +242,13 @@ def run_named(sweep: str, args: argparse.Namespace) -> int:
     table = curves(cfg, job_list, root)
     finals = final_returns(cfg, table)
     # the lambda sweep names its run folders: the figure drivers take the best policy from there
-    runs = {(j.train.lam, j.train.batch_episodes, j.train.seed): run_dir(root, j) for j in job_list}
+    runs = {(j.train.lam, getattr(j.train, cfg.unit), j.train.seed): run_dir(root, j)
+            for j in job_list}
     summ = summary(cfg, finals, baselines, args.seed, runs if sweep == "lambda" else None)
     prov = provenance(cfg, command=f"fig-bus-{sweep}", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0, extra={"runs_dir": str(root)})
-    write_result(results / f"bus_{sweep}.csv", table, prov)
-    write_result(results / f"bus_{sweep}_summary.csv", summ, prov)
-    plot(cfg, sweep, table, baselines, figures / f"bus_{sweep}")
+    write_result(results / f"{cfg.stem(sweep)}.csv", table, prov)
+    write_result(results / f"{cfg.stem(sweep)}_summary.csv", summ, prov)
+    plot(cfg, sweep, table, baselines, figures / cfg.stem(sweep))
     print(summ[summ.policy != "mlp-run"].to_string(index=False))
     return 0

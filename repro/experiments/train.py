@@ -10,7 +10,8 @@ from repro.core.io import check_writable_dir
 from repro.core.rollout import BatchEnv
 from repro.envs import BUILT_IN, env_package
 from repro.learn.baseline import BASELINES
-from repro.learn.config import TrainConfig, train_config
+from repro.learn.config import (TrainConfig, add_learner_arguments, learner_overrides,
+                                train_config)
 from repro.learn.m_gae import ESTIMATORS
 from repro.learn.trainer import Trainer
 
@@ -22,17 +23,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="root seed of every random stream")
     p.add_argument("--out", help="run folder (default runs/<env>/seed<seed>); rerun to resume")
     p.add_argument("--epochs", type=int, help="policy updates")
-    p.add_argument("--batch-episodes", type=int, help="episodes per epoch")
+    p.add_argument("--batch-episodes", type=int,
+                   help="batch counted in episodes (suite: the environment's paper value)")
     p.add_argument("--lam", type=float, help="M-GAE lambda (wildfire 1.0, bus 2.0)")
     p.add_argument("--advantage", help="advantage estimator: " + ", ".join(ESTIMATORS)
                    + " (m-gae, the paper's)")
     p.add_argument("--max-kl", type=float, help="TRPO max step (0.01)")
-    p.add_argument("--hidden", type=int, nargs="+", help="policy hidden sizes (32 32)")
     p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
-    p.add_argument("--fvp-subsample", type=float,
-                   help="fraction of decisions for Fisher-vector products (1 = all)")
-    p.add_argument("--no-obs-norm", action="store_true",
-                   help="switch off observation normalisation")
+    add_learner_arguments(p)
 
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
@@ -49,10 +47,8 @@ def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainCon
     pkg = env_package(args.env)
     cfg = train_config(args.scale, args.env, seed=args.seed, epochs=args.epochs,
                        batch_episodes=args.batch_episodes, lam=args.lam,
-                       advantage=args.advantage, max_kl=args.max_kl,
-                       hidden=tuple(args.hidden) if args.hidden else None, baseline=args.baseline,
-                       fvp_subsample=args.fvp_subsample,
-                       normalize_obs=False if args.no_obs_norm else None, **overrides)
+                       advantage=args.advantage, max_kl=args.max_kl, baseline=args.baseline,
+                       **learner_overrides(args), **overrides)
     env_cfg = pkg.config_from_args(args)
     return cfg, pkg.make_env(env_cfg), env_cfg
 

@@ -40,8 +40,10 @@ import pandas as pd
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.rollout import children
 from repro.core.stats import bootstrap_ci, iqm, sem
-from repro.envs.wildfire import QUIRKS, WildfireConfig, make_env
+from repro.envs.wildfire import QUIRKS, SIM_VERSIONS, WildfireConfig, make_env
+from repro.learn.config import LEARNERS, SETTING_FIELDS, setting_tag
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -65,8 +67,21 @@ class TransferConfig(Validated):
     """Policies trained from scratch per training simulator (paper: 5)."""
     epochs: int = 60
     """Training epochs per policy (paper: 300)."""
+    learner: str = "authors"
+    """The named learner that trains every policy (``repro.learn.config.LEARNERS``)."""
+    batch_decisions: int = 3000
+    """Training decisions per epoch when the learner counts its batch in decisions (the released
+    runner: 12,000)."""
     batch_episodes: int = 150
-    """Training episodes per epoch (paper: 600 to 1,200)."""
+    """Training episodes per epoch when the learner counts its batch in episodes (the paper's
+    table: 600 to 1,200)."""
+    settings: tuple[tuple[str, Any], ...] = ()
+    """Learner settings changed from the learner's, as (TrainConfig field, value) pairs (an
+    ablation, ``learner-ablation``); each adds a tag to the file stem."""
+    sim_version: str = "2017-05-16"
+    """The released simulator's version every simulator of the study follows
+    (``repro.envs.wildfire.SIM_VERSIONS``): the released HEAD, or "2017-04-22", the one the
+    paper's transfer runs were trained on (crowding penalty 1)."""
     test_episodes: int = 2000
     """ED test episodes per trained policy."""
     log10_dts: tuple[float, ...] = (-1.0, -0.5, 0.0, 0.5, 1.0)
@@ -90,9 +105,11 @@ class TransferConfig(Validated):
     """Bootstrap replicates of each simulator's CI."""
 
     SCALES: ClassVar[dict] = {
-        "smoke": dict(seeds=1, epochs=2, batch_episodes=8, test_episodes=20, n_boot=200),
+        "smoke": dict(seeds=1, epochs=2, batch_episodes=8, batch_decisions=300, test_episodes=20,
+                      n_boot=200),
         "quick": {},
-        "paper": dict(seeds=5, epochs=300, batch_episodes=600, test_episodes=10000),
+        "paper": dict(seeds=5, epochs=300, batch_episodes=600, batch_decisions=12000,
+                      test_episodes=10000),
     }
 
     def validate(self) -> None:
@@ -100,7 +117,15 @@ class TransferConfig(Validated):
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
         require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
                 self.batch_episodes)
+        require(self.batch_decisions >= 1, "--batch-decisions", "an integer >= 1",
+                self.batch_decisions)
         require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
+        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
+                self.learner)
+        require(self.sim_version in SIM_VERSIONS, "--sim-version",
+                "one of " + ", ".join(SIM_VERSIONS), self.sim_version)
+        require(all(k in SETTING_FIELDS for k, _ in self.settings), "settings",
+                "fields among " + ", ".join(SETTING_FIELDS), list(self.settings))
         require(self.variant_t_health > 0, "variant_t_health", "> 0", self.variant_t_health)
         require(self.n_boot >= 1, "n_boot", "an integer >= 1", self.n_boot)
         short = [q.split("_")[1] for q in QUIRKS]
@@ -116,7 +141,8 @@ class TransferConfig(Validated):
 
     def simulator(self, **fields) -> WildfireConfig:
         """A simulator of the study: its quirks and same-instant order, and ``fields``."""
-        return WildfireConfig(**self.quirks(), fire_out_first=self.fire_out_first, **fields)
+        return WildfireConfig(**self.quirks(), fire_out_first=self.fire_out_first,
+                              **SIM_VERSIONS[self.sim_version], **fields)
 
     def simulators(self, every: bool = False) -> dict[str, WildfireConfig]:
         """Training simulators by label (the paper's figure order): those of ``only``, or
@@ -140,11 +166,27 @@ class TransferConfig(Validated):
     @property
     def name(self) -> str:
         """File stem of the results: transfer, transfer_corrected, or transfer_no_q3 (say), then
-        _no_fire_out_first for the reversed order."""
-        parts = ("corrected",) if self.corrected else tuple(f"no_{q}" for q in
-                                                             sorted(self.quirks_off))
-        order = () if self.fire_out_first else ("no_fire_out_first",)
-        return "_".join(("transfer", *parts, *order))
+        _no_fire_out_first for the reversed order, _suite for the suite's learner, and _20170422
+        for the simulator of 2017-04-22."""
+        return "_".join(("transfer", *study_suffixes(self)))
+
+
+def study_suffixes(cfg: TransferConfig) -> tuple[str, ...]:
+    """The parts of a transfer study's file stem that name its semantics, learner and version."""
+    parts = ("corrected",) if cfg.corrected else tuple(f"no_{q}" for q in sorted(cfg.quirks_off))
+    order = () if cfg.fire_out_first else ("no_fire_out_first",)
+    learner = () if cfg.learner == "authors" else (cfg.learner,)
+    settings = tuple(setting_tag(k, v) for k, v in cfg.settings)
+    version = () if cfg.sim_version == "2017-05-16" else (cfg.sim_version.replace("-", ""),)
+    return (*parts, *order, *learner, *settings, *version)
+
+
+def batch_label(cfg: TransferConfig) -> str:
+    """The batch as a figure title says it: "12000 decisions" or "600 episodes"."""
+    given = dict(cfg.settings)
+    unit = next((u for u in ("batch_decisions", "batch_episodes") if u in given),
+                LEARNERS[cfg.learner]["batch_unit"])
+    return f"{given.get(unit, getattr(cfg, unit))} {unit.split('_')[1]}"
 
 
 def fs_label(dt: float) -> str:
@@ -162,13 +204,14 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     """(simulator label, job) for every simulator and training seed seed .. seed + seeds - 1.
 
     Replicate r uses the same training seed on every simulator (common initial policies)."""
-    from repro.learn.config import train_config
+    from repro.learn.config import study_train_config
 
     jobs = []
     for label, env in cfg.simulators().items():
         for s in range(seed, seed + cfg.seeds):
-            train = train_config(scale, "wildfire", seed=s, epochs=cfg.epochs,
-                                 batch_episodes=cfg.batch_episodes)
+            train = study_train_config(scale, "wildfire", cfg.learner, cfg.batch_decisions,
+                                       cfg.batch_episodes, cfg.settings, seed=s,
+                                       epochs=cfg.epochs)
             jobs.append((label, TrainJob(job_name(env, s), train, env)))
     return jobs
 
@@ -181,44 +224,70 @@ def test_env_seed(seed: int) -> int:
 def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
                       folders: list[Path], seed: int, *, n_jobs: int | None = 1,
                       scheduler: str | None = None) -> pd.DataFrame:
-    """One row per trained policy: its ADR on the ED test simulator (mean and SEM over paths), and
-    the training and test episodes that ended at the decision limit.
+    """One row per trained policy: its ADR on the ED test simulator under both protocols, and the
+    training and test episodes that ended at the decision limit.
+
+    - ``adr_ed`` (SEM ``adr_ed_sem``): the final policy on ``test_episodes`` episodes;
+    - ``adr_ed_kept``: the released runner's evaluation: the policies after each of the run's last
+      ``KEPT_POLICIES`` epochs (the snapshots of iterations 260-299 of 300), each on one stochastic
+      ED episode of its own, averaged. The episodes are the run's own, not common to all runs as
+      the final policy's are: the released runner drew them afresh, so its error bars include
+      the episodes' spread, and 40 common episodes would shift every run alike (by about 0.1 ADR
+      in a trial).
+
     The policies are tested in parallel like a sweep (``map_tasks``); each has its own stream, so
     the numbers do not depend on where or in which order they run."""
-    from repro.learn.run_folder import CHECKPOINT
+    from repro.learn.config import learner_name
+    from repro.learn.run_folder import CHECKPOINT, KEPT_POLICIES, kept_policies
 
-    tasks = [(cfg.test_simulator(), (folder / CHECKPOINT).read_bytes(), cfg.test_episodes,
-              test_env_seed(seed), np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i)))
-             for i, folder in enumerate(folders)]
+    env_seed = test_env_seed(seed)
+    tasks = []
+    for i, ((_, job), folder) in enumerate(zip(labelled, folders)):
+        kept = kept_policies(folder, min(KEPT_POLICIES, job.train.epochs), job.train.epochs)
+        tasks.append((cfg.test_simulator(), (folder / CHECKPOINT).read_bytes(),
+                      [p.read_bytes() for p in kept], cfg.test_episodes, env_seed,
+                      np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i))))
     scores = map_tasks(score_policy, tasks, n_jobs=n_jobs, scheduler=scheduler)
     rows = []
-    for ((label, job), folder), (mean, err, test_cut) in zip(zip(labelled, folders), scores):
+    for ((label, job), folder), (mean, err, test_cut, kept) in zip(zip(labelled, folders), scores):
         curve = pd.read_csv(folder / "progress.csv")
         last = curve.average_discounted_return.iloc[-max(1, len(curve) // 10):]
         rows.append(dict(simulator=label, dt=job.env_config.dt or 0.0,  # 0 stands for ED
-                         t_health=job.env_config.t_health, train_seed=job.train.seed,
-                         epochs=len(curve), batch_episodes=job.train.batch_episodes,
+                         t_health=job.env_config.t_health, r_pen=job.env_config.r_pen,
+                         train_seed=job.train.seed, learner=learner_name(job.train),
+                         epochs=len(curve), batch_episodes=float(curve.batch_episodes.mean()),
+                         batch_decisions=float(curve.decisions.mean()),
                          test_episodes=cfg.test_episodes, adr_ed=mean, adr_ed_sem=err,
-                         train_adr_last=float(last.mean()),
+                         adr_ed_kept=kept, train_adr_last=float(last.mean()),
                          max_decisions=job.env_config.max_decisions or 0,
                          train_truncated=int(curve.truncated_episodes.sum()),
                          test_truncated=test_cut, run=job.name))
     return pd.DataFrame(rows)
 
 
-def score_policy(env_cfg: WildfireConfig, checkpoint: bytes, episodes: int, env_seed: int,
-                policy_stream: np.random.SeedSequence) -> tuple[float, float, int]:
+def score_policy(env_cfg: WildfireConfig, checkpoint: bytes, kept: list[bytes], episodes: int,
+                 env_seed: int, policy_stream: np.random.SeedSequence
+                 ) -> tuple[float, float, int, float]:
     """ADR, its standard error and the episodes cut at the decision limit, of the policy of
     ``checkpoint`` (its bytes, so that a worker without the client's disk can test it) on
-    ``episodes`` episodes of ``env_cfg``."""
+    ``episodes`` episodes of ``env_cfg``; then the mean ADR of the ``kept`` policies, each on
+    one episode drawn from ``policy_stream`` (the released runner's evaluation)."""
     from repro.learn.run_folder import load_checkpoint
     from repro.learn.trained_policy import policy_from_state
 
     env = make_env(env_cfg)
+    final, *kept_streams = children(policy_stream, 1 + len(kept))
     policy = policy_from_state(load_checkpoint(io.BytesIO(checkpoint)),
-                               np.random.default_rng(policy_stream))
+                               np.random.default_rng(final))
     rollout = evaluate(env, policy, episodes, env_seed, keep_obs=False)
-    return (*adr(rollout, env.gamma), rollout.n_truncated)
+    kept_adr = []
+    for data, stream in zip(kept, kept_streams):
+        actions, episode = children(stream, 2)
+        kept_policy = policy_from_state(load_checkpoint(io.BytesIO(data)),
+                                        np.random.default_rng(actions))
+        kept_adr.append(adr(env.rollout(kept_policy, 1, episode), env.gamma)[0])
+    return (*adr(rollout, env.gamma), rollout.n_truncated,
+            float(np.mean(kept_adr)) if kept_adr else float("nan"))
 
 
 def summarise(per_policy: pd.DataFrame, n_boot: int, seed: int) -> pd.DataFrame:
@@ -226,13 +295,22 @@ def summarise(per_policy: pd.DataFrame, n_boot: int, seed: int) -> pd.DataFrame:
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_BOOT_STREAM,)))
     rows = []
     for label, grp in per_policy.groupby("simulator", sort=False):
-        x = grp.adr_ed.to_numpy()
+        x, kept = grp.adr_ed.to_numpy(), grp.adr_ed_kept.to_numpy()
         _, lo, hi = bootstrap_ci(x, np.mean, n_boot=n_boot, rng=rng)
         paper_mean, paper_sem = PAPER.get(label, (np.nan, np.nan))
         rows.append(dict(simulator=label, dt=grp.dt.iloc[0], t_health=grp.t_health.iloc[0],
                          n_policies=len(x), mean=float(x.mean()), sem=sem(x), iqm=float(iqm(x)),
-                         ci_low=lo, ci_high=hi, paper_mean=paper_mean, paper_sem=paper_sem))
+                         ci_low=lo, ci_high=hi, mean_kept=float(kept.mean()), sem_kept=sem(kept),
+                         paper_mean=paper_mean, paper_sem=paper_sem,
+                         z_paper=distance_in_se(x.mean(), sem(x), paper_mean, paper_sem),
+                         z_paper_kept=distance_in_se(kept.mean(), sem(kept), paper_mean,
+                                                     paper_sem)))
     return pd.DataFrame(rows)
+
+
+def distance_in_se(mean: float, err: float, paper_mean: float, paper_err: float) -> float:
+    """(mean - paper_mean) in combined standard errors, sqrt(err^2 + paper_err^2)."""
+    return float((mean - paper_mean) / np.hypot(err, paper_err))
 
 
 def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> None:
@@ -276,7 +354,13 @@ def add_size_arguments(p: argparse.ArgumentParser) -> None:
     studies too)."""
     add_study_arguments(p, "policies per training simulator (paper: 5)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
-    p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
+    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
+                   + " (default authors: the released runner)")
+    p.add_argument("--batch-decisions", type=int,
+                   help="training decisions per epoch, with a learner that counts them "
+                        "(paper: 12000)")
+    p.add_argument("--batch-episodes", type=int,
+                   help="training episodes per epoch, with a learner that counts them (paper: 600)")
     p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
 
 
@@ -284,6 +368,7 @@ def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
     """The config of :func:`add_size_arguments`'s options at ``args.scale``, with ``fields``
     (None: the scale's)."""
     return for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
+                     learner=args.learner, batch_decisions=args.batch_decisions,
                      batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
                      **fields)
 
@@ -297,6 +382,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "transfer_no_<Q>*")
     p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
                    help="train and test only this simulator (e.g. FS-1), repeatable")
+    p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
+                   help="the released simulator's version (default 2017-05-16, the released "
+                        "HEAD; 2017-04-22: the one the paper's runs were trained on); "
+                        "2017-04-22 writes *_20170422")
     p.add_argument("--no-fire-out-first", action="store_true",
                    help="a UAV whose macro-action ends as a fire goes out observes first (the "
                         "released order reversed, X4); writes *_no_fire_out_first")
@@ -330,7 +419,8 @@ def run(args: argparse.Namespace) -> int:
     cfg = study_config(args, corrected=args.corrected or None,
                        quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
                        only=tuple(args.simulator) or None,
-                       fire_out_first=False if args.no_fire_out_first else None)
+                       fire_out_first=False if args.no_fire_out_first else None,
+                       sim_version=args.sim_version)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
@@ -345,7 +435,8 @@ def run(args: argparse.Namespace) -> int:
     semantics += "" if cfg.fire_out_first else ", UAV before fire at one instant"
     plot(per_policy, summary, figures / cfg.name,
          f"Transfer to ED, {semantics}; {args.scale} scale: {cfg.seeds} policies x "
-         f"{cfg.epochs} epochs x {cfg.batch_episodes} episodes")
+         f"{cfg.epochs} epochs x {batch_label(cfg)}, {cfg.learner}'s learner, simulator of "
+         f"{cfg.sim_version}")
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high",
                    "paper_mean"]].to_string(index=False))
     return 0

@@ -54,12 +54,13 @@ from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import Rollout
-from repro.envs.wildfire import WildfireConfig, fire_positions, make_env
+from repro.envs.wildfire import SIM_VERSIONS, WildfireConfig, fire_positions, make_env
 from repro.envs.wildfire.params import DIST, INTEREST, OWN_X, OWN_Y, STATUS, fire_blocks
 from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL, FlowchartPolicy
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
+from repro.learn.config import LEARNERS
 
 PAPER = dict(hold_shared=0.27, hold_alone=0.84, fly_rank_1=0.15, fly_rank_2=0.15, fly_rank_3=0.68,
              closest_cluster=0.98, flowchart_worse=0.28)
@@ -80,8 +81,16 @@ class BehaviourConfig(Validated):
     makes their epochs up to ten times slower; hence one at quick scale."""
     epochs: int = 300
     """Training epochs per policy (paper: 3,000)."""
+    learner: str = "authors"
+    """The named learner that trains every policy (``repro.learn.config.LEARNERS``)."""
+    batch_decisions: int = 3000
+    """Training decisions per epoch when the learner counts its batch in decisions (the released
+    runner: 12,000)."""
     batch_episodes: int = 200
-    """Training episodes per epoch (paper: 600 to 1,200)."""
+    """Training episodes per epoch when the learner counts its batch in episodes (the paper's
+    table: 600 to 1,200)."""
+    sim_version: str = "2017-05-16"
+    """The released simulator's version (``repro.envs.wildfire.SIM_VERSIONS``)."""
     test_episodes: int = 1000
     """ED episodes on which frequencies and ADRs are measured."""
     max_decisions: int | None = WildfireConfig.max_decisions
@@ -91,9 +100,10 @@ class BehaviourConfig(Validated):
     24 GB of memory at epoch 302 of a paper-scale run."""
 
     SCALES: ClassVar[dict] = {
-        "smoke": dict(seeds=1, epochs=2, batch_episodes=8, test_episodes=20),
+        "smoke": dict(seeds=1, epochs=2, batch_episodes=8, batch_decisions=300, test_episodes=20),
         "quick": {},
-        "paper": dict(seeds=3, epochs=3000, batch_episodes=600, test_episodes=10000),
+        "paper": dict(seeds=3, epochs=3000, batch_episodes=600, batch_decisions=12000,
+                      test_episodes=10000),
     }
 
     def validate(self) -> None:
@@ -101,9 +111,27 @@ class BehaviourConfig(Validated):
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
         require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
                 self.batch_episodes)
+        require(self.batch_decisions >= 1, "--batch-decisions", "an integer >= 1",
+                self.batch_decisions)
         require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
+        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
+                self.learner)
+        require(self.sim_version in SIM_VERSIONS, "--sim-version",
+                "one of " + ", ".join(SIM_VERSIONS), self.sim_version)
         require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
                 "a positive integer (0: no limit)", self.max_decisions)
+
+    def env(self) -> WildfireConfig:
+        """The ED simulator every policy is trained and tested on."""
+        return WildfireConfig(max_decisions=self.max_decisions, **SIM_VERSIONS[self.sim_version])
+
+    @property
+    def name(self) -> str:
+        """File stem: wildfire_behaviour, then _suite for the suite's learner and _20170422 for
+        the simulator of 2017-04-22."""
+        learner = () if self.learner == "authors" else (self.learner,)
+        version = () if self.sim_version == "2017-05-16" else (self.sim_version.replace("-", ""),)
+        return "_".join(("wildfire_behaviour", *learner, *version))
 
 
 STAY = "_ex_stay"
@@ -161,11 +189,11 @@ def frequencies(rollout: Rollout, env: WildfireConfig) -> dict[str, float]:
 
 
 def make_jobs(cfg: BehaviourConfig, scale: str, seed: int) -> list[TrainJob]:
-    from repro.learn.config import train_config
+    from repro.learn.config import study_train_config
 
-    return [TrainJob(f"ed-seed{s}", train_config(scale, "wildfire", seed=s, epochs=cfg.epochs,
-                                                 batch_episodes=cfg.batch_episodes),
-                     WildfireConfig(max_decisions=cfg.max_decisions))
+    return [TrainJob(f"ed-seed{s}", study_train_config(scale, "wildfire", cfg.learner,
+                                                       cfg.batch_decisions, cfg.batch_episodes,
+                                                       seed=s, epochs=cfg.epochs), cfg.env())
             for s in range(seed, seed + cfg.seeds)]
 
 
@@ -173,10 +201,11 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
             seed: int) -> tuple[pd.DataFrame, pd.DataFrame]:
     """One row per trained policy: its C6 frequencies, its ADR and the flowchart's on the same
     episodes; and one row of the flowchart's own frequencies on those episodes."""
+    from repro.learn.config import learner_name
     from repro.learn.run_folder import CHECKPOINT
     from repro.learn.trained_policy import policy_from_checkpoint
 
-    env_cfg = WildfireConfig(max_decisions=cfg.max_decisions)
+    env_cfg = cfg.env()
     env = make_env(env_cfg)
     env_seed = int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])
 
@@ -199,7 +228,10 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
         policy = policy_from_checkpoint(folder / CHECKPOINT, rng(i))
         learned, learned_adr, learned_sem, cut = observe(policy)
         rows.append(dict(train_seed=job.train.seed, epochs=job.train.epochs,
-                         batch_episodes=job.train.batch_episodes, test_episodes=cfg.test_episodes,
+                         learner=learner_name(job.train), r_pen=env_cfg.r_pen,
+                         batch_decisions=job.train.batch_decisions or 0,
+                         batch_episodes=job.train.batch_episodes or 0,
+                         test_episodes=cfg.test_episodes,
                          max_decisions=cfg.max_decisions or 0, test_truncated=cut,
                          **learned, adr_learned=learned_adr,
                          adr_learned_sem=learned_sem, adr_flowchart=flow_adr,
@@ -215,7 +247,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_sweep_arguments(p)
     p.add_argument("--seeds", type=int, help="policies trained (paper: 1)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 3000)")
-    p.add_argument("--batch-episodes", type=int, help="training episodes per epoch (paper: 600)")
+    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
+                   + " (default authors: the released runner)")
+    p.add_argument("--batch-decisions", type=int,
+                   help="training decisions per epoch, with a learner that counts them "
+                        "(paper: 12000)")
+    p.add_argument("--batch-episodes", type=int,
+                   help="training episodes per epoch, with a learner that counts them (paper: 600)")
+    p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
+                   help="the released simulator's version (default 2017-05-16; 2017-04-22 "
+                        "writes *_20170422)")
     p.add_argument("--test-episodes", type=int, help="ED episodes measured per policy")
     p.add_argument("--max-decisions", type=int,
                    help="decision limit per UAV and episode; 0: none (default: "
@@ -226,7 +267,9 @@ def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
     """The validated config of the command line at its scale (UsageError if bad)."""
     no_limit = args.max_decisions == 0  # asked for no limit (the default has one)
     cfg = for_scale(BehaviourConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                    batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
+                    learner=args.learner, batch_decisions=args.batch_decisions,
+                    batch_episodes=args.batch_episodes, sim_version=args.sim_version,
+                    test_episodes=args.test_episodes,
                     max_decisions=None if no_limit else args.max_decisions)
     return dataclasses.replace(cfg, max_decisions=None) if no_limit else cfg
 
@@ -235,7 +278,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
     check_sweep_arguments(args)
     results = results_folder(args)
-    runs = check_writable_dir(Path(args.runs_dir) / "wildfire-behaviour" / args.scale,
+    runs = check_writable_dir(Path(args.runs_dir) / cfg.name.replace("_", "-") / args.scale,
                               "--runs-dir")
     jobs = make_jobs(cfg, args.scale, args.seed)
     t0 = time.perf_counter()
@@ -244,7 +287,7 @@ def run(args: argparse.Namespace) -> int:
     prov = provenance(dataclasses.asdict(cfg), command="wildfire-behaviour", scale=args.scale,
                       seed=args.seed, wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dir=str(runs), paper=PAPER))
-    write_result(results / "wildfire_behaviour.csv", table, prov)
-    write_result(results / "wildfire_behaviour_flowchart.csv", flowchart, prov)
+    write_result(results / f"{cfg.name}.csv", table, prov)
+    write_result(results / f"{cfg.name}_flowchart.csv", flowchart, prov)
     print(table.drop(columns=["run"]).T.to_string())
     return 0

@@ -1,7 +1,14 @@
-"""The settings of one PS-TRPO + M-GAE run, each explained where it is defined."""
+"""The settings of one PS-TRPO + M-GAE run, each explained where it is defined.
+
+Two learners are named (:data:`LEARNERS`): ``authors``, the released rllab runner that trained the
+paper's policies, is the default; ``suite`` is this suite's own set-up (observation normalisation,
+two hidden layers, orthogonal initialisation, Fisher subsampling, batches counted in episodes).
+docs/semantics.md section 5.7 tables every setting with the released code's line.
+"""
 
 from __future__ import annotations
 
+import argparse
 import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -22,8 +29,17 @@ class TrainConfig(Validated):
     (:func:`repro.envs.env_package`)."""
     epochs: int = 40
     """Policy updates; each samples a fresh batch."""
-    batch_episodes: int = 50
-    """Whole episodes simulated per epoch (the paper counts batches in episodes)."""
+    batch_decisions: int | None = 12_000
+    """Batch counted in decisions (the released runner's ``batch_size``, a sample being one agent's
+    decision): whole episodes until the finished ones hold at least this many decisions, plus the
+    episodes the other parallel workers have in flight then (:mod:`repro.learn.batch`). None:
+    counted in episodes (``batch_episodes``). Exactly one of the two is set."""
+    batch_workers: int = 40
+    """Parallel sampling workers the decision-counted batch emulates (the released runner.sh's
+    ``--n_parallel 40``): each finishes the episode it has in flight when the count is reached."""
+    batch_episodes: int | None = None
+    """Batch counted in episodes: this many whole episodes per epoch (the paper's tables: bus 540,
+    wildfire 600-1,200). None: counted in decisions (``batch_decisions``)."""
     lam: float = 1.0
     """M-GAE's lambda (the paper's lambda), any number >= 0. An advantage weights the residual of a
     decision made tau seconds later by e^{-gamma lam tau}, the paper's
@@ -43,8 +59,12 @@ class TrainConfig(Validated):
     lambda constant per decision. Runs recorded before this setting existed used "m-gae"."""
     max_kl: float = 0.01
     """TRPO max step: bound on the mean KL between consecutive policies."""
-    hidden: tuple[int, ...] = (32, 32)
-    """Hidden layer sizes of the policy MLP (tanh)."""
+    hidden: tuple[int, ...] = (32,)
+    """Hidden layer sizes of the policy MLP (tanh); the released runner's ``policy_hidden='32'``."""
+    init: str = "xavier"
+    """Initial weights of the policy MLP: "xavier" (Glorot-uniform weights, zero biases, as the
+    released CategoricalMLPPolicy) or "orthogonal" (gain sqrt 2, the output layer's 0.01, zero
+    biases: a nearly uniform first policy)."""
     baseline: str = "linear"
     """Value baseline: "linear" (rllab's linear feature baseline, as the released implementation)
     or "mlp" (see repro.learn.baseline)."""
@@ -60,30 +80,37 @@ class TrainConfig(Validated):
     """Line-search shrink factor (rllab: 0.8)."""
     max_backtracks: int = 15
     """Line-search tries before the step is rejected (rllab: 15)."""
-    fvp_subsample: float = 0.2
+    fvp_subsample: float = 1.0
     """Fraction of the batch's decisions (drawn without replacement, afresh each epoch) on which
-    the Fisher-vector products are computed; 1 = all (exact). rllab's ``subsample_factor``; OpenAI
-    Baselines' TRPO uses every 5th decision. The Fisher matrix of a few thousand decisions is as
-    good as that of the whole batch, and the products are most of a TRPO step's cost: on 25,000
-    decisions (the paper's wildfire batch) 0.2 cut a step from 0.26 s to 0.07 s on a 2-core machine,
-    with the autograd products that came before repro.learn.network."""
-    normalize_obs: bool = True
-    """Running mean/std observation normalisation (frozen within a batch)."""
+    the Fisher-vector products are computed; 1 = all (exact, the released runner). rllab's
+    ``subsample_factor``; OpenAI Baselines' TRPO uses every 5th decision."""
+    normalize_obs: bool = False
+    """Running mean/std observation normalisation (frozen within a batch); the released runner has
+    none."""
     seed: int = 0
     """Root of every random stream of the run."""
 
     SCALES: ClassVar[dict[str, dict[str, Any]]] = {
-        "smoke": dict(epochs=2, batch_episodes=8),
+        "smoke": dict(epochs=2, batch_episodes=8, batch_decisions=300, batch_workers=4),
         "quick": {},
         "paper": {},
     }
+    BEFORE_ADDED: ClassVar[dict[str, Any]] = dict(init="orthogonal", batch_decisions=None)
+    """What runs recorded before these settings existed used: the suite's learner."""
 
     def validate(self) -> None:
         require(isinstance(self.env, str) and self.env != "", "--env", "an environment name",
                 self.env)
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
-                self.batch_episodes)
+        require((self.batch_decisions is None) != (self.batch_episodes is None),
+                "--batch-decisions", "given instead of --batch-episodes, not with it",
+                self.batch_decisions)
+        require(self.batch_decisions is None or self.batch_decisions >= 1, "--batch-decisions",
+                "an integer >= 1", self.batch_decisions)
+        require(self.batch_episodes is None or self.batch_episodes >= 1, "--batch-episodes",
+                "an integer >= 1", self.batch_episodes)
+        require(self.batch_workers >= 1, "--batch-workers", "an integer >= 1", self.batch_workers)
+        require(self.init in INITS, "--init", "one of " + ", ".join(INITS), self.init)
         require(self.lam >= 0 and math.isfinite(self.lam), "--lam", "a number >= 0", self.lam)
         require(self.advantage in ESTIMATORS, "--advantage", "one of " + ", ".join(ESTIMATORS),
                 self.advantage)
@@ -101,14 +128,109 @@ class TrainConfig(Validated):
         require(self.max_backtracks >= 1, "max_backtracks", "an integer >= 1", self.max_backtracks)
 
 
+INITS = ("xavier", "orthogonal")
 
-def train_config(scale: str, env: str, **overrides: Any) -> TrainConfig:
-    """The config at ``scale`` for ``env``: the environment's defaults (the paper's settings), then
-    the scale, then explicit overrides (``None`` means not given)."""
+LEARNERS: dict[str, dict[str, Any]] = {
+    "authors": dict(hidden=(32,), init="xavier", normalize_obs=False, fvp_subsample=1.0,
+                    batch_unit="batch_decisions"),
+    "suite": dict(hidden=(32, 32), init="orthogonal", normalize_obs=True, fvp_subsample=0.2,
+                  batch_unit="batch_episodes"),
+}
+"""The named learners: their settings, and the unit their batch is counted in (``batch_unit``).
+"authors" is the released rllab runner that trained the paper's policies (FirestormProject/runners/
+rurllab.py, runner.sh); "suite" this suite's set-up before the authors' was derived: observation
+normalisation, two hidden layers, orthogonal initialisation, a fifth of the decisions for the
+Fisher products and batches of the paper's episode counts (the environment's ``batch_episodes``).
+Both use the linear feature baseline, centred advantages and rllab's conjugate-gradient
+constants."""
+LEARNER_FIELDS = ("hidden", "init", "normalize_obs", "fvp_subsample")
+"""The TrainConfig fields a learner name sets."""
+DEFAULT_LEARNER = "authors"
+
+
+def learner_name(cfg: TrainConfig) -> str:
+    """The named learner whose settings ``cfg`` has (its batch's unit included), else "custom"."""
+    for name, preset in LEARNERS.items():
+        unit = preset["batch_unit"]
+        if (all(getattr(cfg, f) == preset[f] for f in LEARNER_FIELDS)
+                and getattr(cfg, unit) is not None):
+            return name
+    return "custom"
+
+
+def train_config(scale: str, env: str, learner: str = DEFAULT_LEARNER,
+                 **overrides: Any) -> TrainConfig:
+    """The config at ``scale`` for ``env``: the learner's settings, the environment's defaults
+    (the paper's settings), then the scale, then explicit overrides (``None`` means not given).
+
+    The batch is counted in the learner's unit unless the overrides give a size in the other one
+    (``batch_episodes`` for the authors' learner: counted in episodes)."""
     require(scale in SCALES, "--scale", "one of " + ", ".join(SCALES), scale)
-    fields = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], "env": env}
-    fields.update({k: v for k, v in overrides.items() if v is not None})
-    cfg = TrainConfig(**fields)
-    return cfg
+    require(learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS), learner)
+    preset = {k: v for k, v in LEARNERS[learner].items() if k != "batch_unit"}
+    given = {k: v for k, v in overrides.items() if v is not None}
+    fields = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], **preset,
+              "env": env, **given}
+    units = ("batch_decisions", "batch_episodes")
+    require(not all(u in given for u in units), "--batch-decisions",
+            "given instead of --batch-episodes, not with it", given.get("batch_decisions"))
+    unit = next((u for u in units if u in given), LEARNERS[learner]["batch_unit"])
+    fields.setdefault("batch_decisions", TrainConfig.batch_decisions)
+    fields[next(u for u in units if u != unit)] = None
+    return TrainConfig(**fields)
+
+
+def study_train_config(scale: str, env: str, learner: str, batch_decisions: int,
+                       batch_episodes: int, settings: tuple[tuple[str, Any], ...] = (),
+                       **fields: Any) -> TrainConfig:
+    """A study's TrainConfig: the study sizes its batch in both units, the learner counts it in
+    its own (``LEARNERS[learner]["batch_unit"]``); ``settings``, (field, value) pairs, override
+    the learner's (a batch size among them also sets the unit)."""
+    unit = LEARNERS[learner]["batch_unit"]
+    size = batch_decisions if unit == "batch_decisions" else batch_episodes
+    batch = {} if any(k.startswith("batch_") for k, _ in settings) else {unit: size}
+    return train_config(scale, env, learner, **batch, **dict(settings), **fields)
+
+
+SETTING_FIELDS = (*LEARNER_FIELDS, "batch_decisions", "batch_episodes", "batch_workers")
+"""The learner settings a study may change one at a time (``settings`` of a study config)."""
+
+
+def setting_tag(field: str, value: Any) -> str:
+    """A file-name-safe tag of one learner setting, e.g. ``hidden32x32``, ``normalize_obs1``."""
+    if isinstance(value, (tuple, list)):
+        text = "x".join(str(v) for v in value)
+    elif isinstance(value, bool):
+        text = str(int(value))
+    else:
+        text = f"{value:g}" if isinstance(value, float) else str(value)
+    return field.replace("_", "") + text
+
+
+def add_learner_arguments(p: Any) -> None:
+    """``--learner`` and the learner settings' flags, for ``train`` and every study that trains
+    (each flag overrides one setting of the named learner; docs/semantics.md section 5.7)."""
+    p.add_argument("--learner", default=DEFAULT_LEARNER,
+                   help="named learner: " + ", ".join(LEARNERS) + " (default %(default)s: the "
+                        "released runner that trained the paper's policies)")
+    p.add_argument("--hidden", type=int, nargs="+", help="policy hidden sizes (authors: 32)")
+    p.add_argument("--init", help="initial policy weights: " + ", ".join(INITS)
+                   + " (authors: xavier)")
+    p.add_argument("--obs-norm", action=argparse.BooleanOptionalAction, default=None,
+                   help="running observation normalisation (authors: off, suite: on)")
+    p.add_argument("--fvp-subsample", type=float,
+                   help="fraction of decisions for Fisher-vector products (authors: 1 = all)")
+    p.add_argument("--batch-decisions", type=int,
+                   help="batch counted in decisions (authors: 12000), whole episodes")
+    p.add_argument("--batch-workers", type=int,
+                   help="parallel workers whose in-flight episodes a decision-counted batch "
+                        "keeps (authors: 40)")
+
+
+def learner_overrides(args: Any) -> dict[str, Any]:
+    """The train_config arguments of :func:`add_learner_arguments`'s options (None: not given)."""
+    return dict(learner=args.learner, hidden=tuple(args.hidden) if args.hidden else None,
+                init=args.init, normalize_obs=args.obs_norm, fvp_subsample=args.fvp_subsample,
+                batch_decisions=args.batch_decisions, batch_workers=args.batch_workers)
 
 

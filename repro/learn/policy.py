@@ -22,9 +22,12 @@ from repro.core.rollout import DecisionBatch
 DTYPE = torch.float32
 
 
-def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, out_gain: float) -> nn.Sequential:
-    """tanh MLP; orthogonal init, the output layer scaled by ``out_gain`` (a small gain makes the
-    initial policy nearly uniform whatever the observation scale)."""
+def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, out_gain: float,
+        init: str = "orthogonal") -> nn.Sequential:
+    """tanh MLP with zero biases and ``init`` weights: "orthogonal" (gain sqrt 2, the output layer
+    ``out_gain``: a small gain makes the initial policy nearly uniform whatever the observation
+    scale) or "xavier" (Glorot-uniform, U(-a, a) with a = sqrt(6 / (fan_in + fan_out)), every
+    layer; rllab's default for its MLPs)."""
     layers: list[nn.Module] = []
     sizes = [in_dim, *hidden]
     for a, b in zip(sizes[:-1], sizes[1:]):
@@ -32,7 +35,10 @@ def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, out_gain: float) -> nn
     layers.append(nn.Linear(sizes[-1], out_dim, dtype=DTYPE))
     for i, layer in enumerate(m for m in layers if isinstance(m, nn.Linear)):
         last = i == len(hidden)
-        nn.init.orthogonal_(layer.weight, gain=out_gain if last else np.sqrt(2.0))
+        if init == "xavier":
+            nn.init.xavier_uniform_(layer.weight)
+        else:
+            nn.init.orthogonal_(layer.weight, gain=out_gain if last else np.sqrt(2.0))
         nn.init.zeros_(layer.bias)
     return nn.Sequential(*layers)
 
@@ -127,9 +133,10 @@ def _column_moments(x):
 class CategoricalPolicy(nn.Module):
     """pi(a | o): softmax of an MLP's logits over the environment's discrete macro-actions."""
 
-    def __init__(self, obs_dim: int, n_actions: int, hidden: Sequence[int]):
+    def __init__(self, obs_dim: int, n_actions: int, hidden: Sequence[int],
+                 init: str = "orthogonal"):
         super().__init__()
-        self.net = mlp(obs_dim, hidden, n_actions, out_gain=0.01)
+        self.net = mlp(obs_dim, hidden, n_actions, out_gain=0.01, init=init)
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         """Log-probabilities (N, n_actions) of normalised observations."""

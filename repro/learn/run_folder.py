@@ -1,8 +1,9 @@
 """A training run's folder and the promises it keeps.
 
 A run folder holds ``config.json`` (the settings that determine the run), ``progress.csv`` (one row
-per finished epoch), ``checkpoint.pt`` (everything needed to go on) and, while a process trains in
-it, ``run.lock``.
+per finished epoch), ``checkpoint.pt`` (everything needed to go on), ``policies/epochNNNN.pt`` (the
+policy after each of the run's last :data:`KEPT_POLICIES` epochs, a checkpoint holding what acting
+needs) and, while a process trains in it, ``run.lock``.
 
 - **Safe to load.** A checkpoint holds only tensors, numbers and strings (the run's config and the
   sampler's generator state as JSON) and is read with ``torch.load(weights_only=True)``, which
@@ -44,6 +45,10 @@ PROGRESS = "progress.csv"
 PROVENANCE = "progress.provenance.json"
 CHECKPOINT = "checkpoint.pt"
 LOCK = "run.lock"
+KEPT = "policies"
+KEPT_POLICIES = 40
+"""The policies after each of a run's last this-many epochs are kept in ``policies/`` (a few kB
+each): the released runner's evaluation scores the snapshots of iterations 260-299 of 300."""
 CHECKPOINT_FORMAT = 2
 """Version of the checkpoint's layout; 1 (before it was safe to load) held numpy objects."""
 _JSON_FIELDS = ("run_config", "sampler_rng")
@@ -222,7 +227,23 @@ def is_new(folder: Path) -> bool:
 
 def _leftovers(folder: Path) -> list[Path]:
     """Temporary files of atomic writes that a kill interrupted."""
-    return list(folder.glob(".*.tmp*"))
+    return [*folder.glob(".*.tmp*"), *(folder / KEPT).glob(".*.tmp*")]
+
+
+def kept_policy_path(folder: Path, epoch: int) -> Path:
+    """Where the policy after ``epoch`` (0-based) is kept (the folder is made if need be)."""
+    (folder / KEPT).mkdir(exist_ok=True)
+    return folder / KEPT / f"epoch{epoch:04d}.pt"
+
+
+def kept_policies(folder: Path, last: int, epochs: int) -> list[Path]:
+    """The kept policies after epochs ``epochs - last`` .. ``epochs - 1`` of a finished run
+    (UsageError naming --runs-dir if one is missing: a run older than kept policies)."""
+    paths = [Path(folder) / KEPT / f"epoch{e:04d}.pt" for e in range(epochs - last, epochs)]
+    missing = [p for p in paths if not p.is_file()]
+    require(not missing, "--runs-dir", f"run folders that kept their last {last} policies "
+            "(retrain the run in a new --runs-dir)", str(missing[:1]))
+    return paths
 
 
 def check_same_run(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],

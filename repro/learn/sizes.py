@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import Any
 
 from repro.core.memory import require_memory
-from repro.core.rollout import rollout_bytes
+from repro.core.rollout import DECISION_BYTES, rollout_bytes
 
 PARAMETER_COPIES = 10
 """float32 copies of the policy's parameters a TRPO step holds at once (the network, its
@@ -23,24 +23,33 @@ def network_parameters(sizes: list[int]) -> int:
 
 
 def training_bytes(cfg: Any, env: Any) -> tuple[int, int]:
-    """Lower bounds of an epoch's memory: (for its batch, for its networks). The batch has at
-    least one decision per agent per episode; per decision it holds the rollout's record, the
-    standardised observations (float64 and float32) and the policy's activations; the networks
-    hold their parameters ``PARAMETER_COPIES`` times."""
-    decisions = cfg.batch_episodes * env.n_agents
+    """Lower bounds of an epoch's memory: (for its batch, for its networks). A batch counted in
+    episodes has at least one decision per agent per episode, one counted in decisions at least
+    its decisions and an episode per sampling worker; per decision it holds the rollout's record,
+    the standardised observations (float64 and float32) and the policy's activations; the
+    networks hold their parameters ``PARAMETER_COPIES`` times."""
     hidden = list(cfg.hidden)
     per_decision = (12 * env.obs_dim + DECISION_UPDATE_BYTES
                     + 4 * 2 * sum(hidden) + 4 * 3 * env.n_actions)
-    batch = rollout_bytes(env, cfg.batch_episodes) + decisions * per_decision
+    episodes = getattr(cfg, "batch_episodes", None)
+    if episodes is not None:
+        decisions = episodes * env.n_agents
+        batch = rollout_bytes(env, episodes) + decisions * per_decision
+    else:  # counted in decisions (the released runner's batch)
+        decisions = cfg.batch_decisions
+        batch = (getattr(cfg, "batch_workers", 1) * int(getattr(env, "episode_bytes", 0))
+                 + decisions * (per_decision + DECISION_BYTES + 8 * env.obs_dim))
     networks = 4 * PARAMETER_COPIES * network_parameters([env.obs_dim, *hidden, env.n_actions])
     return batch, networks
 
 
 def check_training_size(cfg: Any, env: Any, runs: int = 1) -> None:
-    """Refuse (UsageError naming --batch-episodes or --hidden, whichever needs more) a run, or
+    """Refuse (UsageError naming the batch's size or --hidden, whichever needs more) a run, or
     ``runs`` runs at once, that cannot fit in this machine's memory."""
     batch, networks = training_bytes(cfg, env)
-    param, got = (("--hidden", list(cfg.hidden)) if networks > batch
-                  else ("--batch-episodes", cfg.batch_episodes))
+    size = (("--batch-episodes", cfg.batch_episodes)
+            if getattr(cfg, "batch_episodes", None) is not None
+            else ("--batch-decisions", cfg.batch_decisions))
+    param, got = ("--hidden", list(cfg.hidden)) if networks > batch else size
     what = "a training epoch" if runs == 1 else f"{runs} training epochs at once"
     require_memory(runs * (batch + networks), param, got, what)

@@ -1,12 +1,15 @@
 """PS-TRPO with M-GAE: the training loop (docs/semantics.md section 5.6).
 
-One epoch = sample ``batch_episodes`` whole episodes with the current shared policy, compute M-GAE
+One epoch = sample a batch of whole episodes with the current shared policy (``batch_episodes`` of
+them, or, counted in decisions, as the released runner's parallel workers collected them:
+:mod:`repro.learn.batch`), compute M-GAE
 advantages (or those of ``TrainConfig.advantage``) with the current baseline, take one TRPO step,
 update the observation normaliser, then fit the baseline to the batch's discounted returns (in the
 new normalisation, which it will be used with). After every epoch a row is appended to the run
 folder's ``progress.csv`` and a checkpoint is written atomically; running the same command again
 resumes from the checkpoint and ends with exactly the parameters and progress table of an
-uninterrupted run.
+uninterrupted run. The policies after each of the last :data:`KEPT_POLICIES` epochs are kept in the
+folder's ``policies/`` too, for the released runner's evaluation (:mod:`repro.learn.kept`).
 
 Threads: torch and numpy's BLAS run on one thread (:func:`~repro.learn.policy.blas_on_one_thread`
 says why). Memory: malloc keeps freed blocks (:func:`~repro.core.memory.keep_freed_memory` says
@@ -35,6 +38,7 @@ from repro.core.io import provenance, write_json
 from repro.core.memory import keep_freed_memory
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
+from repro.learn import batch
 from repro.learn.baseline import make_baseline
 from repro.learn.config import TrainConfig
 from repro.learn.m_gae import advantage_paths
@@ -42,9 +46,9 @@ from repro.learn.network import TanhMLP
 from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
                                 blas_on_one_thread)
 from repro.learn.sizes import check_training_size
-from repro.learn.run_folder import (CHECKPOINT, PROVENANCE, append_row, check_same_run,
-                                    restore, resume_state, save_checkpoint,
-                                    writer_lock)
+from repro.learn.run_folder import (CHECKPOINT, KEPT_POLICIES, PROVENANCE, append_row,
+                                    check_same_run, kept_policy_path, restore, resume_state,
+                                    save_checkpoint, writer_lock)
 from repro.learn.trpo import normalize, trpo_step
 
 # Independent child streams of the run seed.
@@ -76,7 +80,7 @@ class Trainer:
         torch.set_num_threads(1)
         keep_freed_memory()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
-        self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden)
+        self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden, cfg.init)
         self.baseline = make_baseline(cfg.baseline, env.obs_dim, cfg.baseline_hidden,
                                       cfg.baseline_iters)
         self.normalizer = ObsNormalizer(env.obs_dim)
@@ -89,8 +93,12 @@ class Trainer:
     def run_epoch(self) -> dict[str, Any]:
         cfg, env = self.cfg, self.env
         t0 = time.perf_counter()
-        ro = env.rollout(Sampler(self.policy, self.normalizer, self.rng), cfg.batch_episodes,
-                         epoch_seed(cfg.seed, self.epoch))
+        sampler = Sampler(self.policy, self.normalizer, self.rng)
+        if cfg.batch_decisions is None:
+            ro = env.rollout(sampler, cfg.batch_episodes, epoch_seed(cfg.seed, self.epoch))
+        else:
+            ro = batch.sample(env, sampler, cfg.batch_decisions, cfg.batch_workers,
+                              epoch_seed(cfg.seed, self.epoch))
         t1 = time.perf_counter()
         z = self.normalizer(ro.obs)
         index = ro.step_index()
@@ -117,7 +125,7 @@ class Trainer:
             kl=stats.kl, entropy=stats.entropy, surrogate_before=stats.surrogate_before,
             surrogate_after=stats.surrogate_after, backtracks=stats.backtracks,
             accepted=int(stats.accepted), explained_variance=float(explained),
-            baseline_loss=baseline_loss, batch_episodes=cfg.batch_episodes,
+            baseline_loss=baseline_loss, batch_episodes=len(ro.episode_return),
             decisions=ro.n_decisions, truncated_episodes=ro.n_truncated,
             seconds_sim=t1 - t0, seconds_trpo=t2 - t1, seconds_baseline=t3 - t2,
             seconds_update=t3 - t1,
@@ -163,6 +171,9 @@ class Trainer:
                     # the row goes first, so progress.csv never holds fewer rows than the checkpoint
                     # has epochs (a resumed run cuts off any more)
                     append_row(self.out, row, PROGRESS_COLUMNS)
+                    if self.epoch > self.cfg.epochs - KEPT_POLICIES:
+                        save_checkpoint(kept_policy_path(self.out, self.epoch - 1),
+                                        self.policy_state())
                     save_checkpoint(self.out / CHECKPOINT, self.state_dict())
 
     def progress(self) -> pd.DataFrame:
@@ -181,6 +192,12 @@ class Trainer:
             "run_config": self.run_config,
         }
 
+    def policy_state(self) -> dict[str, Any]:
+        """What acting needs (:func:`~repro.learn.trained_policy.policy_from_state`): the policy
+        and normaliser after this epoch, and the run's config."""
+        return {"epoch": self.epoch, "policy": self.policy.state_dict(),
+                "normalizer": self.normalizer.state_dict(), "run_config": self.run_config}
+
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.epoch = int(state["epoch"])
         self.policy.load_state_dict(state["policy"])
@@ -195,7 +212,7 @@ class Trainer:
         epochs. Only ``epochs`` may differ from the folder's run (to extend or finish it); its
         config.json keeps the larger number."""
         assert self.out is not None
-        defaults = run_config(TrainConfig(), _saved_env_defaults(self.env_config), self.env.name)
+        defaults = saved_run_defaults(self.env_config, self.env.name)
         state = resume_state(self.out, self.run_config, defaults, self.param,
                              obs_dim=self.env.obs_dim, n_actions=self.env.n_actions)
         epochs = 0 if state is None else int(state["epoch"])
@@ -242,11 +259,17 @@ def run_config(cfg: TrainConfig, env_config: Any, env_name: str) -> dict[str, An
     return {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env_name}
 
 
+def saved_run_defaults(env_config: Any, env_name: str) -> dict[str, Any]:
+    """What a run folder's config.json held for a setting before the setting existed."""
+    return {"train": saved_defaults(TrainConfig), "env": _saved_env_defaults(env_config),
+            "env_name": env_name}
+
+
 def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str,
                      param: str = "--out") -> None:
     """Refuse (UsageError naming ``param`` and the first differing setting) a folder ``out`` that
     is neither new nor a run with these settings; only ``epochs`` may differ."""
     check_same_run(Path(out), run_config(cfg, env_config, env_name),
-                   run_config(TrainConfig(), _saved_env_defaults(env_config), env_name), param)
+                   saved_run_defaults(env_config, env_name), param)
 
 

@@ -13,8 +13,8 @@ import argparse
 import numpy as np
 
 from repro.core.errors import require
-from repro.envs.wildfire.params import (QUIRKS, EpisodeDraws, WildfireConfig, draw_episodes,
-                                        fire_positions)
+from repro.envs.wildfire.params import (QUIRKS, SIM_VERSIONS, EpisodeDraws, WildfireConfig,
+                                        draw_episodes, fire_positions)
 
 TRAIN_DEFAULTS = dict(lam=1.0, batch_episodes=600, epochs=300)
 """The paper's training settings: lambda 1, 600-1200 episodes per epoch, 300 epochs."""
@@ -28,6 +28,9 @@ def add_env_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dt", type=float, help="FS time step dT in seconds (only with --sim fs)")
     parser.add_argument("--t-health", type=float, default=WildfireConfig.t_health,
                         help="UAV-seconds to put out a fire (paper: 3.0; C9 uses 2.9999)")
+    parser.add_argument("--r-pen", type=float, default=WildfireConfig.r_pen,
+                        help="crowding penalty (%(default)s: the released HEAD of 2017-05-16; -1: "
+                             "the simulator of 2017-04-22 the transfer runs were trained on)")
     parser.add_argument("--gamma", type=float, default=WildfireConfig.gamma,
                         help="continuous-time discount rate per second (0.02); it also sets the "
                              "episode cap T_max = ln(0.005) / -gamma")
@@ -75,7 +78,8 @@ def config_from_args(args: argparse.Namespace) -> WildfireConfig:
     else:
         require(args.dt is None, "--dt", "only used with --sim fs", args.dt)
     quirks = {f: getattr(args, f"quirk_{f.split('_')[1]}") for f in QUIRKS}
-    cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, gamma=args.gamma, **quirks,
+    cfg = WildfireConfig(dt=args.dt, t_health=args.t_health, gamma=args.gamma, r_pen=args.r_pen,
+                         **quirks,
                          same_instant_order=args.same_instant_order,
                          fire_out_first=args.fire_out_first,
                          fs_round_negative_delays=args.fs_round_negative_delays,
@@ -108,6 +112,7 @@ def make_reference_env(cfg: WildfireConfig, count_races: bool = False):
     return ReferenceEnv(cfg, count_races)
 
 
-__all__ = ["WildfireConfig", "QUIRKS", "EpisodeDraws", "draw_episodes", "fire_positions",
+__all__ = ["WildfireConfig", "QUIRKS", "SIM_VERSIONS", "EpisodeDraws", "draw_episodes",
+           "fire_positions",
            "add_env_arguments", "config_from_args", "make_env", "make_reference_env",
            "make_vector_env"]

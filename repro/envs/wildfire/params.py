@@ -47,6 +47,18 @@ MAX_T_MAX = 1e5
 """The longest episode cap T_max (s) a config may ask for (through a small gamma)."""
 
 
+SIM_VERSIONS: dict[str, dict[str, float]] = {
+    "2017-05-16": dict(r_pen=-20.0),
+    "2017-04-22": dict(r_pen=-1.0),
+}
+"""The released simulator's versions the paper's figures were drawn with, by commit date, as the
+settings in which they differ (the crowding penalty is their only difference in simulation):
+"2017-05-16" is the released HEAD (d05757b, which adds the transfer figure's script);
+"2017-04-22" is b3bef87, four minutes before the transfer study's training runs started (their
+folders, dated 2017-04-22 18:17-19:15, are listed in cluster_fire_smdp.py's evaluation block).
+docs/semantics.md section 3.13 gives the evidence."""
+
+
 @dataclass(frozen=True)
 class WildfireConfig(Validated):
     """Every parameter of docs/semantics.md section 3.1 and every switch of section 3.11; the
@@ -65,7 +77,9 @@ class WildfireConfig(Validated):
     r_ext: float = 1.0
     """Reward every agent accrues when any fire is extinguished."""
     r_pen: float = -20.0
-    """Reward accrued when a UAV joins an extinguish party that already has a member."""
+    """Reward accrued when a UAV joins an extinguish party that already has a member: -20 in the
+    paper's table and the released simulator (2017-05-16), -1 in the simulator the transfer runs
+    were trained on (2017-04-22; :data:`SIM_VERSIONS`)."""
     gamma: float = 0.02
     """Continuous-time discount rate (1/s)."""
     horizon_discount: float = 0.005

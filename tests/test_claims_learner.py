@@ -1,0 +1,54 @@
+"""Claims read per learner: the deciding set-up and the others beside it, X5 from the ablation,
+and which learner trained a result."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+
+from repro.claims import NOT_RUN, Reading, Verdict, learner_of, side_by_side
+from repro.claims.learner import check_x5
+from tests.conftest import write_result_csv
+
+
+def test_side_by_side_decides_on_the_first_reading_and_shows_the_others(tmp_path):
+    def check(results, suffix):
+        frame = pd.read_csv(results / f"x{suffix}.csv")
+        return Verdict(f"{frame.v.iloc[0]}", "PASS" if frame.v.iloc[0] > 0 else "FAIL", "d",
+                       "paper")
+
+    readings = (Reading("first", "_a"), Reading("second", "_b"))
+    checked = side_by_side(check, readings)
+    write_result_csv(pd.DataFrame({"v": [-1]}), tmp_path / "x_b.csv")
+    v = checked(tmp_path)
+    assert v.verdict == NOT_RUN and "first: not yet run" in v.ours and "second: -1 (FAIL)" in v.ours
+    write_result_csv(pd.DataFrame({"v": [2]}), tmp_path / "x_a.csv")
+    v = checked(tmp_path)
+    assert v.verdict == "PASS" and v.scale == "paper"
+    assert "**first** (paper scale): PASS" in v.detail and "**second** (paper scale): FAIL" in v.detail
+
+
+def test_learner_of_reads_the_sidecar_at_any_depth(tmp_path):
+    write_result_csv(pd.DataFrame({"a": [1]}), tmp_path / "old.csv", config={"seeds": 5})
+    write_result_csv(pd.DataFrame({"a": [1]}), tmp_path / "new.csv",
+                     config={"study": {"learner": "authors"}})
+    assert learner_of(tmp_path / "old.csv") == "suite"
+    assert learner_of(tmp_path / "new.csv") == "authors"
+    assert json.loads((tmp_path / "new.provenance.json").read_text())["scale"] == "paper"
+
+
+def _c9(tmp_path, norm_high: float) -> None:
+    rows = [dict(setting=s, protocol=p, n_policies=5, adr_variant=1.8, adr_fs=2.8,
+                 difference=-1.0, ci_low=-1.2, ci_high=hi, degrades=hi < 0)
+            for s, hi in (("authors", -0.8), ("observation normalisation", norm_high))
+            for p in ("final policy", "last 40 policies")]
+    write_result_csv(pd.DataFrame(rows), tmp_path / "learner_ablation_c9.csv")
+
+
+def test_x5_follows_the_normalised_rows_interval(tmp_path):
+    _c9(tmp_path, -0.1)
+    assert check_x5(tmp_path).verdict == "PASS"
+    _c9(tmp_path, 0.1)
+    v = check_x5(tmp_path)
+    assert v.verdict == "FAIL" and "Without normalisation it degrades" in v.detail
