@@ -304,7 +304,7 @@ def _other_inputs(s):
 
 
 def _wrong_layer(s):
-    s["policy"]["net.2.weight"] = torch.zeros(16, 32)
+    s["policy"]["net.0.bias"] = torch.zeros(16)  # its weight has a row per hidden unit
 
 
 DAMAGE = {
@@ -352,7 +352,11 @@ def test_a_damaged_checkpoint_is_refused_in_one_line_everywhere(damage, wildfire
 def test_a_whole_checkpoint_still_resumes(wildfire_run, tmp_path, monkeypatch):
     run = tmp_path / "run"
     shutil.copytree(wildfire_run, run)
-    assert state_problem(load_checkpoint(run / CHECKPOINT), 28, 6) is None
+    state = load_checkpoint(run / CHECKPOINT)
+    assert state_problem(state, 28, 6) is None
+    acting = {k: state[k] for k in ("epoch", "policy", "normalizer", "run_config")}
+    assert state_problem(acting) is None  # a kept policy: what acting needs
+    assert "baseline" in state_problem(acting, training=True)  # not enough to train on
     assert _main([*TRAIN, "--epochs", "2", "--out", str(run)]) == 0
     assert load_checkpoint(run / CHECKPOINT)["epoch"] == 2
 
@@ -415,7 +419,10 @@ SIXTEEN_GIB = 16 << 30
     (["bench-bus", "--scale", "smoke", "--fast-episodes", "100000000"], "--fast-episodes"),
     (["bench-wildfire", "--scale", "smoke", "--reference-episodes", "100000000"],
      "--reference-episodes"),
-    (["fig-transfer", "--scale", "smoke", "--batch-episodes", "100000000"], "--batch-episodes"),
+    (["fig-transfer", "--scale", "smoke", "--batch-decisions", "100000000"],
+     "--batch-decisions"),
+    (["fig-transfer", "--scale", "smoke", "--learner", "suite", "--batch-episodes", "100000000"],
+     "--batch-episodes"),
     (["scaling", "--scale", "smoke", "--n-agents", "2", "3", "100000000"], "--n-agents"),
     (["scaling", "--scale", "smoke", "--duration", "inf"], "--duration"),
     (["scaling", "--scale", "smoke", "--duration", "1e12"], "--duration"),

@@ -69,9 +69,11 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> None:
 
 
 def load_checkpoint(path: str | Path, param: str = "--out", allowed: str | None = None, *,
-                    obs_dim: int | None = None, n_actions: int | None = None) -> dict[str, Any]:
+                    obs_dim: int | None = None, n_actions: int | None = None,
+                    training: bool = False) -> dict[str, Any]:
     """The state saved by :func:`save_checkpoint`, whole (:func:`state_problem`; with
-    ``obs_dim`` and ``n_actions``, for an environment of those sizes); anything else (a crafted
+    ``obs_dim`` and ``n_actions``, for an environment of those sizes; with ``training``, with
+    what training on needs, not only a kept policy's acting state); anything else (a crafted
     pickle, a truncated, empty or random file, a folder, an older format, a loadable file with
     damaged contents) is a :class:`UsageError` naming ``param``."""
     allowed = allowed or f"a readable {CHECKPOINT} of this suite (delete it to start the run again)"
@@ -85,26 +87,29 @@ def load_checkpoint(path: str | Path, param: str = "--out", allowed: str | None 
         raise
     except Exception:  # whatever torch or the unpickler raises for a file that is not ours
         raise UsageError(param, allowed, str(path)) from None
-    problem = state_problem(state, obs_dim, n_actions)
+    problem = state_problem(state, obs_dim, n_actions, training)
     require(problem is None, param, f"{allowed}; {problem}",
             str(path) if isinstance(path, (str, Path)) else None)
     return state
 
 
-STATE_KEYS = ("epoch", "policy", "baseline", "normalizer", "sampler_rng", "torch_rng",
-              "run_config")
-"""The entries of a checkpoint (besides ``format``)."""
+ACTING_KEYS = ("epoch", "policy", "normalizer", "run_config")
+"""The entries of a kept policy (besides ``format``): what acting needs."""
+TRAINING_KEYS = ("baseline", "sampler_rng", "torch_rng")
+"""The further entries of a run's checkpoint: what training on needs."""
 
 
 def state_problem(state: dict[str, Any], obs_dim: int | None = None,
-                  n_actions: int | None = None) -> str | None:
-    """What is wrong with a loaded checkpoint, or None: every entry there and of its type, a whole
-    non-negative epoch, a run config with its hidden sizes, policy layers of those sizes (and of
-    ``obs_dim`` inputs and ``n_actions`` outputs, if given), a normaliser and baseline of the
-    policy's input size, finite numbers throughout, and generator states numpy and torch take.
-    Checked before anything uses the state, so that damage is one line, not a traceback halfway
-    through a resume, an evaluation or a render."""
-    missing = [k for k in STATE_KEYS if k not in state]
+                  n_actions: int | None = None, training: bool = False) -> str | None:
+    """What is wrong with a loaded checkpoint or kept policy, or None: every entry there (those of
+    a checkpoint if ``training`` or if it has any) and of its type, a whole non-negative epoch, a
+    run config with its hidden sizes, policy layers of those sizes (and of ``obs_dim`` inputs and
+    ``n_actions`` outputs, if given), a normaliser and baseline of the policy's input size, finite
+    numbers throughout, and generator states numpy and torch take. Checked before anything uses
+    the state, so that damage is one line, not a traceback halfway through a resume, an
+    evaluation or a render."""
+    whole = training or any(k in state for k in TRAINING_KEYS)
+    missing = [k for k in ACTING_KEYS + (TRAINING_KEYS if whole else ()) if k not in state]
     if missing:
         return f"it lacks {', '.join(missing)}"
     epoch, config = state["epoch"], state["run_config"]
@@ -138,6 +143,8 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
                                {"mean": (d,), "var": (d,)})
     if problem or bool((norm["var"] < 0).any()):
         return problem or "its normaliser has a negative variance"
+    if not whole:
+        return None
     kind = train.get("baseline", "linear")
     if kind == "mlp":
         bh = list(train.get("baseline_hidden", (32, 32)))
@@ -272,7 +279,7 @@ def resume_state(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
     path = folder / CHECKPOINT
     if not path.exists():
         return None
-    state = load_checkpoint(path, param, obs_dim=obs_dim, n_actions=n_actions)
+    state = load_checkpoint(path, param, obs_dim=obs_dim, n_actions=n_actions, training=True)
     diff = run_difference(state.get("run_config") or {}, mine, defaults)
     require(diff is None, param, f"a run folder whose {CHECKPOINT} belongs to its run ({diff}; "
             f"delete {CHECKPOINT} to start again)", str(folder))
