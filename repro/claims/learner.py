@@ -50,8 +50,10 @@ def _figure_table(results: Path) -> list[str]:
     frames = {}
     for stem, heading in FIGURE_COLUMNS.items():
         path = results / f"{stem}_summary.csv"
-        if path.exists():
+        try:
             frames[heading] = read_result(path).set_index("simulator")
+        except FileNotFoundError:  # not yet run, or a torn pair
+            continue
     if not frames:
         return []
     lines = ["", "## The learner decides: the transfer figure point by point", "",
