@@ -108,7 +108,7 @@ def test_a_listener_that_is_not_dask_is_refused_within_the_deadline(reply, monke
                                                                       capsys):
     """A silent listener (the Dask client's own timeout does not end that wait) and a web server
     are both refused in one line, exit 2, once the deadline has passed, before anything trains."""
-    monkeypatch.setattr(sweep, "SCHEDULER_DEADLINE", 1.0)
+    monkeypatch.setattr(sweep, "SCHEDULER_DEADLINE", 0.5)
     listener = Listener(reply)
     try:
         t0 = time.perf_counter()
@@ -199,7 +199,7 @@ import pandas as pd
 from pathlib import Path
 from repro.core.io import write_result
 folder, me = Path(sys.argv[1]), int(sys.argv[2])
-for i in range(100):
+for i in range(60):
     write_result(folder / f"slot{i % 6}.csv", pd.DataFrame(dict(writer=[me] * 50, i=range(50))),
                  {"scale": "smoke", "writer": me})
 """

@@ -255,9 +255,9 @@ def _dask_client(scheduler: str) -> Any:
     first, then its host is looked up, the server asked what it is, and the client connected,
     each within :data:`SCHEDULER_DEADLINE`; anything else at the address (nothing, a listener that
     never answers, a web server, a Dask worker) is a UsageError naming --scheduler."""
+    scheme, host, port = check_scheduler(scheduler)
     from dask.distributed import Client
 
-    scheme, host, port = check_scheduler(scheduler)
     deadline = SCHEDULER_DEADLINE
     answered, found = _within(deadline, lambda: socket.getaddrinfo(host, port,
                                                                     type=socket.SOCK_STREAM))
