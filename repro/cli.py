@@ -12,6 +12,7 @@ import importlib
 import sys
 
 from repro.core.errors import UsageError
+from repro.core.io import check_names, release_results
 from repro.experiments.options import default_folders
 
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -59,8 +60,12 @@ COMMANDS: dict[str, tuple[str, str]] = {
 """command -> (module, one-line description)."""
 
 
-DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM)
+DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
+               errno.ENAMETOOLONG)
 """Failures to write that are the machine's, not the suite's: reported in one line (exit 1)."""
+PATH_OPTIONS = ("out", "results_dir", "figures_dir", "runs_dir", "checkpoint", "mlp_run")
+"""Options that name a file or folder (by their ``args`` names): checked for length and encoding
+before a command runs, whichever of them it has."""
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -95,6 +100,9 @@ def main(argv: list[str] | None = None) -> int:
         # every seed becomes a numpy SeedSequence, which takes no negative entropy
         if getattr(args, "seed", None) is not None and args.seed < 0:
             raise UsageError("--seed", "an integer >= 0", args.seed)
+        for dest in PATH_OPTIONS:
+            if isinstance(getattr(args, dest, None), str):
+                check_names(getattr(args, dest), "--" + dest.replace("_", "-"))
         default_folders(args)
         return int(module.run(args) or 0)
     except UsageError as err:
@@ -104,9 +112,12 @@ def main(argv: list[str] | None = None) -> int:
         # a full or read-only disk, or a folder without permission: the system's reason, one line
         if err.errno not in DISK_ERRORS:
             raise
-        print(f"repro {name}: error: {err.strerror}: {err.filename}", file=sys.stderr)
+        where = "" if err.filename is None else f": {err.filename}"
+        print(f"repro {name}: error: {err.strerror}{where}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"repro {name}: interrupted; the same command resumes a training run or sweep from "
               "its last checkpoint", file=sys.stderr)
         return 130
+    finally:
+        release_results()  # the results folder a driver held (repro.core.io.open_results)

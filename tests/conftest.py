@@ -9,8 +9,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def run_cli(*args: str, cwd: Path | None = None,
-            timeout: float = 600) -> subprocess.CompletedProcess:
-    """Run the real entry point, `python -m repro ...`, as a user would."""
+            timeout: float = 240) -> subprocess.CompletedProcess:
+    """Run the real entry point, `python -m repro ...`, as a user would (killed after ``timeout``
+    seconds, before pytest-timeout stops the test)."""
     env = dict(os.environ, REPRO_QUIET="1", PYTHONPATH=str(ROOT))
     return subprocess.run([sys.executable, "-m", "repro", *args], cwd=cwd or ROOT, env=env,
                           capture_output=True, text=True, timeout=timeout)

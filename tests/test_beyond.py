@@ -179,7 +179,8 @@ def test_x1_check(tmp_path):
 
 def test_bad_races_file_reads_incomplete(tmp_path):
     write_result_csv(_grid({0.0: 3.0, 1.0: 2.0}), tmp_path / "transfer_dt_grid_summary.csv")
-    (tmp_path / "races.csv").write_text("policy,dt\nnearest,1\n")
+    # a whole pair (CSV and sidecar) without the columns X3 reads
+    write_result_csv(pd.DataFrame(dict(policy=["nearest"], dt=[1])), tmp_path / "races.csv")
     x3 = next(c for c in registry() if c.id == "X3")
     v = x3.evaluate(tmp_path)
     assert v.verdict == NOT_RUN and "incomplete" in v.detail

@@ -26,7 +26,8 @@ def test_side_by_side_decides_on_the_first_reading_and_shows_the_others(tmp_path
     write_result_csv(pd.DataFrame({"v": [2]}), tmp_path / "x_a.csv")
     v = checked(tmp_path)
     assert v.verdict == "PASS" and v.scale == "paper"
-    assert "**first** (paper scale): PASS" in v.detail and "**second** (paper scale): FAIL" in v.detail
+    assert "**first** (paper scale): PASS" in v.detail
+    assert "**second** (paper scale): FAIL" in v.detail
 
 
 def test_learner_of_reads_the_sidecar_at_any_depth(tmp_path):

@@ -108,6 +108,8 @@ def test_c10_check_can_pass_and_fail(tmp_path):
 
 
 def test_claims_command_renders_the_table(cli, tmp_path):
+    shutil.copy(ROOT / "results" / "paper" / "table_race.csv", tmp_path)
+    shutil.copy(ROOT / "results" / "paper" / "table_race.provenance.json", tmp_path)
     out = cli("claims", "--results-dir", str(tmp_path), "--out", str(tmp_path / "claims.md"))
     assert out.returncode == 0, out.stderr
     text = Path(tmp_path / "claims.md").read_text()
@@ -119,15 +121,21 @@ def test_claims_command_renders_the_table(cli, tmp_path):
 @pytest.mark.parametrize("args, param", [
     (("--results-dir", "{tmp}/missing"), "--results-dir"),
     (("--results-dir", "{tmp}/file.csv"), "--results-dir"),
+    (("--results-dir", "{tmp}"), "--results-dir"),  # a folder without results
+    (("--results-dir", ""), "--results-dir"),
     (("--out", "{tmp}"), "--out"),
 ])
 def test_claims_bad_paths_are_one_line_errors(cli, tmp_path, args, param):
     (tmp_path / "file.csv").write_text("x\n")
+    if args[0] == "--out":
+        write_result_csv(pd.DataFrame(dict(x=[1])), tmp_path / "some.csv")
     args = [a.replace("{tmp}", str(tmp_path)) for a in args]
-    out = cli("claims", *(["--results-dir", str(tmp_path)] if args[0] == "--out" else []), *args)
+    out = cli("claims", *(["--results-dir", str(tmp_path)] if args[0] == "--out" else []), *args,
+              cwd=tmp_path)  # where the default --out, paper_claims.md, would go
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
     assert f"error: {param}:" in out.stderr
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()
+                  if not p.name.startswith("some.")) == ["file.csv"]
 
 
 def test_result_files_get_the_permissions_of_an_ordinary_write(tmp_path):

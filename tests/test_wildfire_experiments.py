@@ -370,7 +370,8 @@ def test_the_claims_say_how_many_episodes_the_decision_limit_cut(tmp_path, cut, 
     table = pd.DataFrame(dict(epochs=[3, 3], batch_episodes=200, test_episodes=20,
                               max_decisions=1000, train_truncated=[cut[0], 0],
                               test_truncated=[0, cut[1]]))
-    table.to_csv(tmp_path / "transfer.csv", index=False)
+    write_result_csv(table, tmp_path / "transfer.csv")
     assert text in claims._cut_line(tmp_path / "transfer.csv")
-    table.drop(columns=["train_truncated", "test_truncated"]).to_csv(tmp_path / "old.csv")
+    write_result_csv(table.drop(columns=["train_truncated", "test_truncated"]),
+                     tmp_path / "old.csv")
     assert claims._cut_line(tmp_path / "old.csv") == ""  # made before the columns existed

@@ -262,11 +262,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    require(args.results_dir is None or args.results_dir.strip() != "", "--results-dir",
+            "a folder of result files (not an empty path)", args.results_dir)
     results = Path(args.results_dir) if args.results_dir is not None else default_results()
     require(args.out.strip() != "", "--out", "a file name", args.out)
     out = check_names(args.out, "--out")
-    # a mistyped folder would otherwise render a table of "not yet run"
-    require(results.is_dir(), "--results-dir", "an existing folder of result files", str(results))
+    # a mistyped or empty folder would otherwise render a table of "not yet run" over the claims
+    require(results.is_dir() and any(results.glob("*.provenance.json")), "--results-dir",
+            "an existing folder of result files (CSVs with their provenance sidecars)",
+            str(results))
     require(not out.is_dir(), "--out", "a file, not a folder", str(out))
     check_writable_dir(out.parent, "--out")
     text = render(results)

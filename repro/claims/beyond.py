@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from repro.core.io import read_result
 from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, learned_by, scale_of
 from repro.core.stats import ci_side
 from repro.experiments.beyond_mgae import REFERENCE
@@ -33,7 +34,7 @@ def check_x1(results: Path) -> Verdict:
     """M-GAE against each other estimator, per environment: PASS when M-GAE's CI lies above every
     other's, PARTIAL above some, FAIL none."""
     path = results / "beyond_mgae_summary.csv"
-    s = pd.read_csv(path)
+    s = read_result(path)
     parts, beats, ours = [], [], []
     for env, grp in s.groupby("env", sort=False):
         ref = grp[grp.estimator == REFERENCE].iloc[0]
@@ -79,7 +80,7 @@ def check_x3(results: Path) -> Verdict:
     dT before it whose CI overlaps ED's; PASS when the break lies within ONSET_WINDOW of the race
     onset."""
     path = results / "transfer_dt_grid_summary.csv"
-    s = pd.read_csv(path)
+    s = read_result(path)
     ed = s[s.dt == 0].iloc[0]
     fs = s[s.dt > 0].sort_values("dt")
     side = {r.dt: ci_side(r, ed) for r in fs.itertuples()}

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from repro.core.io import read_result
 from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, learned_by, scale_of
 from repro.claims.race import PAPER_BETA
 from repro.experiments.beyond_order import NAME as ORDER
@@ -21,8 +22,8 @@ PAPER_C10_BETA = float(np.mean([b for b, _ in PAPER_BETA.values()]))
 
 def check_x2(results: Path) -> Verdict:
     path = results / f"{FIT}.csv"
-    fit = pd.read_csv(path)
-    cells = pd.read_csv(results / f"{RACES}.csv")
+    fit = read_result(path)
+    cells = read_result(results / f"{RACES}.csv")
     ours = c10_beta(results)
     c10, source = ((ours, "our C10") if np.isfinite(ours)
                    else (PAPER_C10_BETA, "the paper's C10 (ours not run)"))
@@ -68,7 +69,7 @@ def _pairs(frame: pd.DataFrame) -> str:
 
 def check_x4(results: Path) -> Verdict:
     path = results / f"{ORDER}_effect.csv"
-    e = pd.read_csv(path).set_index(["semantics", "order"])
+    e = read_result(path).set_index(["semantics", "order"])
     semantics = list(dict.fromkeys(e.index.get_level_values(0)))
     degrades = [s for s in semantics if e.loc[(s, "released"), "degrades"]]
     survives = [s for s in degrades if e.loc[(s, "reversed"), "degrades"]]

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from repro.core.io import read_result
 from repro.claims import Claim, Reading, Verdict, scale_of, side_by_side
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig
@@ -31,7 +32,7 @@ def _verdict(strict: bool, loose: bool) -> str:
 
 def _summary(results: Path, sweep: str) -> tuple[pd.DataFrame, dict[str, float], Path]:
     path = results / f"bus_{sweep}_summary.csv"  # sweep: lambda or batch, then the suffix
-    table = pd.read_csv(path)
+    table = read_result(path)
     base = {p: float(table[table.policy == p].final_iqm.iloc[0]) for p in ("nohold", "thresholds")}
     return table, base, path
 
@@ -94,7 +95,7 @@ def load_distances(loads: pd.DataFrame) -> dict[str, float]:
 def check_c4(results: Path) -> Verdict:
     """No Holding rows of bus_load.csv: ours equal the paper's at every point of its panel."""
     path = results / "bus_load.csv"
-    dist = load_distances(pd.read_csv(path))
+    dist = load_distances(read_result(path))
     ok = dist.get("nohold", np.nan) == 0.0
     ours = "; ".join(f"{p}: L1 per point {d:.2f}" for p, d in dist.items())
     return Verdict(ours, "PASS" if ok else "FAIL",
@@ -108,8 +109,8 @@ def check_c5(results: Path) -> Verdict:
     thresholds) and the load variance across buses at the paper's records (MLP lower)."""
     cfg = BusConfig()
     path = results / "bus_arrivals.csv"
-    arrivals = pd.read_csv(path)
-    loads = pd.read_csv(results / "bus_load.csv")
+    arrivals = read_result(path)
+    loads = read_result(results / "bus_load.csv")
     loads = loads[loads.source == "ours"]
     # the paper's thresholds are the authors'; ours stand in where their panel was not drawn
     thr = "authors" if "authors" in set(arrivals.policy) else "thresholds"
@@ -209,7 +210,7 @@ def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic'
 
 def _switch_section(results: Path) -> list[str]:
     """Load panel distance per switch off alone: rows of bus_load_switches.csv."""
-    table = pd.read_csv(results / "bus_load_switches.csv").pivot(
+    table = read_result(results / "bus_load_switches.csv").pivot(
         index="policy", columns="off", values="l1_per_point")
     cols = [c for c in ("none", "b1_reward", "b2_headway", "b3_boarding", "b4_round_half_even",
                         "b5_timing", "all") if c in table]
@@ -222,8 +223,8 @@ def _switch_section(results: Path) -> list[str]:
 
 def _mlp_runs_section(results: Path) -> list[str]:
     """Trained runs against the paper's MLP panel: rows of bus_load_mlp_runs.csv."""
-    runs = pd.read_csv(results / "bus_load_mlp_runs.csv").sort_values(["lambda", "seed"])
-    authors = load_distances(pd.read_csv(results / "bus_load.csv")).get("authors", np.nan)
+    runs = read_result(results / "bus_load_mlp_runs.csv").sort_values(["lambda", "seed"])
+    authors = load_distances(read_result(results / "bus_load.csv")).get("authors", np.nan)
     lines = ["", "Trained MLP runs against the paper's MLP panel (L1 per point; the authors' "
              f"thresholds against theirs: {authors:.2f}):", "",
              "| lambda | seed | final return | L1 per point |", "|---|---|---|---|"]

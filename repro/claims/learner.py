@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from repro.core.io import read_result
 from repro.claims import Claim, Verdict, at_most_partial, scale_of
 from repro.experiments.c9_inputs import NAME as INPUTS
 from repro.experiments.learner_ablation import NAME as ABLATION
@@ -26,7 +27,7 @@ def check_x5(results: Path) -> Verdict:
     """C9's degradation (FS-1 T_health 2.9999 minus FS-1, final policy) with observation
     normalisation on: PASS when its CI lies below 0 as it does without; FAIL when it does not."""
     path = results / f"{ABLATION}_c9.csv"
-    e = pd.read_csv(path)
+    e = read_result(path)
     e = e[e.protocol == "final policy"].set_index("setting")
     row, base = e.loc[X5_SETTING], e.loc["authors"]
     verdict = "PASS" if row.degrades else "FAIL"
@@ -49,8 +50,10 @@ def _figure_table(results: Path) -> list[str]:
     frames = {}
     for stem, heading in FIGURE_COLUMNS.items():
         path = results / f"{stem}_summary.csv"
-        if path.exists():
-            frames[heading] = pd.read_csv(path).set_index("simulator")
+        try:
+            frames[heading] = read_result(path).set_index("simulator")
+        except FileNotFoundError:  # not yet run, or a torn pair
+            continue
     if not frames:
         return []
     lines = ["", "## The learner decides: the transfer figure point by point", "",
@@ -83,7 +86,7 @@ def _ablation_table(results: Path) -> list[str]:
     path = results / f"{ABLATION}_summary.csv"
     if not path.exists():
         return []
-    s = pd.read_csv(path)
+    s = read_result(path)
     sims = list(dict.fromkeys(s.simulator))
     lines = ["", f"## One learner setting at a time ({scale_of(path)} scale)", "",
              "From the authors' learner on the simulator of 2017-04-22, one setting changed to the "
@@ -93,7 +96,10 @@ def _ablation_table(results: Path) -> list[str]:
              "| setting | " + " | ".join(sims) + " | C9 degradation |",
              "|---" * (len(sims) + 2) + "|"]
     c9_path = results / f"{ABLATION}_c9.csv"
-    c9 = pd.read_csv(c9_path) if c9_path.exists() else pd.DataFrame(columns=["setting"])
+    try:
+        c9 = read_result(c9_path)
+    except FileNotFoundError:  # not yet run, or a torn pair
+        c9 = pd.DataFrame(columns=["setting"])
     c9 = c9[c9.get("protocol", pd.Series(dtype=str)) == "final policy"].set_index("setting")
     for setting, g in s.groupby("setting", sort=False):
         g = g.set_index("simulator")
@@ -110,7 +116,7 @@ def _inputs_table(results: Path) -> list[str]:
     path = results / f"{INPUTS}_summary.csv"
     if not path.exists():
         return []
-    s = pd.read_csv(path)
+    s = read_result(path)
     s = s[s.clamp != "none"]
     lines = ["", f"## Which inputs C9's policies depend on ({scale_of(path)} scale)", "",
              "Authors' learner, simulator of 2017-04-22 (`make c9-inputs`): ADR on ED with an "

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pandas as pd
 
+from repro.core.io import read_result
 from repro.claims import Claim, Verdict, scale_of
 
 PAPER_BETA = {"Exponential": (2.216, 0.055), "Chi-Squared": (2.213, 0.045), "Gamma": (2.219, 0.037)}
@@ -14,7 +14,7 @@ BETA_RANGE = (2.1, 2.3)
 
 def check_c10(results: Path) -> Verdict:
     path = results / "table_race.csv"
-    t = pd.read_csv(path)
+    t = read_result(path)
     missing = set(PAPER_BETA) - set(t.distribution)
     if missing:
         return Verdict("-", "not yet run", f"no row for {sorted(missing)}", scale_of(path))
@@ -25,7 +25,7 @@ def check_c10(results: Path) -> Verdict:
         + "Paper: " + "; ".join(f"{k} {b} ({s})" for k, (b, s) in PAPER_BETA.items()))
     ranges = results / "race_beta_ranges.csv"
     if ranges.exists():
-        r = pd.read_csv(ranges)
+        r = read_result(ranges)
         detail += ". Exact (sampling-free) fits: " + "; ".join(
             f"{x.distribution} N={x.n_min}..{x.n_max}: {x.beta:.3f}" for x in r.itertuples())
     return Verdict(ours, "PASS" if inside.all() else "FAIL", detail, scale_of(path))

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from repro.core.io import read_result
 from repro.claims import Claim, Verdict, scale_of
 
 STEPS_RANGE = (2.0, 2.4)
@@ -15,7 +16,7 @@ EVENTS_RANGE = (0.8, 1.2)
 def check_c11(results: Path) -> Verdict:
     """Both exponents, fitted over all measured N, inside their ranges for every distribution."""
     path = results / "scaling_fit.csv"
-    fit = pd.read_csv(path)
+    fit = read_result(path)
     full = fit[fit.fit_range == "all"]
 
     def pick(frame: pd.DataFrame, simulator: str, measure: str) -> pd.DataFrame:

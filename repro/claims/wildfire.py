@@ -14,7 +14,7 @@ import pandas as pd
 
 from repro.claims import (NOT_RUN, Claim, Reading, Verdict, at_most_partial, scale_of,
                           side_by_side)
-from repro.core.io import read_provenance
+from repro.core.io import read_provenance, read_result
 from repro.core.stats import bootstrap_ci, ci_side
 
 C6_TOLERANCE = 0.10
@@ -69,7 +69,7 @@ def _pct(x: float) -> str:
 
 def check_c6(results: Path, suffix: str = "") -> Verdict:
     path = results / f"wildfire_behaviour{suffix}.csv"
-    t = pd.read_csv(path)
+    t = read_result(path)
     parts, ok = [], []
     for key, paper in C6_PAPER.items():
         mean, lo, hi = _ci(t[key].to_numpy())
@@ -103,7 +103,7 @@ def _without_stays(t: pd.DataFrame, flow_path: Path) -> str:
     results."""
     if "stay_flight" not in t or not flow_path.exists():
         return ""
-    flow = pd.read_csv(flow_path).iloc[0]
+    flow = read_result(flow_path).iloc[0]
     pairs = "; ".join(f"{k} {_pct(t[k + '_ex_stay'].mean())} vs {_pct(flow[k + '_ex_stay'])}"
                       for k in C6_PAPER)
     return (f" Stay flights (to the fire the UAV is at; they take no time) are "
@@ -114,7 +114,7 @@ def _without_stays(t: pd.DataFrame, flow_path: Path) -> str:
 
 def check_c7(results: Path, suffix: str = "") -> Verdict:
     path = results / f"wildfire_behaviour{suffix}.csv"
-    t = pd.read_csv(path)
+    t = read_result(path)
     if (t.adr_learned <= 0).any():  # the ratio's sign no longer says which policy is better
         return Verdict("-", "FAIL", f"a learned policy's ADR is not positive "
                        f"({t.adr_learned.min():.3f}): the ratio of ADRs is undefined",
@@ -131,7 +131,7 @@ def check_c7(results: Path, suffix: str = "") -> Verdict:
 
 def _summary(results: Path, stem: str) -> tuple[pd.DataFrame, Path]:
     path = results / f"{stem}_summary.csv"
-    return pd.read_csv(path).set_index("simulator"), path
+    return read_result(path).set_index("simulator"), path
 
 
 def c8_verdict(s: pd.DataFrame) -> tuple[str, str]:
@@ -184,7 +184,7 @@ def _heuristics_line(results: Path) -> str:
     """The heuristic policies' ADR on the same ED test episodes, the baselines of the learned."""
     path = results / "wildfire_heuristics.csv"
     try:
-        h = pd.read_csv(path)
+        h = read_result(path)
         scale_of(path)
     except FileNotFoundError:
         return " Heuristics on the same test episodes: not yet run (`make wildfire-heuristics`)."
@@ -220,7 +220,7 @@ def _ablation_lines(results: Path, suffix: str) -> str:
     """C9 on the ablations that switch single quirks off (``fig-transfer --no-quirk Q``)."""
     lines = []
     for path in sorted(results.glob(f"transfer_no_q*{suffix}_summary.csv")):
-        s = pd.read_csv(path).set_index("simulator")
+        s = read_result(path).set_index("simulator")
         off = path.name.removeprefix("transfer_no_").removesuffix(f"{suffix}_summary.csv")
         if (set(C9_PAIR) <= set(s.index) and not made_before_released_semantics(path)
                 and "_" not in off.replace("_no_", "")):
@@ -249,7 +249,10 @@ def _corrected_line(results: Path, judge, means: bool, suffix: str) -> str:
 def _cut_line(per_policy: Path) -> str:
     """How many training and test episodes the decision limit cut (docs/semantics.md section
     3.7), when the per-policy table records it."""
-    t = pd.read_csv(per_policy) if per_policy.exists() else pd.DataFrame()
+    try:
+        t = read_result(per_policy)
+    except FileNotFoundError:  # not yet run, or a torn pair
+        t = pd.DataFrame()
     if not {"train_truncated", "test_truncated"} <= set(t.columns):
         return ""
     train = int((t.epochs * t.batch_episodes).sum())

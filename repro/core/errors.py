@@ -5,7 +5,8 @@ class UsageError(ValueError):
     """A parameter has a value the suite does not accept.
 
     ``str(err)`` is the whole one-line message; the CLI prints it and exits with status 2 before any
-    result file is touched.
+    result file is touched. It pickles as its three parts, so that a refusal raised in a worker
+    process (joblib, Dask) reaches the user as the same line.
     """
 
     def __init__(self, param: str, allowed: str, got: object = None):
@@ -14,6 +15,10 @@ class UsageError(ValueError):
         self.got = got
         shown = "" if got is None else f", got {got!r}"
         super().__init__(f"{param}: must be {allowed}{shown}")
+
+    def __reduce__(self) -> tuple:
+        # the default pickles ``args`` (the message alone), which __init__ cannot take back
+        return (type(self), (self.param, self.allowed, self.got))
 
 
 def require(condition: bool, param: str, allowed: str, got: object = None) -> None:

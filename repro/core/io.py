@@ -1,12 +1,29 @@
-"""Atomic, deterministic result files and their provenance sidecars.
+"""Atomic, deterministic result files and their provenance sidecars, and the folders they live in.
 
 Every result is written to a temporary file in the destination folder and renamed into place, so an
 interrupted run never leaves a half-written file. CSVs are written with a fixed float format, so the
 same computation gives byte-identical files.
+
+A result is a pair, a CSV and its sidecar, and the pair is trusted only whole:
+
+- **Pairs that cannot tear.** The sidecar records the SHA-256 of its CSV's bytes; a reader
+  (:func:`read_result`) takes a CSV only with the sidecar that describes it, and anything else (a
+  sidecar missing, or written for other bytes) reads as a missing result, "not yet run".
+  Sidecars written before the hash was recorded (the committed results of 2026-11-25 and before)
+  carry none and are taken as they are.
+- **One writer per results folder.** A driver holds its results folder's ``results.lock`` from
+  its up-front checks to its end (:func:`open_results`); a second writer is refused in one line
+  naming the holder. A pair written outside a driver takes the lock for that pair alone.
+- **Provenance guards results, not folder names.** A run never replaces a result whose sidecar
+  records a larger scale (smoke < quick < paper) unless told to (``--overwrite``); a driver checks
+  its results folder for such results before any work.
 """
 
 from __future__ import annotations
 
+import errno
+import hashlib
+import io
 import json
 import os
 import platform
@@ -14,17 +31,22 @@ import subprocess
 import sys
 import tempfile
 import time
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager, nullcontext
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Iterator
+from typing import TYPE_CHECKING, Any, Iterator
 
-import pandas as pd
-
+from repro.core.config import SCALES
 from repro.core.errors import UsageError, require
+from repro.core.locks import folder_lock
+
+if TYPE_CHECKING:  # pandas is imported where a table is written or read: the CLI starts lighter
+    import pandas as pd
 
 NAME_MAX = 255
 """The longest file or folder name (bytes) Linux and macOS file systems take."""
+PATH_MAX = 4096
+"""The longest path (bytes, with its terminating zero byte) Linux takes; macOS takes 1024."""
 
 FLOAT_FORMAT = "%.10g"
 """Ten significant digits: well above every quantity's precision, and stable across platforms."""
@@ -56,11 +78,29 @@ def check_writable_dir(path: str | Path, param: str) -> Path:
 
 
 def check_names(path: str | Path, param: str) -> Path:
-    """``path``, unless one of its names is longer than a file system takes (UsageError)."""
+    """``path``, unless it is not UTF-8 (a name of other bytes cannot be recorded in a sidecar or
+    printed), longer than the system takes, or one of its names longer than a file system takes
+    (UsageError)."""
+    text = str(path)
+    try:
+        text.encode()
+    except UnicodeEncodeError:  # argv's undecodable bytes arrive as lone surrogates
+        raise UsageError(param, "a path in UTF-8", _raw(text)) from None
+    size = len(os.path.abspath(text).encode()) if text else 0
+    require(size < PATH_MAX, param, f"a path of fewer than {PATH_MAX} bytes",
+            f"{text[:20]}... ({size} bytes)")
     long = next((part for part in Path(path).parts if len(part.encode()) > NAME_MAX), None)
     require(long is None, param, f"a path whose names have at most {NAME_MAX} bytes",
             f"{long[:20]}... ({len(long.encode())} bytes)" if long else None)
     return Path(path)
+
+
+def _raw(text: str) -> bytes | str:
+    """The bytes a path of argv stands for (its undecodable bytes arrive as lone surrogates)."""
+    try:
+        return os.fsencode(text)
+    except UnicodeEncodeError:
+        return text.encode(errors="backslashreplace").decode()
 
 
 def _umask() -> int:
@@ -86,6 +126,10 @@ def atomic_path(dest: str | Path) -> Iterator[Path]:
         yield Path(tmp)
         os.chmod(tmp, FILE_MODE)
         os.replace(tmp, dest)
+    except OSError as err:
+        if err.filename is None:  # a write to an open file (a full disk) names no file
+            err.filename = str(dest)
+        raise
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
@@ -116,8 +160,14 @@ def append_csv(dest: str | Path, frame: pd.DataFrame) -> None:
     rows it knows to be complete (a resumed training run keeps its checkpoint's epochs)."""
     dest = Path(dest)
     new = not dest.exists()
-    with dest.open("a", newline="") as f:
-        frame.to_csv(f, header=new, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    try:
+        with dest.open("a", newline="") as f:
+            frame.to_csv(f, header=new, index=False, float_format=FLOAT_FORMAT,
+                         lineterminator="\n")
+    except OSError as err:
+        if err.filename is None:
+            err.filename = str(dest)
+        raise
 
 
 def save_figure(fig: Any, stem: str | Path) -> list[Path]:
@@ -220,14 +270,157 @@ def sidecar_path(result: str | Path) -> Path:
     return result.with_name(result.stem + ".provenance.json")
 
 
-def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any]) -> Path:
-    """Write a result CSV and its provenance sidecar, both atomically. The old sidecar goes first,
-    so that a sidecar never describes a CSV it was not written with: an interrupted write leaves a
-    CSV without a sidecar, which readers take for a missing result (:func:`read_result`)."""
-    sidecar_path(dest).unlink(missing_ok=True)
-    write_csv(dest, frame)
-    write_json(sidecar_path(dest), prov)
-    return Path(dest)
+CSV_HASH = "csv_sha256"
+"""The sidecar's record of its CSV: the SHA-256 of the CSV's bytes (hex)."""
+RESULTS_LOCK = "results.lock"
+"""Held in a results folder by the process writing into it."""
+PAIR_WAIT = 10.0
+"""Seconds a pair written outside a driver waits for its folder's lock (another pair's write
+takes milliseconds; a driver holding the folder, its whole run)."""
+
+_session = ExitStack()
+"""The results folders this process holds until :func:`release_results`."""
+_held: dict[Path, bool] = {}
+"""Those folders (resolved), each with whether its results may replace larger-scale ones."""
+
+
+def scale_rank(scale: Any) -> int:
+    """The order of ``scale`` among :data:`~repro.core.config.SCALES` (-1 for none or unknown)."""
+    return SCALES.index(scale) if scale in SCALES else -1
+
+
+def _recorded_scale(result: Path) -> Any:
+    """The scale the sidecar of ``result`` records (None if it has none or cannot be read)."""
+    try:
+        return json.loads(sidecar_path(result).read_text()).get("scale")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def larger_results(folder: Path, scale: str | None) -> list[tuple[str, str]]:
+    """(CSV name, its scale) of the results directly in ``folder`` whose sidecars record a scale
+    larger than ``scale``."""
+    out = []
+    for side in sorted(Path(folder).glob("*.provenance.json")):
+        csv = side.with_name(side.name.removesuffix(".provenance.json") + ".csv")
+        theirs = _recorded_scale(csv)
+        if scale_rank(theirs) > scale_rank(scale):
+            out.append((csv.name, theirs))
+    return out
+
+
+def _refuse_larger(folder: Path, larger: list[tuple[str, str]], scale: str | None,
+                   param: str, path: Any) -> None:
+    if larger:
+        name, theirs = larger[0]
+        more = f" and {len(larger) - 1} more" if len(larger) > 1 else ""
+        raise UsageError(param, f"a folder without results of a larger scale than this run's "
+                         f"({scale}): it holds {theirs}-scale {name}{more} (--overwrite replaces "
+                         "them)", str(path))
+
+
+def open_results(path: str | Path, param: str, *, scale: str | None,
+                 overwrite: bool = False) -> Path:
+    """The results folder ``path`` of a driver at ``scale``, held for this process until
+    :func:`release_results` (the CLI releases it when the command ends). Refused (UsageError
+    naming ``param``, before any work) if it cannot be written, if another process holds it, or
+    if it holds results of a larger scale than ``scale`` and ``overwrite`` is not given. A folder
+    this creates is removed again on release if nothing was written into it."""
+    folder = check_writable_dir(path, param)
+    key = folder.resolve()
+    if key in _held:
+        _held[key] = _held[key] or overwrite
+        return folder
+    with ExitStack() as stack:
+        stack.callback(_remove_empty, _missing(folder))  # after the lock file is gone
+        stack.enter_context(folder_lock(folder, RESULTS_LOCK, param, "a results folder"))
+        if not overwrite:
+            _refuse_larger(folder, larger_results(folder, scale), scale, param, path)
+        _session.push(stack.pop_all())
+    _held[key] = overwrite
+    return folder
+
+
+def release_results() -> None:
+    """Let go of every results folder this process holds (:func:`open_results`)."""
+    _held.clear()
+    _session.close()
+
+
+def _missing(folder: Path) -> list[Path]:
+    """``folder`` and its ancestors that do not exist yet, deepest first."""
+    out = []
+    while not folder.exists() and folder.parent != folder:
+        out.append(folder)
+        folder = folder.parent
+    return out
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:  # something was written there (or it went already)
+            return
+
+
+def csv_bytes(frame: pd.DataFrame) -> bytes:
+    """The bytes :func:`write_csv` writes for ``frame``."""
+    return frame.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n").encode()
+
+
+def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any], *,
+                 overwrite: bool = False) -> Path:
+    """Write a result CSV and its provenance sidecar, both atomically, the sidecar recording the
+    CSV's hash. The old sidecar goes first, so that a sidecar never describes a CSV it was not
+    written with: an interrupted write leaves a CSV without a sidecar, which readers take for a
+    missing result (:func:`read_result`). Refused (UsageError naming --results-dir) if ``dest``
+    holds a result of a larger scale than ``prov``'s, unless ``overwrite`` (or the folder was
+    opened with it)."""
+    dest = Path(dest)
+    data = csv_bytes(frame)
+    prov = {**prov, CSV_HASH: hashlib.sha256(data).hexdigest()}
+    folder = dest.parent
+    held = folder.resolve() in _held
+    with (nullcontext() if held else folder_lock(folder, RESULTS_LOCK, "--results-dir",
+                                                  "a results folder", wait=PAIR_WAIT)):
+        theirs = _recorded_scale(dest)
+        mine = prov.get("scale")
+        if scale_rank(theirs) > scale_rank(mine) and not (overwrite or _held.get(folder.resolve())):
+            _refuse_larger(folder, [(dest.name, theirs)], mine, "--results-dir", folder)
+        sidecar_path(dest).unlink(missing_ok=True)
+        write_bytes(dest, data)
+        write_json(sidecar_path(dest), prov)
+    return dest
+
+
+def read_result(result: str | Path) -> pd.DataFrame:
+    """The table of a result whose sidecar belongs to it. FileNotFoundError (naming the file),
+    which reads "not yet run", if the CSV or its sidecar is missing, or if the sidecar records
+    another CSV's hash (a pair torn by a writer, or a CSV edited by hand); a writer at work is
+    given a moment to finish its pair. A sidecar without a hash is taken as it is (results
+    written before the hash was recorded)."""
+    result, side = Path(result), sidecar_path(result)
+    for attempt in range(4):
+        if attempt:
+            time.sleep(0.05)
+        try:
+            before = side.read_bytes()
+            data = result.read_bytes()
+            if side.read_bytes() != before:
+                continue  # rewritten meanwhile
+        except FileNotFoundError:
+            if not result.exists():
+                raise FileNotFoundError(errno.ENOENT, "missing", str(result)) from None
+            continue
+        want = json.loads(before).get(CSV_HASH)
+        if want is None or want == hashlib.sha256(data).hexdigest():
+            import pandas as pd
+
+            return pd.read_csv(io.BytesIO(data))
+    if not side.exists():
+        raise FileNotFoundError(errno.ENOENT, "missing", str(side))
+    raise FileNotFoundError(errno.ENOENT, "not the CSV its sidecar describes", str(result))
 
 
 def read_provenance(result: str | Path) -> dict[str, Any]:

@@ -1,4 +1,7 @@
-"""Keep freed memory in the process (glibc's malloc), so large temporaries do not cost page faults.
+"""Memory: what the machine has (:func:`available_memory`, :func:`require_memory`, for up-front
+checks of sizes), and keeping freed memory in the process.
+
+Keep freed memory in the process (glibc's malloc), so large temporaries do not cost page faults.
 
 By default glibc hands every freed block above 128 KiB (then, adaptively, somewhat more) back to the
 kernel, and the next allocation of that size takes a page fault on first touch of each 4 KiB page.
@@ -22,6 +25,9 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import os
+
+from repro.core.errors import UsageError
 
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD, _M_MMAP_MAX = -1, -3, -4  # from glibc's malloc.h
 _KEEP = 1 << 30  # bytes of free memory at the top of the heap that malloc keeps
@@ -39,3 +45,44 @@ def keep_freed_memory() -> bool:
         return False
     return (bool(mallopt(_M_MMAP_THRESHOLD, _MMAP)) and bool(mallopt(_M_MMAP_MAX, 0))
             and bool(mallopt(_M_TRIM_THRESHOLD, _KEEP)))
+
+
+def available_memory() -> int | None:
+    """Bytes this process can expect to allocate now: the kernel's estimate of available memory
+    (Linux's MemAvailable), or less where a control group caps the process; else the machine's
+    physical memory; None where neither is known."""
+    found = []
+    try:
+        with open("/proc/meminfo") as f:
+            found += [int(line.split()[1]) * 1024 for line in f
+                      if line.startswith("MemAvailable:")]
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        with open("/sys/fs/cgroup/memory.max") as f:
+            cap = f.read().strip()
+        with open("/sys/fs/cgroup/memory.current") as f:
+            found.append(int(cap) - int(f.read().strip()))
+    except (OSError, ValueError):  # no cgroup v2 cap ("max" is none)
+        pass
+    if not found:
+        try:
+            found.append(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+        except (ValueError, OSError, AttributeError):
+            return None
+    return max(min(found), 0)
+
+
+def require_memory(need: float, param: str, got: object, what: str) -> None:
+    """Refuse (UsageError naming ``param``) a size whose ``what`` ("a training epoch") needs at
+    least ``need`` bytes when the machine has fewer available: an up-front check, so that a size
+    that cannot fit is one line rather than a MemoryError (or the kernel's kill) minutes in.
+    Estimates are lower bounds, so a size that fits is never refused."""
+    have = available_memory()
+    if have is not None and need > have:
+        raise UsageError(param, f"a size that fits in this machine's memory ({what}: at least "
+                         f"{_gib(need)} needed, {_gib(have)} available now)", got)
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:,.1f} GiB"

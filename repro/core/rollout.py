@@ -191,6 +191,24 @@ def episode_streams(seed: int | np.random.SeedSequence,
     return children(seed, n_episodes)
 
 
+DECISION_BYTES = 56
+"""Bytes a rollout records per decision besides its observation: action, reward, duration, and the
+engine's episode, agent and decision numbers while the paths are packed."""
+
+
+def rollout_bytes(env: Any, n_episodes: int, *, keep_obs: bool = True,
+                  batch: int | None = None) -> int:
+    """A lower bound of the memory a rollout of ``n_episodes`` holds: per episode what the engine
+    holds besides its decisions (``episode_bytes``, where the engine says; for ``batch`` episodes
+    at a time if they run in batches), and per agent at least one decision (with its
+    observation, if kept). For up-front checks of sizes (:func:`repro.core.memory.
+    require_memory`)."""
+    at_once = n_episodes if batch is None else min(n_episodes, batch)
+    per_decision = DECISION_BYTES + (8 * env.obs_dim if keep_obs else 0)
+    return (at_once * int(getattr(env, "episode_bytes", 0))
+            + n_episodes * env.n_agents * per_decision)
+
+
 class BatchEnv(Protocol):
     """What the learner and the evaluation tools need from an event-driven multi-agent environment.
 

@@ -48,15 +48,16 @@ import numpy as np
 import pandas as pd
 import torch
 
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, write_result
-from repro.core.rollout import BatchEnv, DecisionBatch, Policy
+from repro.core.io import provenance, write_result
+from repro.core.memory import require_memory
+from repro.core.rollout import BatchEnv, DecisionBatch, Policy, rollout_bytes
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
 from repro.envs import env_package, make_vector_env, train_defaults
 from repro.learn.config import TrainConfig
-from repro.learn.trained_policy import load_trained_run, policy_from_state
+from repro.learn.trained_policy import check_fits, load_trained_run, policy_from_state
 
 
 CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
@@ -157,7 +158,11 @@ def _timed_batches(run: Callable[[_Timed, np.random.SeedSequence], int], policy:
 def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,
             cfg: BenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
     """One row per engine and policy (see the module docstring); ``trained``: a loaded
-    checkpoint (:func:`load_trained_run`) whose policy is timed instead of a fresh network."""
+    checkpoint (:func:`load_trained_run`) whose policy is timed instead of a fresh network.
+    Batches that cannot fit in memory are refused first."""
+    for env, episodes, param in ((fast, cfg.fast_episodes, "--fast-episodes"),
+                                 (reference, cfg.reference_episodes, "--reference-episodes")):
+        require_memory(rollout_bytes(env, episodes), param, episodes, "a batch of episodes")
     if trained is None:
         warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
         normalizer = ObsNormalizer(fast.obs_dim)
@@ -171,6 +176,7 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
             cheap_name: cheap,
         }
     else:
+        check_fits(trained, fast, "--checkpoint", None)
         fast.rollout(cheap(fast, np.random.default_rng(seed)), 1, seed)  # compiles the engine
         policies = {"checkpoint": lambda env, rng: policy_from_state(trained, rng),
                     cheap_name: cheap}
@@ -215,7 +221,7 @@ def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
                     reference_episodes=args.reference_episodes, repeats=args.repeats)
     trained = (None if args.checkpoint is None
                else load_trained_run(args.checkpoint, command.removeprefix("bench-")))
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     load_before = os.getloadavg()[0]
     t0 = time.perf_counter()
     frame = measure_env(cfg, args.seed, trained)

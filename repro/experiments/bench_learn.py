@@ -21,10 +21,10 @@ import numpy as np
 import pandas as pd
 import torch
 
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, for_scale, to_dict
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, write_result
+from repro.core.io import provenance, write_result
 from repro.envs import BUILT_IN, env_package
 from repro.experiments import train
 from repro.learn import trainer
@@ -159,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
     train_cfg = train_config("quick", args.env, args.learner, seed=args.seed, epochs=cfg.epochs,
                              batch_episodes=cfg.episodes)
     env_cfg = pkg.config_from_args(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as out:  # checkpoints are written, as in a real run
         run = trainer.Trainer(train_cfg, pkg.make_env(env_cfg), out, env_cfg)

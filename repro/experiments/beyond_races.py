@@ -28,10 +28,11 @@ import pandas as pd
 
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import (check_writable_dir, provenance, read_result, save_figure,
+                           write_result)
 from repro.envs.wildfire import WildfireConfig, make_env
 from repro.envs.wildfire.policies import POLICIES
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.experiments.race import fit_power_law
 from repro.experiments.sweep import check_sweep_arguments, map_tasks
 from repro.experiments.wildfire_eval import evaluate
@@ -148,8 +149,10 @@ def fit(table: pd.DataFrame, delta: float, c10_beta: float) -> pd.DataFrame:
 
 def c10_beta(results: Path) -> float:
     """C10's exponent, the mean over its distributions in ``table_race.csv``; NaN if not run."""
-    path = results / "table_race.csv"
-    return float(pd.read_csv(path).beta.mean()) if path.exists() else float("nan")
+    try:
+        return float(read_result(results / "table_race.csv").beta.mean())
+    except FileNotFoundError:
+        return float("nan")
 
 
 def plot(table: pd.DataFrame, fits: pd.DataFrame, stem: Path) -> None:
@@ -216,7 +219,7 @@ def run(args: argparse.Namespace) -> int:
                     log10_dt_min=args.log10_dt_min, log10_dt_max=args.log10_dt_max,
                     log10_dt_step=args.log10_dt_step, delta=args.delta)
     check_sweep_arguments(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
     # largest N first: the longest cells start first, so the workers finish together

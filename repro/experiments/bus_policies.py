@@ -9,12 +9,15 @@ import numpy as np
 import pandas as pd
 
 from repro.core.errors import UsageError, require
+from repro.core.io import read_result
 from repro.core.rollout import DecisionBatch, Policy
 from repro.envs.bus.params import SWITCHES, BusConfig
 from repro.envs.bus.policies import (AUTHORS_THRESHOLDS, ThresholdPolicy, check_thresholds,
                                      no_holding)
 from repro.learn.run_folder import CHECKPOINT
-from repro.learn.trained_policy import load_trained_run, policy_from_state, trained_env_config
+from repro.envs.bus import make_env
+from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
+                                        trained_env_config)
 
 
 class GreedyPolicy:
@@ -22,14 +25,16 @@ class GreedyPolicy:
 
     The figures show one episode per policy; acting greedily makes that episode the trained
     policy's exact behaviour, as it is for the deterministic baselines. The run must have been
-    trained with the switches B1-B5 of ``cfg`` (they change what it observes).
+    trained with the switches B1-B5 of ``cfg`` (they change what it observes). ``param``: the
+    option that named the run, which a refusal names.
     """
 
-    def __init__(self, run: str | Path, cfg: BusConfig):
-        state = load_trained_run(Path(run) / CHECKPOINT, "bus", "--mlp-run")
-        trained = trained_env_config(state, BusConfig)
+    def __init__(self, run: str | Path, cfg: BusConfig, param: str = "--mlp-run"):
+        state = load_trained_run(Path(run) / CHECKPOINT, "bus", param)
+        trained = trained_env_config(state, BusConfig, param)
+        check_fits(state, make_env(trained), param, run)
         differ = [f for f in SWITCHES if getattr(trained, f) != getattr(cfg, f)]
-        require(not differ, "--mlp-run", "a run trained with this command's switches B1-B5 "
+        require(not differ, param, "a run trained with this command's switches B1-B5 "
                 f"(it differs in {', '.join(differ)})", str(run))
         # the generator is never drawn from: greedy actions need no randomness
         self.sampler = policy_from_state(state, np.random.default_rng(0))
@@ -48,15 +53,21 @@ LAMBDA_SUMMARY_CSV = "bus_lambda_summary.csv"
 
 def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.ndarray:
     """Our T1, T2, T3 (s) from results/bus_thresholds.csv, written by `make table-thresholds`;
-    without it, a UsageError naming ``param``, the option that could have supplied them."""
+    without it (or with a CSV its sidecar does not describe), a UsageError naming ``param``, the
+    option that could have supplied them."""
     path = Path(results_dir) / THRESHOLDS_CSV
-    if not path.exists():
-        if param == "--thresholds":
-            raise UsageError(param, f"given, or {path} written first by `make table-thresholds`")
-        raise UsageError(param, f"a folder holding {THRESHOLDS_CSV} (`make table-thresholds` "
-                         "writes it)", str(results_dir))
     try:
-        row = pd.read_csv(path).query("source == 'ours'").iloc[0]
+        table = read_result(path)
+    except FileNotFoundError:
+        if param == "--thresholds":
+            raise UsageError(param, f"given, or {path} written first by `make table-thresholds`"
+                             ) from None
+        raise UsageError(param, f"a folder holding {THRESHOLDS_CSV} (`make table-thresholds` "
+                         "writes it)", str(results_dir)) from None
+    except ValueError:
+        table = None
+    try:
+        row = table.query("source == 'ours'").iloc[0]
         return check_thresholds(np.array([row.T1, row.T2, row.T3], float))[0]
     except (ValueError, KeyError, IndexError, AttributeError, pd.errors.UndefinedVariableError):
         raise UsageError(param, f"a folder whose {THRESHOLDS_CSV} is the table "
@@ -64,33 +75,39 @@ def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.
                          str(results_dir)) from None
 
 
-def best_run(results_dir: str | Path) -> Path:
+def best_run(results_dir: str | Path, param: str = "--mlp-run") -> Path:
     """The run folder of the lambda sweep's best run (highest final return), from
-    results/bus_lambda_summary.csv, written by `make fig-bus-lambda`."""
+    results/bus_lambda_summary.csv, written by `make fig-bus-lambda`; a UsageError naming
+    ``param`` without it."""
     path = Path(results_dir) / LAMBDA_SUMMARY_CSV
-    if not path.exists():
-        raise UsageError("--mlp-run", f"given, or {path} written first by `make fig-bus-lambda`")
     try:
-        runs = pd.read_csv(path).query("policy == 'mlp-run'")
+        runs = read_result(path).query("policy == 'mlp-run'")
         return Path(runs.run.iloc[int(np.argmax(runs.final_iqm.to_numpy(float)))])
+    except FileNotFoundError:
+        raise UsageError(param, f"given, or {path} written first by `make fig-bus-lambda`"
+                         ) from None
     except (ValueError, KeyError, IndexError, AttributeError, TypeError,
             pd.errors.UndefinedVariableError):
-        raise UsageError("--mlp-run", f"given, or a {LAMBDA_SUMMARY_CSV} as `make fig-bus-lambda` "
+        raise UsageError(param, f"given, or a {LAMBDA_SUMMARY_CSV} as `make fig-bus-lambda` "
                          "writes it (run it again)", str(path)) from None
 
 
 def make_policy(name: str, cfg: BusConfig, *, thresholds: np.ndarray | None = None,
                 results_dir: str | Path = "results/paper",
-                mlp_run: str | Path | None = None) -> Policy:
+                mlp_run: str | Path | None = None, results_param: str | None = None,
+                mlp_param: str = "--mlp-run") -> Policy:
     """The policy called ``name`` on corridor ``cfg``; our thresholds default to the optimised
-    ones in ``results_dir``, the trained MLP to the best run of the lambda sweep recorded there."""
+    ones in ``results_dir``, the trained MLP to the best run of the lambda sweep recorded there.
+    Refusals name the options the caller has: ``mlp_param`` for the run, ``results_param`` (if
+    given) for the results folder, else --thresholds and --mlp-run."""
     require(name in POLICIES, "--policy", "one of " + ", ".join(POLICIES), name)
     if name == "nohold":
         return no_holding
     if name == "mlp":
-        return GreedyPolicy(best_run(results_dir) if mlp_run is None else mlp_run, cfg)
+        run = best_run(results_dir, results_param or mlp_param) if mlp_run is None else mlp_run
+        return GreedyPolicy(run, cfg, mlp_param)
     if name == "authors":
         thresholds = np.array(AUTHORS_THRESHOLDS)
     elif thresholds is None:
-        thresholds = read_thresholds(results_dir)
+        thresholds = read_thresholds(results_dir, results_param or "--thresholds")
     return ThresholdPolicy(thresholds, headway_in_minutes=not cfg.b2_headway)

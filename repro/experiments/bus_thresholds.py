@@ -22,10 +22,10 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import differential_evolution
 
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, for_scale, to_dict
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, write_result
+from repro.core.io import provenance, write_result
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.policies import AUTHORS_THRESHOLDS, ThresholdPolicy
 from repro.experiments.bus_policies import THRESHOLDS_CSV
@@ -94,7 +94,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(ThresholdsConfig, args.scale, popsize=args.popsize, maxiter=args.maxiter)
     bus = config_from_args(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     t0 = time.perf_counter()
     table = optimise(cfg, bus, args.seed)
     prov = provenance(cfg, command="bus-thresholds", scale=args.scale, seed=args.seed,

@@ -16,10 +16,11 @@ from typing import Callable
 
 import pandas as pd
 
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.envs.bus import add_switch_arguments, config_from_args
+from repro.envs.bus.policies import check_thresholds
 from repro.experiments.bus_policies import POLICIES, best_run
 from repro.experiments.bus_eval import picture_arrivals, policy_from_args
 
@@ -95,7 +96,9 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
     figure's table from the arrival records, write it with provenance, and draw it."""
     for name in args.policies:
         require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    if args.thresholds is not None:  # checked even where no panel uses them
+        check_thresholds(args.thresholds)
+    results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
     table = table_of(collect(args))

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from repro.core.io import provenance, save_figure, write_result
+from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.envs.bus import BusConfig, config_from_args
 from repro.envs.bus.metrics import l1_per_point, record_loads
 from repro.envs.bus.params import SWITCHES
@@ -93,7 +93,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def mlp_run_distances(cfg: BusConfig, results: Path) -> pd.DataFrame:
     """Rows lambda, seed, final_return, run, l1_per_point: each run of the lambda sweep."""
-    runs = pd.read_csv(results / LAMBDA_SUMMARY_CSV)
+    runs = read_result(results / LAMBDA_SUMMARY_CSV)
     rows = []
     for lam, ret, run in runs[runs.policy == "mlp-run"][["lambda", "final_iqm", "run"]].values:
         arrivals = picture_arrivals(GreedyPolicy(run, cfg), cfg).assign(policy="mlp")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from repro.core.config import DEFAULT_SCALE, SCALES
 from repro.core.errors import require
+from repro.core.io import open_results
 
 
 def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0,
@@ -19,6 +20,9 @@ def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0,
                             help="root seed of every random stream (an integer >= 0)")
     parser.add_argument("--results-dir",
                         help="folder for CSVs and sidecars (default results/<scale>)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace results of a larger scale in --results-dir (their sidecars "
+                             "say which; without it such a folder is refused)")
     if figures:
         parser.add_argument("--figures-dir", help="folder for PNG and PDF figures "
                             "(default figures/<scale>)")
@@ -36,3 +40,11 @@ def default_folders(args: argparse.Namespace) -> None:
     for kind in ("results", "figures"):
         if hasattr(args, "scale") and getattr(args, f"{kind}_dir", "") is None:
             setattr(args, f"{kind}_dir", str(scale_folder(kind, args.scale)))
+
+
+def results_folder(args: argparse.Namespace) -> Path:
+    """The driver's ``--results-dir``, checked and held until the command ends: writable, no other
+    process writing to it, and no results of a larger scale than ``--scale`` there unless
+    ``--overwrite`` (:func:`repro.core.io.open_results`)."""
+    return open_results(args.results_dir, "--results-dir", scale=args.scale,
+                        overwrite=args.overwrite)

@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, for_scale
 from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -286,7 +286,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = for_scale(RaceConfig, args.scale, n_sets=args.n_sets, n_min=args.n_min,
                     n_max=args.n_max, delta=args.delta,
                     distributions=tuple(args.distributions) if args.distributions else None)
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
     tables = run_study(cfg, args.seed)

@@ -18,8 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from repro.core.errors import require
+from repro.core.io import check_names, check_writable_dir
 from repro.experiments import bus_policies
-from repro.learn.trained_policy import load_trained_run, policy_from_state, trained_env_config
+from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
+                                        trained_env_config)
 
 POLICIES = {"wildfire": ("random", "nearest", "flowchart", "checkpoint"),
             "bus": (*bus_policies.POLICIES, "checkpoint")}
@@ -51,9 +53,12 @@ def run(args: argparse.Namespace) -> int:
     require(len(path) <= (need is not None) and (need != "required" or path), "--policy",
             f"{name} {'PATH' if need == 'required' else '[RUN]' if need else 'with no path'}",
             " ".join([name, *path]))
+    if path:
+        check_names(path[0], "--policy")
     out = Path(args.out)
     require(out.suffix == ".gif", "--out", "a .gif file", args.out)
     require(out.parent.is_dir(), "--out", "in an existing folder", args.out)
+    check_writable_dir(out.parent, "--out")  # before the episode runs
     require(args.frames >= 2, "--frames", "an integer >= 2", args.frames)
     require(args.fps >= 1, "--fps", "an integer >= 1", args.fps)
     rng = np.random.default_rng(args.seed)
@@ -67,8 +72,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _trained(path: str, env_name: str, config_type: type, rng: np.random.Generator):
     """The environment config and the policy of a trained run's checkpoint."""
+    from repro.envs import env_package
+
     state = load_trained_run(path, env_name, "--policy")
-    return trained_env_config(state, config_type), policy_from_state(state, rng)
+    cfg = trained_env_config(state, config_type, "--policy")
+    check_fits(state, env_package(env_name).make_env(cfg), "--policy", path)
+    return cfg, policy_from_state(state, rng)
 
 
 def _wildfire(name: str, path: str | None, args: argparse.Namespace, rng: np.random.Generator):
@@ -103,7 +112,8 @@ def _bus(name: str, path: str | None, args: argparse.Namespace, rng: np.random.G
     else:
         cfg = BusConfig()
         policy = bus_policies.make_policy(name, cfg, results_dir=args.results_dir,
-                                          mlp_run=path)
+                                          mlp_run=path, results_param="--results-dir",
+                                          mlp_param="--policy")
     batch = BusBatch(cfg, 1)
     pending = [batch.advance(np.zeros(0, np.int64))]
 

@@ -19,21 +19,27 @@ building the environment and loading the checkpoint on the worker, tens of milli
 from __future__ import annotations
 
 import argparse
+import asyncio
 import dataclasses
 import os
+import re
+import socket
 import tempfile
+import threading
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from repro.core.errors import UsageError
+from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, write_bytes
+from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, epochs_done,
-                                    is_finished, writer_lock)
+                                    is_finished, locked_by, writer_lock)
 from repro.envs import env_package
+from repro.learn.sizes import check_training_size, training_bytes
 from repro.learn.trainer import Trainer, check_run_folder
 
 
@@ -59,12 +65,17 @@ def is_done(root: Path, job: TrainJob) -> bool:
     return is_finished(run_dir(root, job), job.train.epochs)
 
 
+def _env(job: TrainJob) -> Any:
+    return env_package(job.train.env).make_env(job.env_config)
+
+
 def run_job(job: TrainJob, root: Path) -> str:
     """Train (or resume) one job in its folder under ``root``; runs in a joblib worker process."""
     os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
     die_with_parent()
     env = env_package(job.train.env).make_env(job.env_config)
-    Trainer(job.train, env, run_dir(root, job), env_config=job.env_config).train()
+    Trainer(job.train, env, run_dir(root, job), env_config=job.env_config,
+            param="--runs-dir").train()
     return job.name
 
 
@@ -78,7 +89,7 @@ def run_shipped_job(job: TrainJob, files: dict[str, bytes]) -> dict[str, bytes]:
         for name, data in files.items():
             (folder / name).write_bytes(data)
         env = env_package(job.train.env).make_env(job.env_config)
-        Trainer(job.train, env, folder, env_config=job.env_config).train()
+        Trainer(job.train, env, folder, env_config=job.env_config, param="--runs-dir").train()
         return folder_files(folder)
 
 
@@ -133,18 +144,38 @@ def check_jobs(jobs: list[TrainJob], root: Path) -> None:
         check_run_folder(run_dir(root, j), j.train, j.env_config, j.train.env, "--runs-dir")
 
 
+SWEEP_LOCK = "sweep.lock"
+"""Held in a sweep's root folder while it trains: one sweep at a time per folder of runs."""
+
+
 def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
               scheduler: str | None = None) -> list[Path]:
-    """Run every job that is not done yet; returns every job's folder (in the order given)."""
+    """Run every job that is not done yet; returns every job's folder (in the order given).
+
+    A sweep that has runs to train holds ``root``'s sweep.lock meanwhile: a second sweep over the
+    same runs (two identical commands started together) is refused in one line naming
+    --runs-dir, as is one that finds a run of its own being trained by another process (a
+    ``train`` in it), before any worker starts."""
     check_jobs(jobs, root)
     pending = [j for j in jobs if not is_done(root, j)]
-    if pending and scheduler:
-        _run_on_dask(pending, Path(root), scheduler)
-    elif pending:
-        from joblib import Parallel, delayed
+    if not pending:
+        return [run_dir(root, j) for j in jobs]
+    workers = min(len(pending), n_jobs or os.cpu_count() or 1)
+    if not scheduler:  # the runs train on this machine, ``workers`` at a time
+        largest = max(pending, key=lambda j: sum(training_bytes(j.train, _env(j))))
+        check_training_size(largest.train, _env(largest), runs=workers)
+    with folder_lock(root, SWEEP_LOCK, "--runs-dir", "a folder of runs"):
+        for job in pending:
+            holder = locked_by(run_dir(root, job))
+            require(holder is None, "--runs-dir", f"a folder of runs no other process is "
+                    f"writing to ({holder} holds {job.name}/{LOCK})", str(root))
+        if scheduler:
+            _run_on_dask(pending, Path(root), scheduler)
+        else:
+            from joblib import Parallel, delayed
 
-        workers = min(len(pending), n_jobs or os.cpu_count() or 1)
-        Parallel(n_jobs=workers, backend="loky")(delayed(run_job)(j, Path(root)) for j in pending)
+            Parallel(n_jobs=workers, backend="loky")(delayed(run_job)(j, Path(root))
+                                                     for j in pending)
     return [run_dir(root, j) for j in jobs]
 
 
@@ -161,15 +192,91 @@ def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None 
     return Parallel(n_jobs=workers, backend="loky")(delayed(fn)(*task) for task in tasks)
 
 
+SCHEDULER_DEADLINE = 30.0
+"""Seconds that finding, reaching and hearing from ``--scheduler`` may take, whatever answers at
+the address (a Dask client's own timeout does not cover a listener that never answers)."""
+_ADDRESS = re.compile(r"(?:(tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*"
+                      r"[A-Za-z0-9])?):([0-9]{1,5})")
+_SCHEDULER_FORM = "the address of a running Dask scheduler, tcp://HOST:PORT (or tls://)"
+
+
+def check_scheduler(scheduler: str) -> tuple[str, str, int]:
+    """(scheme, host, port) of a ``--scheduler`` address in the form tcp://HOST:PORT, tls://HOST:PORT
+    or HOST:PORT; a UsageError otherwise, before any connection is tried."""
+    m = _ADDRESS.fullmatch(scheduler)
+    port = int(m.group(3)) if m else 0
+    if not m or not 1 <= port <= 65535:
+        raise UsageError("--scheduler", _SCHEDULER_FORM, scheduler)
+    return m.group(1) or "tcp", m.group(2).strip("[]"), port
+
+
+def _within(deadline: float, what: Callable[[], Any]) -> tuple[bool, Any]:
+    """(True, what()) if it returns or raises within ``deadline`` seconds (its exception as the
+    value), else (False, None). It runs on a daemon thread: one that never returns (a name lookup
+    or a read from a listener that never answers) is left behind and ends with the process."""
+    out: list[Any] = []
+
+    def call() -> None:
+        try:
+            out.append(what())
+        except BaseException as err:  # handed to the caller as a value
+            out.append(err)
+
+    thread = threading.Thread(target=call, daemon=True, name="repro-scheduler-probe")
+    thread.start()
+    thread.join(deadline)
+    return (bool(out), out[0] if out else None)
+
+
+def _identity(address: str, deadline: float) -> Any:
+    """What the Dask server at ``address`` says it is (a dict with ``type``), on an event loop of
+    its own."""
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def ask() -> Any:
+        comm = await connect(address, timeout=deadline,
+                             **Security().get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity"})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    loop = asyncio.new_event_loop()
+    try:
+        return loop.run_until_complete(asyncio.wait_for(ask(), deadline))
+    finally:
+        loop.close()
+
+
 def _dask_client(scheduler: str) -> Any:
-    """A client of the running Dask scheduler at ``scheduler`` (UsageError if there is none)."""
+    """A client of the running Dask scheduler at ``scheduler``. The address's form is checked
+    first, then its host is looked up, the server asked what it is, and the client connected,
+    each within :data:`SCHEDULER_DEADLINE`; anything else at the address (nothing, a listener that
+    never answers, a web server, a Dask worker) is a UsageError naming --scheduler."""
+    scheme, host, port = check_scheduler(scheduler)
     from dask.distributed import Client
 
-    try:
-        return Client(scheduler, timeout=30)
-    except (OSError, ValueError, TypeError):  # a malformed address, or no scheduler there
-        raise UsageError("--scheduler", "the address of a running Dask scheduler",
-                         scheduler) from None
+    deadline = SCHEDULER_DEADLINE
+    answered, found = _within(deadline, lambda: socket.getaddrinfo(host, port,
+                                                                    type=socket.SOCK_STREAM))
+    if not answered or isinstance(found, BaseException) or not found:
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} whose host can be found (within "
+                         f"{deadline:g} s)", scheduler)
+    ip = found[0][4][0]
+    numeric = f"{scheme}://{'[' + ip + ']' if ':' in ip else ip}:{port}"
+    answered, identity = _within(deadline, lambda: _identity(numeric, deadline))
+    if not answered or not isinstance(identity, dict) or identity.get("type") != "Scheduler":
+        what = ("nothing answered within " f"{deadline:g} s" if not answered
+                else f"a {identity.get('type')} answered" if isinstance(identity, dict)
+                else "no Dask scheduler answered")
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} ({what})", scheduler)
+    answered, client = _within(deadline, lambda: Client(scheduler, timeout=deadline))
+    if not answered or isinstance(client, BaseException):
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} (it did not take a client within "
+                         f"{deadline:g} s)", scheduler)
+    return client
 
 
 def add_sweep_arguments(p: argparse.ArgumentParser) -> None:
@@ -191,11 +298,14 @@ def add_study_arguments(p: argparse.ArgumentParser, seeds_help: str) -> None:
 def check_sweep_arguments(args: argparse.Namespace) -> None:
     if args.n_jobs is not None and args.n_jobs < 1:
         raise UsageError("--n-jobs", "an integer >= 1", args.n_jobs)
+    if getattr(args, "scheduler", None) is not None:
+        check_scheduler(args.scheduler)
 
 
 def check_study_arguments(args: argparse.Namespace) -> tuple[Path, Path]:
     """Check the options of :func:`add_study_arguments` before any work: the sweep's, and that
-    the results and figures folders can be written; returns those two folders."""
+    the results and figures folders can be written; returns those two folders, the results folder
+    held until the command ends (:func:`~repro.experiments.options.results_folder`)."""
     check_sweep_arguments(args)
-    return (check_writable_dir(args.results_dir, "--results-dir"),
-            check_writable_dir(args.figures_dir, "--figures-dir"))
+    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    return results_folder(args), figures

@@ -30,7 +30,7 @@ import pandas as pd
 
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
-from repro.core.io import provenance, save_figure, write_result
+from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.experiments import beyond_races, transfer
 from repro.experiments.sweep import add_study_arguments, check_study_arguments
 
@@ -75,10 +75,10 @@ class TransferDtConfig(Validated):
 
 def read_races(results: Path, n_agents: int) -> pd.DataFrame | None:
     """X2's race rates of ``n_agents`` UAVs, by policy and ascending dT (None if not yet run)."""
-    path = results / RACES
-    if not path.exists():
+    try:
+        races = read_result(results / RACES)
+    except FileNotFoundError:
         return None
-    races = pd.read_csv(path)
     return races[(races.n_agents == n_agents) & (races.dt > 0)].sort_values(["policy", "dt"])
 
 

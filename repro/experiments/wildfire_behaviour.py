@@ -49,7 +49,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
@@ -277,7 +277,7 @@ def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
 def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
     check_sweep_arguments(args)
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     runs = check_writable_dir(Path(args.runs_dir) / cfg.name.replace("_", "-") / args.scale,
                               "--runs-dir")
     jobs = make_jobs(cfg, args.scale, args.seed)

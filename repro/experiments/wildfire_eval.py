@@ -18,7 +18,8 @@ from typing import Callable
 import numpy as np
 
 from repro.core.errors import require
-from repro.core.rollout import Policy, Rollout, concat
+from repro.core.memory import require_memory
+from repro.core.rollout import Policy, Rollout, concat, rollout_bytes
 from repro.core.stats import sem
 from repro.envs.wildfire import (QUIRKS, add_env_arguments, config_from_args, make_env,
                                  make_reference_env)
@@ -36,13 +37,17 @@ def adr(rollout: Rollout, gamma: float) -> tuple[float, float]:
 
 
 def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = True,
-             on_batch: Callable[[Rollout], object] | None = None) -> Rollout:
+             on_batch: Callable[[Rollout], object] | None = None,
+             param: str = "--test-episodes") -> Rollout:
     """Roll out ``n_episodes`` in batches seeded from children of ``seed``. ``keep_obs=False`` drops
     each batch's observations and engine log (``info``) as soon as it is done (the result's ``obs``
     has 0 columns): ADR does not need them, and a learned policy that keeps flying to the fire it is
     at can take tens of millions of decisions over 10,000 test episodes; with their observations,
     one paper-scale transfer test filled the machine's 24 GB. ``on_batch`` sees each whole batch
-    first."""
+    first. A number of episodes whose rollouts cannot fit in memory is refused first
+    (UsageError naming ``param``)."""
+    require_memory(rollout_bytes(env, n_episodes, keep_obs=keep_obs, batch=BATCH_EPISODES),
+                   param, n_episodes, "the rollouts")
     n_batches = -(-n_episodes // BATCH_EPISODES)
     children = np.random.SeedSequence(seed).spawn(n_batches)
     sizes = [min(BATCH_EPISODES, n_episodes - c * BATCH_EPISODES) for c in range(n_batches)]
@@ -76,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
     policy = POLICIES[args.policy](np.random.default_rng(policy_seed),
                                    n_observed=cfg.n_observed)
     t0 = time.perf_counter()
-    rollout = evaluate(env, policy, args.episodes, int(env_seed.generate_state(1)[0]))
+    rollout = evaluate(env, policy, args.episodes, int(env_seed.generate_state(1)[0]),
+                       param="--episodes")
     seconds = time.perf_counter() - t0
     mean, err = adr(rollout, cfg.gamma)
     out = dict(adr=mean, sem=err, episodes=args.episodes, decisions=rollout.n_decisions,

@@ -18,10 +18,10 @@ import numpy as np
 import pandas as pd
 
 from repro.core.config import for_scale
-from repro.core.io import check_writable_dir, provenance, write_result
+from repro.core.io import provenance, write_result
 from repro.envs.wildfire import make_env
 from repro.envs.wildfire.policies import POLICIES
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, results_folder
 from repro.experiments.transfer import TransferConfig, test_env_seed
 from repro.experiments.wildfire_eval import adr, evaluate
 
@@ -50,7 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(TransferConfig, args.scale, test_episodes=args.test_episodes)
-    results = check_writable_dir(args.results_dir, "--results-dir")
+    results = results_folder(args)
     t0 = time.perf_counter()
     table = pd.concat([heuristic_adrs(dataclasses.replace(cfg, corrected=corrected), args.seed)
                        for corrected in (False, True)], ignore_index=True)

@@ -26,21 +26,19 @@ needs) and, while a process trains in it, ``run.lock``.
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import io
 import json
-import os
-import socket
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
+import numpy as np
 import pandas as pd
 import torch
 
 from repro.core.errors import UsageError, require
 from repro.core.io import append_csv, write_bytes, write_csv, write_json, write_text
+from repro.core.locks import folder_lock, is_locked
 
 CONFIG = "config.json"
 PROGRESS = "progress.csv"
@@ -70,20 +68,123 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> None:
     write_bytes(path, buffer.getvalue())
 
 
-def load_checkpoint(path: str | Path, param: str = "--out",
-                    allowed: str | None = None) -> dict[str, Any]:
-    """The state saved by :func:`save_checkpoint`; anything else (a crafted pickle, a truncated,
-    empty or random file, a folder, an older format) is a :class:`UsageError` naming ``param``."""
+def load_checkpoint(path: str | Path, param: str = "--out", allowed: str | None = None, *,
+                    obs_dim: int | None = None, n_actions: int | None = None,
+                    training: bool = False) -> dict[str, Any]:
+    """The state saved by :func:`save_checkpoint`, whole (:func:`state_problem`; with
+    ``obs_dim`` and ``n_actions``, for an environment of those sizes; with ``training``, with
+    what training on needs, not only a kept policy's acting state); anything else (a crafted
+    pickle, a truncated, empty or random file, a folder, an older format, a loadable file with
+    damaged contents) is a :class:`UsageError` naming ``param``."""
     allowed = allowed or f"a readable {CHECKPOINT} of this suite (delete it to start the run again)"
     try:
         state = torch.load(path, weights_only=True)
         require(isinstance(state, dict) and state.get("format") == CHECKPOINT_FORMAT, param,
                 allowed, str(path))
-        return {**state, **{k: json.loads(state[k]) for k in _JSON_FIELDS if k in state}}
+        state = {**state, **{k: json.loads(state[k]) for k in _JSON_FIELDS
+                             if isinstance(state.get(k), str)}}
     except UsageError:
         raise
     except Exception:  # whatever torch or the unpickler raises for a file that is not ours
         raise UsageError(param, allowed, str(path)) from None
+    problem = state_problem(state, obs_dim, n_actions, training)
+    require(problem is None, param, f"{allowed}; {problem}",
+            str(path) if isinstance(path, (str, Path)) else None)
+    return state
+
+
+ACTING_KEYS = ("epoch", "policy", "normalizer", "run_config")
+"""The entries of a kept policy (besides ``format``): what acting needs."""
+TRAINING_KEYS = ("baseline", "sampler_rng", "torch_rng")
+"""The further entries of a run's checkpoint: what training on needs."""
+
+
+def state_problem(state: dict[str, Any], obs_dim: int | None = None,
+                  n_actions: int | None = None, training: bool = False) -> str | None:
+    """What is wrong with a loaded checkpoint or kept policy, or None: every entry there (those of
+    a checkpoint if ``training`` or if it has any) and of its type, a whole non-negative epoch, a
+    run config with its hidden sizes, policy layers of those sizes (and of ``obs_dim`` inputs and
+    ``n_actions`` outputs, if given), a normaliser and baseline of the policy's input size, finite
+    numbers throughout, and generator states numpy and torch take. Checked before anything uses
+    the state, so that damage is one line, not a traceback halfway through a resume, an
+    evaluation or a render."""
+    whole = training or any(k in state for k in TRAINING_KEYS)
+    missing = [k for k in ACTING_KEYS + (TRAINING_KEYS if whole else ()) if k not in state]
+    if missing:
+        return f"it lacks {', '.join(missing)}"
+    epoch, config = state["epoch"], state["run_config"]
+    if not isinstance(epoch, int) or isinstance(epoch, bool) or epoch < 0:
+        return f"its epoch is {epoch!r}, not a whole number >= 0"
+    train = config.get("train") if isinstance(config, dict) else None
+    hidden = train.get("hidden") if isinstance(train, dict) else None
+    if (not isinstance(hidden, (list, tuple)) or not hidden
+            or not all(isinstance(h, int) and h >= 1 for h in hidden)):
+        return "its run config has no hidden layer sizes"
+    policy = state["policy"]
+    first = policy.get("net.0.weight") if isinstance(policy, dict) else None
+    last = policy.get(f"net.{2 * len(hidden)}.weight") if isinstance(policy, dict) else None
+    if not (_is_tensor(first, 2) and _is_tensor(last, 2)):
+        return f"its policy is not an MLP of hidden sizes {list(hidden)}"
+    sizes = [first.shape[1], *hidden, last.shape[0]]
+    expect = {**{f"net.{2 * i}.weight": (b, a) for i, (a, b) in enumerate(zip(sizes, sizes[1:]))},
+              **{f"net.{2 * i}.bias": (b,) for i, b in enumerate(sizes[1:])}}
+    problem = _tensors_problem("policy", policy, expect)
+    if problem:
+        return problem
+    for name, want, have in (("inputs", obs_dim, sizes[0]), ("actions", n_actions, sizes[-1])):
+        if want is not None and have != want:
+            return f"its policy has {have} {name}, the environment {want}"
+    d = sizes[0]
+    norm = state["normalizer"]
+    count = norm.get("count") if isinstance(norm, dict) else None
+    if not isinstance(count, int) or isinstance(count, bool) or count < 0:
+        return "its normaliser has no count of observations"
+    problem = _tensors_problem("normaliser", {k: v for k, v in norm.items() if k != "count"},
+                               {"mean": (d,), "var": (d,)})
+    if problem or bool((norm["var"] < 0).any()):
+        return problem or "its normaliser has a negative variance"
+    if not whole:
+        return None
+    kind = train.get("baseline", "linear")
+    if kind == "mlp":
+        bh = list(train.get("baseline_hidden", (32, 32)))
+        bs = [d, *bh, 1]
+        expect = {**{f"net.{2 * i}.weight": (b, a) for i, (a, b) in enumerate(zip(bs, bs[1:]))},
+                  **{f"net.{2 * i}.bias": (b,) for i, b in enumerate(bs[1:])},
+                  "target_mean": (), "target_std": (), "fitted": ()}
+    else:
+        expect = {"coeffs": (2 * d + 4,)}
+    problem = _tensors_problem("baseline", state["baseline"], expect)
+    if problem:
+        return problem
+    try:
+        np.random.default_rng().bit_generator.state = state["sampler_rng"]
+    except Exception:  # numpy's setter raises ValueError, TypeError or KeyError
+        return "its sampler's generator state is not one numpy takes"
+    rng = state["torch_rng"]
+    if not (isinstance(rng, torch.Tensor) and rng.dtype == torch.uint8
+            and rng.shape == torch.get_rng_state().shape):
+        return "its torch generator state is not one torch takes"
+    return None
+
+
+def _is_tensor(x: Any, ndim: int) -> bool:
+    return isinstance(x, torch.Tensor) and x.dim() == ndim
+
+
+def _tensors_problem(what: str, tensors: Any, shapes: dict[str, tuple[int, ...]]) -> str | None:
+    """What is wrong with ``tensors`` (a dict of tensors with exactly the keys and shapes of
+    ``shapes``, all finite), or None."""
+    if not isinstance(tensors, dict) or set(tensors) != set(shapes):
+        return f"its {what} does not have the entries {', '.join(sorted(shapes))}"
+    for key, shape in shapes.items():
+        t = tensors[key]
+        if not isinstance(t, torch.Tensor) or tuple(t.shape) != shape:
+            got = tuple(t.shape) if isinstance(t, torch.Tensor) else type(t).__name__
+            return f"its {what}'s {key} is {got}, not of shape {shape}"
+        if t.dtype != torch.bool and not bool(torch.isfinite(t).all()):
+            return f"its {what}'s {key} holds NaN or Inf"
+    return None
 
 
 # --- the run's identity --------------------------------------------------------------------------
@@ -168,15 +269,17 @@ def check_same_run(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
 # --- resuming ------------------------------------------------------------------------------------
 
 def resume_state(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
-                 param: str = "--out") -> dict[str, Any] | None:
+                 param: str = "--out", *, obs_dim: int | None = None,
+                 n_actions: int | None = None) -> dict[str, Any] | None:
     """Check everything a (re)start needs, changing nothing: the folder holds this run (or none),
-    its checkpoint (if any) is readable and of this run, and progress.csv holds its epochs.
-    Returns the checkpoint's state, or None."""
+    its checkpoint (if any) is readable, whole (for an environment of ``obs_dim`` and
+    ``n_actions``, if given) and of this run, and progress.csv holds its epochs. Returns the
+    checkpoint's state, or None."""
     check_same_run(folder, mine, defaults, param)
     path = folder / CHECKPOINT
     if not path.exists():
         return None
-    state = load_checkpoint(path, param)
+    state = load_checkpoint(path, param, obs_dim=obs_dim, n_actions=n_actions, training=True)
     diff = run_difference(state.get("run_config") or {}, mine, defaults)
     require(diff is None, param, f"a run folder whose {CHECKPOINT} belongs to its run ({diff}; "
             f"delete {CHECKPOINT} to start again)", str(folder))
@@ -236,31 +339,12 @@ def is_finished(folder: str | Path, epochs: int) -> bool:
 
 # --- one writer ----------------------------------------------------------------------------------
 
-@contextmanager
-def writer_lock(folder: Path, param: str = "--out") -> Iterator[None]:
+def writer_lock(folder: Path, param: str = "--out") -> AbstractContextManager[None]:
     """Hold ``folder``'s run.lock while the block runs; a UsageError naming the holder if another
-    process holds it. The lock file is removed on release; a holder that finds the file it locked
-    unlinked (by a releasing writer) locks the new one instead."""
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / LOCK
-    while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as err:
-            holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
-            os.close(fd)
-            if err.errno not in (errno.EAGAIN, errno.EACCES):
-                raise
-            raise UsageError(param, f"a run folder no other process is writing to ({holder} "
-                             f"holds {LOCK})", str(folder)) from None
-        if os.path.exists(path) and os.stat(path).st_ino == os.fstat(fd).st_ino:
-            break
-        os.close(fd)  # the file was removed by a releasing writer: lock the new one
-    try:
-        os.ftruncate(fd, 0)
-        os.write(fd, f"pid {os.getpid()} on {socket.gethostname()}".encode())
-        yield
-    finally:
-        os.unlink(path)
-        os.close(fd)
+    process holds it (:func:`repro.core.locks.folder_lock`)."""
+    return folder_lock(folder, LOCK, param, "a run folder")
+
+
+def locked_by(folder: Path) -> str | None:
+    """The holder of ``folder``'s run.lock if another process holds it now, else None."""
+    return is_locked(folder, LOCK)

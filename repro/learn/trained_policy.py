@@ -7,9 +7,9 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from repro.core.errors import require
+from repro.core.errors import UsageError, require
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
-from repro.learn.run_folder import CHECKPOINT, load_checkpoint
+from repro.learn.run_folder import CHECKPOINT, load_checkpoint, state_problem
 from repro.core.config import saved_defaults
 
 C = TypeVar("C")
@@ -27,8 +27,9 @@ def load_trained_run(path: str | Path, env_name: str,
 
 
 def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sampler:
-    """The trained policy of a run folder's checkpoint, ready to hand to an engine."""
-    return policy_from_state(load_checkpoint(path), rng)
+    """The trained policy of a run folder's checkpoint, ready to hand to an engine (a UsageError
+    if the file is not a whole checkpoint of this suite)."""
+    return policy_from_state(load_checkpoint(path, "checkpoint"), rng)
 
 
 def policy_from_state(state: dict[str, Any], rng: np.random.Generator) -> Sampler:
@@ -43,8 +44,23 @@ def policy_from_state(state: dict[str, Any], rng: np.random.Generator) -> Sample
     return Sampler(policy, normalizer, rng)
 
 
-def trained_env_config(state: dict[str, Any], config: type[C]) -> C:
+def trained_env_config(state: dict[str, Any], config: type[C],
+                       param: str = "--checkpoint") -> C:
     """The environment settings of a checkpoint's run as ``config`` (settings newer than the run
-    keep their defaults, as when it resumes)."""
-    saved = {**saved_defaults(config), **(state["run_config"]["env"] or {})}
-    return config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
+    keep their defaults, as when it resumes); a UsageError naming ``param`` if they are not
+    settings of ``config``."""
+    env = state["run_config"].get("env") or {}
+    try:
+        saved = {**saved_defaults(config), **env}
+        return config(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
+    except (TypeError, ValueError):  # unknown or bad settings (UsageError is a ValueError)
+        raise UsageError(param, f"the {CHECKPOINT} of a training run whose environment settings "
+                         f"are those of {config.__name__}", str(env)[:80]) from None
+
+
+def check_fits(state: dict[str, Any], env: Any, param: str, where: Any) -> None:
+    """Refuse (UsageError naming ``param``) a checkpoint whose policy does not take ``env``'s
+    observations or give its actions."""
+    problem = state_problem(state, env.obs_dim, env.n_actions)
+    require(problem is None, param, f"the {CHECKPOINT} of a run on this environment ({problem})",
+            None if where is None else str(where))

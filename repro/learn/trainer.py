@@ -45,6 +45,7 @@ from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
                                 blas_on_one_thread)
+from repro.learn.sizes import check_training_size
 from repro.learn.run_folder import (CHECKPOINT, KEPT_POLICIES, PROVENANCE, append_row,
                                     check_same_run, kept_policy_path, restore, resume_state,
                                     save_checkpoint, writer_lock)
@@ -67,12 +68,15 @@ class Trainer:
     """Owns the policy, baseline, normaliser and sampling generator of one run."""
 
     def __init__(self, cfg: TrainConfig, env: BatchEnv, out: str | Path | None = None,
-                 env_config: Any = None):
+                 env_config: Any = None, param: str = "--out"):
         require(env.gamma > 0 and math.isfinite(env.gamma), "--gamma", "a number > 0", env.gamma)
         self.cfg, self.env = cfg, env
         self.out = None if out is None else Path(out)
+        self.param = param
+        """The option that named ``out`` (a sweep's is --runs-dir): refusals name it."""
         self.env_config = env_config
         self.run_config = run_config(cfg, env_config, env.name)
+        check_training_size(cfg, env)  # before the networks are built
         torch.set_num_threads(1)
         keep_freed_memory()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
@@ -146,7 +150,7 @@ class Trainer:
             self._epochs()
             return self.progress()
         t_start = time.perf_counter()
-        with writer_lock(self.out):
+        with writer_lock(self.out, self.param):
             first_epoch = self._start_or_resume()
             self._epochs()
             write_json(self.out / PROVENANCE, provenance(
@@ -209,7 +213,8 @@ class Trainer:
         config.json keeps the larger number."""
         assert self.out is not None
         defaults = saved_run_defaults(self.env_config, self.env.name)
-        state = resume_state(self.out, self.run_config, defaults)
+        state = resume_state(self.out, self.run_config, defaults, self.param,
+                             obs_dim=self.env.obs_dim, n_actions=self.env.n_actions)
         epochs = 0 if state is None else int(state["epoch"])
         config = self.run_config
         if state is not None:

@@ -660,6 +660,9 @@ class BusEnv:
         self.n_actions = self.cfg.n_actions
         self.n_agents = self.cfg.n_buses
         self.gamma = self.cfg.gamma
+        self.episode_bytes = episode_dtype(self.cfg).itemsize
+        """What a batch holds per episode besides its decisions (its state), for up-front checks
+        of sizes."""
 
     def start(self, n_episodes: int) -> RoundBatch:
         return self.batch_type(self.cfg, n_episodes)

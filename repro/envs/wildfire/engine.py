@@ -958,6 +958,9 @@ class WildfireEnv:
         self.params = params_record(cfg, count_races)
         self.state_dtype = state_dtype(cfg)
         self.log_dtype = log_dtype(cfg.obs_dim)
+        self.episode_bytes = self.state_dtype.itemsize + 8 * cfg.n_agents * (2 + cfg.hold_table)
+        """What a batch holds per episode besides its decisions: its state and its draws (start
+        positions and hold durations), for up-front checks of sizes."""
 
     def rollout(self, policy: Policy, n_episodes: int,
                 seed: int | np.random.SeedSequence) -> Rollout:
