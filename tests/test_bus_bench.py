@@ -6,14 +6,18 @@ import numpy as np
 import pandas as pd
 
 from repro.cli import main
+from repro.learn.config import TrainConfig
+
+MLP = "mlp-" + "x".join(map(str, TrainConfig.hidden)) + "-tanh"
+"""The benchmarks' policy: the default learner's network."""
 
 
 def test_bench_bus_smoke(tmp_path):
     assert main(["bench-bus", "--scale", "smoke", "--results-dir", str(tmp_path)]) == 0
     df = pd.read_csv(tmp_path / "bench_bus.csv")
-    assert sorted(zip(df.engine, df.policy)) == [("fast", "mlp-32x32-tanh"), ("fast", "nohold"),
-                                                 ("fast-step-api", "mlp-32x32-tanh"),
-                                                 ("reference", "mlp-32x32-tanh"),
+    assert sorted(zip(df.engine, df.policy)) == [("fast", MLP), ("fast", "nohold"),
+                                                 ("fast-step-api", MLP),
+                                                 ("reference", MLP),
                                                  ("reference", "nohold")]
     assert (df.decisions > df.episodes).all()
     np.testing.assert_allclose(df.episodes_per_cpu_second * df.cpu_seconds, df.episodes)

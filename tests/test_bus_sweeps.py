@@ -33,7 +33,7 @@ def test_outputs(sweeps):
     table = pd.read_csv(res / "bus_lambda.csv")
     assert list(table.columns) == ["lambda", "batch", "seed", "epoch", "average_return",
                                    "average_discounted_return"]
-    assert sorted(table["lambda"].unique()) == [0.5, 1.0, 2.0, 4.0]
+    assert sorted(table["lambda"].unique()) == [1.0, 2.0, 4.0, 8.0]  # the released runner's
     assert sorted(pd.read_csv(res / "bus_batch.csv").batch.unique()) == [6, 12, 24]
     for stem in ("bus_lambda", "bus_batch"):
         assert (fig / f"{stem}.png").exists() and (fig / f"{stem}.pdf").exists()
@@ -42,7 +42,7 @@ def test_outputs(sweeps):
     assert set(pd.read_csv(res / "bus_arrivals.csv").policy) == every
     assert set(pd.read_csv(res / "bus_load.csv").policy) == every
     mlp_runs = pd.read_csv(res / "bus_load_mlp_runs.csv")
-    assert sorted(mlp_runs["lambda"]) == [0.5, 1.0, 2.0, 4.0] and (mlp_runs.seed == 0).all()
+    assert sorted(mlp_runs["lambda"]) == [1.0, 2.0, 4.0, 8.0] and (mlp_runs.seed == 0).all()
     assert (mlp_runs.l1_per_point > 0).all()  # a smoke-trained MLP is not the paper's
 
 

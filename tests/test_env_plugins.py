@@ -75,16 +75,18 @@ def plugin(tmp_path, monkeypatch):
 
 def test_train_takes_an_environment_module_from_outside_the_suite(plugin):
     out = plugin / "run"
-    assert main(["train", "--env", "my_envs.coin", "--horizon", "4", "--out", str(out)]) == 0
+    assert main(["train", "--env", "my_envs.coin", "--horizon", "4", "--learner", "suite",
+                 "--out", str(out)]) == 0
     progress = pd.read_csv(out / "progress.csv")
-    # its own defaults (5 epochs of 16 episodes), and it learns to take the paying action
+    # its own defaults (5 epochs of 16 episodes for a learner that counts episodes), and it
+    # learns to take the paying action
     assert len(progress) == 5 and (progress.batch_episodes == 16).all()
     assert progress.average_return.iloc[-1] > progress.average_return.iloc[0]
     config = json.loads((out / "config.json").read_text())
     assert config["env_name"] == "coin" and config["env"] == {"horizon": 4, "gamma": 0.1}
     # and resumes like a built-in one
     assert main(["train", "--env", "my_envs.coin", "--horizon", "4", "--epochs", "6",
-                 "--out", str(out)]) == 0
+                 "--learner", "suite", "--out", str(out)]) == 0
     assert len(pd.read_csv(out / "progress.csv")) == 6
 
 

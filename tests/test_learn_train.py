@@ -151,7 +151,9 @@ def test_cli_smoke_and_checkpoint_policy(tmp_path):
     assert res.returncode == 0, res.stderr
     assert {"config.json", "progress.csv", CHECKPOINT} <= {p.name for p in out.iterdir()}
     frame = pd.read_csv(out / "progress.csv")
-    assert list(frame.epoch) == [0, 1] and (frame.batch_episodes == 8).all()
+    # smoke: 300 decisions of whole episodes from 4 workers per epoch
+    assert list(frame.epoch) == [0, 1] and (frame.decisions >= 300).all()
+    assert (frame.batch_episodes >= 4).all()
     prov = json.loads((out / "progress.provenance.json").read_text())
     assert prov["command"] == "train" and prov["git_commit"] and "torch" in prov["versions"]
     assert prov["config"]["train"]["hidden"] == [8] and prov["epochs_after"] == 2

@@ -5,6 +5,7 @@ refusals of damaged or foreign folders, and the same bytes for the same run."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -25,6 +26,7 @@ from repro.learn.run_folder import CHECKPOINT, LOCK, PROGRESS, writer_lock
 from repro.learn.config import train_config
 from repro.learn.trained_policy import load_trained_run
 from repro.learn.trainer import TIMING_COLUMNS
+from tests.conftest import tree_snapshot
 
 TRAIN = ["train", "--env", "toy", "--batch-episodes", "6", "--seed", "3", "--horizon", "10"]
 
@@ -36,7 +38,7 @@ def train(out: Path, epochs: int = 3, *extra: str) -> int:
 def files(folder: Path) -> dict[str, bytes]:
     """Every file of a run folder but the measured times: progress.csv without its timing columns,
     and no provenance sidecar (it records wall time)."""
-    out = {p.name: p.read_bytes() for p in folder.iterdir()
+    out = {p.relative_to(folder).as_posix(): p.read_bytes() for p in folder.rglob("*")
            if p.is_file() and p.name not in (PROGRESS, "progress.provenance.json")}
     if (folder / PROGRESS).exists():
         out[PROGRESS] = pd.read_csv(folder / PROGRESS).drop(columns=TIMING_COLUMNS).to_csv()
@@ -66,11 +68,9 @@ class Payload:
 def test_a_crafted_checkpoint_is_refused_and_never_runs(tmp_path, whole, capsys):
     marker = tmp_path / "pwned"
     run = tmp_path / "run"
-    run.mkdir()
-    for p in whole.iterdir():
-        (run / p.name).write_bytes(p.read_bytes())
+    shutil.copytree(whole, run)
     torch.save({"format": 2, "epoch": 1, "x": Payload(marker)}, run / CHECKPOINT)
-    before = {p.name: p.read_bytes() for p in run.iterdir()}
+    before = tree_snapshot(run)
     capsys.readouterr()
     assert train(run, 4) == 2  # train's resume
     assert main(["bench-bus", "--scale", "smoke", "--checkpoint", str(run / CHECKPOINT),
@@ -80,7 +80,7 @@ def test_a_crafted_checkpoint_is_refused_and_never_runs(tmp_path, whole, capsys)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(CHECKPOINT in line for line in err)
     assert not marker.exists()
-    assert {p.name: p.read_bytes() for p in run.iterdir()} == before
+    assert tree_snapshot(run) == before
     assert not (tmp_path / "res").exists()
 
 

@@ -8,14 +8,18 @@ import pytest
 from repro.envs.wildfire import WildfireConfig
 from repro.learn.trained_policy import load_trained_run
 from repro.experiments.bench_wildfire import WildfireBenchConfig, measure
+from repro.learn.config import TrainConfig
+
+MLP = "mlp-" + "x".join(map(str, TrainConfig.hidden)) + "-tanh"
+"""The benchmarks' policy: the default learner's network."""
 
 
 def test_measure_reports_both_engines_and_policies():
     cfg = WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1)
     frame = measure(cfg, seed=4)
     assert sorted(zip(frame.engine, frame.policy)) == [
-        ("fast", "mlp-32x32-tanh"), ("fast", "random"), ("fast-step-api", "mlp-32x32-tanh"),
-        ("reference", "mlp-32x32-tanh"), ("reference", "random")]
+        ("fast", MLP), ("fast", "random"), ("fast-step-api", MLP),
+        ("reference", MLP), ("reference", "random")]
     steps = frame[frame.engine == "fast-step-api"].iloc[0]
     assert frame.decisions[0] <= steps.decisions < frame.decisions[0] + 20 * 100
     assert (frame.decisions > frame.episodes).all()

@@ -355,7 +355,7 @@ def test_an_ablation_trains_only_the_simulators_asked_with_the_quirks_asked_off(
     assert not cfg.test_simulator().quirk_q3_unclamped_health
     assert cfg.test_simulator().quirk_q1_stale_attack
     assert "Released semantics with Q3 off (1 policies each)" in claims._ablation_lines(
-        tmp_path / "r")
+        tmp_path / "r", "")
     for bad in (["--no-quirk", "q9"], ["--simulator", "FS-2"]):
         assert _main(["fig-transfer", "--scale", "smoke", *bad, "--results-dir",
                       str(tmp_path / "bad")]) == 2

@@ -119,17 +119,18 @@ def side_by_side(check: Callable[[Path, str], Verdict],
     value, the detail each one's verdict and detail. A reading whose files are missing says
     "not yet run"; when it is the deciding one, so does the claim."""
     def checked(results: Path) -> Verdict:
-        seen: list[tuple[Reading, Verdict | None]] = []
+        seen: list[tuple[Reading, Verdict | None, str]] = []
         for reading in readings:
             try:
-                seen.append((reading, check(results, reading.suffix)))
-            except FileNotFoundError:
-                seen.append((reading, None))
+                seen.append((reading, check(results, reading.suffix), ""))
+            except FileNotFoundError as err:
+                seen.append((reading, None, Path(err.filename or str(err)).name))
         first = seen[0][1]
         ours = "; ".join(f"{r.label}: {v.ours if v else NOT_RUN}" + (
-            f" ({v.verdict})" if v and i else "") for i, (r, v) in enumerate(seen))
+            f" ({v.verdict})" if v and i else "") for i, (r, v, _) in enumerate(seen))
         parts = [f"**{r.label}**" + (f" ({v.scale} scale): {v.verdict}. {v.detail}" if v
-                                     else f": {NOT_RUN}.") for r, v in seen]
+                                     else f": {NOT_RUN} (missing {missing}).")
+                 for r, v, missing in seen]
         detail = "Decided on the first set-up. " + " ".join(parts)
         if first is None:
             return Verdict(ours, NOT_RUN, detail)

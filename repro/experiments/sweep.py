@@ -36,7 +36,8 @@ from repro.core.io import check_writable_dir, write_bytes
 from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
 from repro.experiments.options import add_common, results_folder
-from repro.learn.run_folder import (CHECKPOINT, CONFIG, LOCK, PROGRESS, PROVENANCE, epochs_done,
+from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PROVENANCE,
+                                    epochs_done,
                                     is_finished, locked_by, writer_lock)
 from repro.envs import env_package
 from repro.learn.sizes import check_training_size, training_bytes
@@ -86,20 +87,29 @@ def run_shipped_job(job: TrainJob, files: dict[str, bytes]) -> dict[str, bytes]:
     with tempfile.TemporaryDirectory(prefix="repro-run-") as tmp:
         folder = Path(tmp) / job.name
         folder.mkdir()
-        for name, data in files.items():
-            (folder / name).write_bytes(data)
+        _write_files(folder, files)
         env = env_package(job.train.env).make_env(job.env_config)
         Trainer(job.train, env, folder, env_config=job.env_config, param="--runs-dir").train()
         return folder_files(folder)
 
 
 def folder_files(folder: Path) -> dict[str, bytes]:
-    """The files of a run folder, in the order a resumed run needs them written (the progress rows
-    before the checkpoint, the provenance sidecar, which marks a finished call, last)."""
+    """The files of a run folder by their path in it (kept policies as ``policies/<name>``), in
+    the order a resumed run needs them written (the progress rows before the checkpoint, the
+    provenance sidecar, which marks a finished call, last)."""
     order = {PROGRESS: 0, CONFIG: 1, CHECKPOINT: 2, PROVENANCE: 4}
-    paths = sorted((p for p in folder.iterdir() if p.is_file() and p.name != LOCK),
-                   key=lambda p: (order.get(p.name, 3), p.name))
-    return {p.name: p.read_bytes() for p in paths}
+    paths = [p for p in (*folder.iterdir(), *(folder / KEPT).glob("*"))
+             if p.is_file() and p.name != LOCK]
+    names = sorted((p.relative_to(folder).as_posix() for p in paths),
+                   key=lambda name: (order.get(name, 3), name))
+    return {name: (folder / name).read_bytes() for name in names}
+
+
+def _write_files(folder: Path, files: dict[str, bytes]) -> None:
+    """Write ``folder_files``' output into ``folder`` (atomically, file by file)."""
+    for name, data in files.items():
+        (folder / name).parent.mkdir(exist_ok=True)
+        write_bytes(folder / name, data)
 
 
 def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
@@ -126,8 +136,7 @@ def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
             folder, files = run_dir(root, job), future.result()
             for stale in set(folder_files(folder)) - set(files):  # e.g. a killed write's leftovers
                 (folder / stale).unlink()
-            for name, data in files.items():
-                write_bytes(folder / name, data)
+            _write_files(folder, files)
             if not is_finished(folder, job.train.epochs):
                 done.add(next_epoch(job))
 

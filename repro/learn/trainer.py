@@ -194,9 +194,12 @@ class Trainer:
 
     def policy_state(self) -> dict[str, Any]:
         """What acting needs (:func:`~repro.learn.trained_policy.policy_from_state`): the policy
-        and normaliser after this epoch, and the run's config."""
+        and normaliser after this epoch, and the run's config but its epoch count (which a run
+        extended later changes), so that a kept policy has the bytes of an uninterrupted run's."""
+        train = {k: v for k, v in self.run_config["train"].items() if k != "epochs"}
         return {"epoch": self.epoch, "policy": self.policy.state_dict(),
-                "normalizer": self.normalizer.state_dict(), "run_config": self.run_config}
+                "normalizer": self.normalizer.state_dict(),
+                "run_config": {**self.run_config, "train": train}}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.epoch = int(state["epoch"])
