@@ -44,6 +44,12 @@ def check_x5(results: Path) -> Verdict:
                    scale_of(path))
 
 
+def _section(title: str, intro: str, columns: list[str]) -> list[str]:
+    """A notes section's heading, its paragraph and the head of its table."""
+    return ["", f"## {title}", "", intro, "", "| " + " | ".join(columns) + " |",
+            "|---" * len(columns) + "|"]
+
+
 def _figure_table(results: Path) -> list[str]:
     """The transfer figure per training simulator: the paper, each learner and version (mean
     +- SEM over policies, distance to the paper in combined SEs)."""
@@ -56,13 +62,12 @@ def _figure_table(results: Path) -> list[str]:
             continue
     if not frames:
         return []
-    lines = ["", "## The learner decides: the transfer figure point by point", "",
-             "ADR on ED (T_health 3.0), mean +- SEM over policies, and in brackets the distance "
-             "to the paper's point in combined standard errors. The authors' learner is scored "
-             "on the final policy (10,000 episodes) and, second, as the released runner scored "
-             "it (the last 40 epochs' policies, one episode each).", "",
-             "| trained on | paper | " + " | ".join(frames) + " |",
-             "|---" * (len(frames) + 2) + "|"]
+    lines = _section("The learner decides: the transfer figure point by point",
+                     "ADR on ED (T_health 3.0), mean +- SEM over policies, and in brackets the "
+                     "distance to the paper's point in combined standard errors. The authors' "
+                     "learner is scored on the final policy (10,000 episodes) and, second, as the "
+                     "released runner scored it (the last 40 epochs' policies, one episode each).",
+                     ["trained on", "paper", *frames])
     for label, (mean, err) in PAPER.items():
         cells = []
         for heading, s in frames.items():
@@ -88,13 +93,12 @@ def _ablation_table(results: Path) -> list[str]:
         return []
     s = read_result(path)
     sims = list(dict.fromkeys(s.simulator))
-    lines = ["", f"## One learner setting at a time ({scale_of(path)} scale)", "",
-             "From the authors' learner on the simulator of 2017-04-22, one setting changed to the "
-             "suite's (`make learner-ablation`); ADR on ED, final policies, mean +- SEM "
-             "(distance to the paper in combined SEs); last column: C9's degradation, FS-1 "
-             "(2.9999) minus FS-1, with its 95% bootstrap CI.", "",
-             "| setting | " + " | ".join(sims) + " | C9 degradation |",
-             "|---" * (len(sims) + 2) + "|"]
+    lines = _section(f"One learner setting at a time ({scale_of(path)} scale)",
+                     "From the authors' learner on the simulator of 2017-04-22, one setting "
+                     "changed to the suite's (`make learner-ablation`); ADR on ED, final policies, "
+                     "mean +- SEM (distance to the paper in combined SEs); last column: C9's "
+                     "degradation, FS-1 (2.9999) minus FS-1, with its 95% bootstrap CI.",
+                     ["setting", *sims, "C9 degradation"])
     c9_path = results / f"{ABLATION}_c9.csv"
     try:
         c9 = read_result(c9_path)
@@ -118,12 +122,12 @@ def _inputs_table(results: Path) -> list[str]:
         return []
     s = read_result(path)
     s = s[s.clamp != "none"]
-    lines = ["", f"## Which inputs C9's policies depend on ({scale_of(path)} scale)", "",
-             "Authors' learner, simulator of 2017-04-22 (`make c9-inputs`): ADR on ED with an "
-             "input group clamped at test time minus the unclamped policy's (same episodes, same "
-             "action stream), mean over policies with its 95% bootstrap CI, and the share of "
-             "decisions whose observation the clamp changed.", "",
-             "| trained on | clamp | ADR | change | decisions changed |", "|---|---|---|---|---|"]
+    lines = _section(f"Which inputs C9's policies depend on ({scale_of(path)} scale)",
+                     "Authors' learner, simulator of 2017-04-22 (`make c9-inputs`): ADR on ED with "
+                     "an input group clamped at test time minus the unclamped policy's (same "
+                     "episodes, same action stream), mean over policies with its 95% bootstrap "
+                     "CI, and the share of decisions whose observation the clamp changed.",
+                     ["trained on", "clamp", "ADR", "change", "decisions changed"])
     return lines + [f"| {r.simulator} | {r.clamp} | {r.adr_ed:.3f} | {r.change:+.3f} "
                     f"[{r.ci_low:+.3f}, {r.ci_high:+.3f}] | {r.changed_share:.0%} |"
                     for r in s.itertuples()]

@@ -43,7 +43,8 @@ from repro.core.io import check_writable_dir, provenance, save_figure, write_res
 from repro.core.rollout import children
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import QUIRKS, SIM_VERSIONS, WildfireConfig, make_env
-from repro.learn.config import LEARNERS, SETTING_FIELDS, setting_tag
+from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
+                                check_study_learner, setting_tag)
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -115,13 +116,8 @@ class TransferConfig(Validated):
     def validate(self) -> None:
         require(self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
-                self.batch_episodes)
-        require(self.batch_decisions >= 1, "--batch-decisions", "an integer >= 1",
-                self.batch_decisions)
+        check_study_learner(self.learner, self.batch_decisions, self.batch_episodes)
         require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
-        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
-                self.learner)
         require(self.sim_version in SIM_VERSIONS, "--sim-version",
                 "one of " + ", ".join(SIM_VERSIONS), self.sim_version)
         require(all(k in SETTING_FIELDS for k, _ in self.settings), "settings",
@@ -354,13 +350,7 @@ def add_size_arguments(p: argparse.ArgumentParser) -> None:
     studies too)."""
     add_study_arguments(p, "policies per training simulator (paper: 5)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
-    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
-                   + " (default authors: the released runner)")
-    p.add_argument("--batch-decisions", type=int,
-                   help="training decisions per epoch, with a learner that counts them "
-                        "(paper: 12000)")
-    p.add_argument("--batch-episodes", type=int,
-                   help="training episodes per epoch, with a learner that counts them (paper: 600)")
+    add_study_learner_arguments(p)
     p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
 
 

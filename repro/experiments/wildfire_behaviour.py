@@ -60,7 +60,7 @@ from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL, FlowchartPolicy
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
-from repro.learn.config import LEARNERS
+from repro.learn.config import add_study_learner_arguments, check_study_learner
 
 PAPER = dict(hold_shared=0.27, hold_alone=0.84, fly_rank_1=0.15, fly_rank_2=0.15, fly_rank_3=0.68,
              closest_cluster=0.98, flowchart_worse=0.28)
@@ -109,13 +109,8 @@ class BehaviourConfig(Validated):
     def validate(self) -> None:
         require(self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
         require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        require(self.batch_episodes >= 1, "--batch-episodes", "an integer >= 1",
-                self.batch_episodes)
-        require(self.batch_decisions >= 1, "--batch-decisions", "an integer >= 1",
-                self.batch_decisions)
+        check_study_learner(self.learner, self.batch_decisions, self.batch_episodes)
         require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
-        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
-                self.learner)
         require(self.sim_version in SIM_VERSIONS, "--sim-version",
                 "one of " + ", ".join(SIM_VERSIONS), self.sim_version)
         require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
@@ -247,13 +242,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_sweep_arguments(p)
     p.add_argument("--seeds", type=int, help="policies trained (paper: 1)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 3000)")
-    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
-                   + " (default authors: the released runner)")
-    p.add_argument("--batch-decisions", type=int,
-                   help="training decisions per epoch, with a learner that counts them "
-                        "(paper: 12000)")
-    p.add_argument("--batch-episodes", type=int,
-                   help="training episodes per epoch, with a learner that counts them (paper: 600)")
+    add_study_learner_arguments(p)
     p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
                    help="the released simulator's version (default 2017-05-16; 2017-04-22 "
                         "writes *_20170422)")

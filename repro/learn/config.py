@@ -207,6 +207,24 @@ def setting_tag(field: str, value: Any) -> str:
     return field.replace("_", "") + text
 
 
+def add_study_learner_arguments(p: Any) -> None:
+    """A study's ``--learner`` and its batch size in either unit (the learner uses its own)."""
+    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
+                   + " (default authors: the released runner)")
+    p.add_argument("--batch-decisions", type=int,
+                   help="training decisions per epoch, with a learner that counts them "
+                        "(paper: 12000)")
+    p.add_argument("--batch-episodes", type=int,
+                   help="training episodes per epoch, with a learner that counts them (paper: 600)")
+
+
+def check_study_learner(learner: str, batch_decisions: int, batch_episodes: int) -> None:
+    """Refuse (UsageError) a study config's bad learner or batch size."""
+    require(learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS), learner)
+    require(batch_decisions >= 1, "--batch-decisions", "an integer >= 1", batch_decisions)
+    require(batch_episodes >= 1, "--batch-episodes", "an integer >= 1", batch_episodes)
+
+
 def add_learner_arguments(p: Any) -> None:
     """``--learner`` and the learner settings' flags, for ``train`` and every study that trains
     (each flag overrides one setting of the named learner; docs/semantics.md section 5.7)."""
