@@ -3,8 +3,6 @@ and which learner trained a result."""
 
 from __future__ import annotations
 
-import json
-
 import pandas as pd
 
 from repro.claims import NOT_RUN, Reading, Verdict, learner_of, side_by_side
@@ -36,7 +34,6 @@ def test_learner_of_reads_the_sidecar_at_any_depth(tmp_path):
                      config={"study": {"learner": "authors"}})
     assert learner_of(tmp_path / "old.csv") == "suite"
     assert learner_of(tmp_path / "new.csv") == "authors"
-    assert json.loads((tmp_path / "new.provenance.json").read_text())["scale"] == "paper"
 
 
 def _c9(tmp_path, norm_high: float) -> None:

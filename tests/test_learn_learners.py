@@ -127,3 +127,8 @@ def test_bad_learner_options_exit_2_with_one_line(tmp_path, capsys, bad, param):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and param in err
     assert not (tmp_path / "run").exists()
+
+
+def test_a_study_setting_other_than_the_batch_size_keeps_the_studys_batch():
+    cfg = study_train_config("quick", "wildfire", "authors", 3000, 150, (("batch_workers", 8),))
+    assert (cfg.batch_decisions, cfg.batch_workers, cfg.batch_episodes) == (3000, 8, None)

@@ -16,6 +16,7 @@ from repro.claims import (NOT_RUN, Claim, Reading, Verdict, at_most_partial, sca
                           side_by_side)
 from repro.core.io import read_provenance, read_result
 from repro.core.stats import bootstrap_ci, ci_side
+from repro.envs.wildfire import FIGURE_VERSION, version_suffix
 
 C6_TOLERANCE = 0.10
 """Each C6 frequency must lie within 10 percentage points of the paper's."""
@@ -269,7 +270,7 @@ def _cut_line(per_policy: Path) -> str:
 BEHAVIOUR, TRANSFER = "wildfire_behaviour{}.csv", "transfer{}_summary.csv"
 AUTHORS_HEAD = Reading("authors' learner, released simulator (2017-05-16)", "")
 AUTHORS_APRIL = Reading("authors' learner, simulator of 2017-04-22 (crowding penalty 1)",
-                        "_20170422")
+                        "_" + "_".join(version_suffix(FIGURE_VERSION)))
 SUITE = Reading("suite's learner, released simulator", "_suite")
 TRANSFER_READINGS = (AUTHORS_APRIL, AUTHORS_HEAD, SUITE)
 """C8 and C9 are decided on the simulator the transfer runs were trained on (2017-04-22)."""

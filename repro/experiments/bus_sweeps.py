@@ -43,7 +43,7 @@ from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.experiments.bus_policies import read_thresholds
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
-from repro.learn.config import LEARNERS, train_config
+from repro.learn.config import LEARNERS, learner_suffix, train_config
 
 SWEEPS = ("lambda", "batch")
 
@@ -112,7 +112,7 @@ class BusSweepConfig(Validated):
 
     def stem(self, sweep: str) -> str:
         """File stem of a sweep's results: bus_<sweep>, then _suite for the suite's learner."""
-        return f"bus_{sweep}" + ("" if self.learner == "authors" else f"_{self.learner}")
+        return "_".join((f"bus_{sweep}", *learner_suffix(self.learner)))
 
 
 def sweep_config(scale: str, learner: str | None = None, **overrides: Any) -> BusSweepConfig:

@@ -29,7 +29,7 @@ import pandas as pd
 from repro.core.io import provenance, write_result
 from repro.core.rollout import DecisionBatch, Policy
 from repro.core.stats import bootstrap_ci
-from repro.envs.wildfire import make_env
+from repro.envs.wildfire import FIGURE_VERSION, make_env
 from repro.envs.wildfire.params import FIRES, HEALTH, OBS_PER_FIRE, SOJOURN
 from repro.experiments.sweep import check_study_arguments, run_sweep
 from repro.experiments.transfer import (add_size_arguments, make_jobs, runs_folder, study_config,
@@ -101,7 +101,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from repro.learn.run_folder import CHECKPOINT
 
-    cfg = study_config(args, sim_version=args.sim_version or "2017-04-22")
+    cfg = study_config(args, sim_version=args.sim_version or FIGURE_VERSION)
     cfg = dataclasses.replace(cfg, only=("ED", *cfg.variant_pair()[::-1]))
     results, _ = check_study_arguments(args)
     labelled = make_jobs(cfg, args.scale, args.seed)

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from repro.core.io import provenance, save_figure, write_result
+from repro.envs.wildfire import FIGURE_VERSION, RELEASED_VERSION
 from repro.experiments.beyond_order import effects
 from repro.experiments.sweep import check_jobs, check_study_arguments
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
@@ -38,8 +39,6 @@ from repro.experiments.transfer import (TransferConfig, add_size_arguments, batc
 
 NAME = "learner_ablation"
 """Stem of the result files and the figure."""
-FIGURE_VERSION = "2017-04-22"
-"""The simulator version the paper's transfer runs were trained on (every row but one)."""
 DEFAULT_SIMULATORS = ("ED", "FS-1", "FS-1 (T_health=2.9999)")
 """The training simulators of a row unless asked otherwise: ED and the pair of C9."""
 _EFFECT_STREAM = 5
@@ -56,7 +55,7 @@ def rows(base: TransferConfig) -> dict[str, dict[str, Any]]:
            "Fisher subsample 0.2": (("fvp_subsample", 0.2),)}
     return {"authors": authors,
             **{name: dict(authors, settings=settings) for name, settings in one.items()},
-            "crowding penalty 20": dict(authors, sim_version="2017-05-16"),
+            "crowding penalty 20": dict(authors, sim_version=RELEASED_VERSION),
             "suite (all departures)": dict(authors, learner="suite")}
 
 

@@ -42,9 +42,10 @@ from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.rollout import children
 from repro.core.stats import bootstrap_ci, iqm, sem
-from repro.envs.wildfire import QUIRKS, SIM_VERSIONS, WildfireConfig, make_env
+from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
+                                 version_suffix)
 from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
-                                check_study_learner, setting_tag)
+                                check_study_learner, learner_suffix, setting_tag)
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -79,7 +80,7 @@ class TransferConfig(Validated):
     settings: tuple[tuple[str, Any], ...] = ()
     """Learner settings changed from the learner's, as (TrainConfig field, value) pairs (an
     ablation, ``learner-ablation``); each adds a tag to the file stem."""
-    sim_version: str = "2017-05-16"
+    sim_version: str = RELEASED_VERSION
     """The released simulator's version every simulator of the study follows
     (``repro.envs.wildfire.SIM_VERSIONS``): the released HEAD, or "2017-04-22", the one the
     paper's transfer runs were trained on (crowding penalty 1)."""
@@ -171,10 +172,9 @@ def study_suffixes(cfg: TransferConfig) -> tuple[str, ...]:
     """The parts of a transfer study's file stem that name its semantics, learner and version."""
     parts = ("corrected",) if cfg.corrected else tuple(f"no_{q}" for q in sorted(cfg.quirks_off))
     order = () if cfg.fire_out_first else ("no_fire_out_first",)
-    learner = () if cfg.learner == "authors" else (cfg.learner,)
     settings = tuple(setting_tag(k, v) for k, v in cfg.settings)
-    version = () if cfg.sim_version == "2017-05-16" else (cfg.sim_version.replace("-", ""),)
-    return (*parts, *order, *learner, *settings, *version)
+    return (*parts, *order, *learner_suffix(cfg.learner), *settings,
+            *version_suffix(cfg.sim_version))
 
 
 def batch_label(cfg: TransferConfig) -> str:

@@ -54,13 +54,14 @@ from repro.core.config import Validated, for_scale
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import Rollout
-from repro.envs.wildfire import SIM_VERSIONS, WildfireConfig, fire_positions, make_env
+from repro.envs.wildfire import (RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, fire_positions,
+                                 make_env, version_suffix)
 from repro.envs.wildfire.params import DIST, INTEREST, OWN_X, OWN_Y, STATUS, fire_blocks
 from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL, FlowchartPolicy
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
-from repro.learn.config import add_study_learner_arguments, check_study_learner
+from repro.learn.config import add_study_learner_arguments, check_study_learner, learner_suffix
 
 PAPER = dict(hold_shared=0.27, hold_alone=0.84, fly_rank_1=0.15, fly_rank_2=0.15, fly_rank_3=0.68,
              closest_cluster=0.98, flowchart_worse=0.28)
@@ -89,7 +90,7 @@ class BehaviourConfig(Validated):
     batch_episodes: int = 200
     """Training episodes per epoch when the learner counts its batch in episodes (the paper's
     table: 600 to 1,200)."""
-    sim_version: str = "2017-05-16"
+    sim_version: str = RELEASED_VERSION
     """The released simulator's version (``repro.envs.wildfire.SIM_VERSIONS``)."""
     test_episodes: int = 1000
     """ED episodes on which frequencies and ADRs are measured."""
@@ -124,9 +125,8 @@ class BehaviourConfig(Validated):
     def name(self) -> str:
         """File stem: wildfire_behaviour, then _suite for the suite's learner and _20170422 for
         the simulator of 2017-04-22."""
-        learner = () if self.learner == "authors" else (self.learner,)
-        version = () if self.sim_version == "2017-05-16" else (self.sim_version.replace("-", ""),)
-        return "_".join(("wildfire_behaviour", *learner, *version))
+        return "_".join(("wildfire_behaviour", *learner_suffix(self.learner),
+                         *version_suffix(self.sim_version)))
 
 
 STAY = "_ex_stay"

@@ -148,6 +148,12 @@ LEARNER_FIELDS = ("hidden", "init", "normalize_obs", "fvp_subsample")
 DEFAULT_LEARNER = "authors"
 
 
+def learner_suffix(learner: str) -> tuple[str, ...]:
+    """The part of a result's file stem that names a learner other than the default: ``("suite",)``
+    or nothing."""
+    return () if learner == DEFAULT_LEARNER else (learner,)
+
+
 def learner_name(cfg: TrainConfig) -> str:
     """The named learner whose settings ``cfg`` has (its batch's unit included), else "custom"."""
     for name, preset in LEARNERS.items():
@@ -188,7 +194,8 @@ def study_train_config(scale: str, env: str, learner: str, batch_decisions: int,
     the learner's (a batch size among them also sets the unit)."""
     unit = LEARNERS[learner]["batch_unit"]
     size = batch_decisions if unit == "batch_decisions" else batch_episodes
-    batch = {} if any(k.startswith("batch_") for k, _ in settings) else {unit: size}
+    sized = {"batch_decisions", "batch_episodes"} & {k for k, _ in settings}
+    batch = {} if sized else {unit: size}
     return train_config(scale, env, learner, **batch, **dict(settings), **fields)
 
 
@@ -197,7 +204,7 @@ SETTING_FIELDS = (*LEARNER_FIELDS, "batch_decisions", "batch_episodes", "batch_w
 
 
 def setting_tag(field: str, value: Any) -> str:
-    """A file-name-safe tag of one learner setting, e.g. ``hidden32x32``, ``normalize_obs1``."""
+    """A file-name-safe tag of one learner setting, e.g. ``hidden32x32``, ``normalizeobs1``."""
     if isinstance(value, (tuple, list)):
         text = "x".join(str(v) for v in value)
     elif isinstance(value, bool):
@@ -226,8 +233,9 @@ def check_study_learner(learner: str, batch_decisions: int, batch_episodes: int)
 
 
 def add_learner_arguments(p: Any) -> None:
-    """``--learner`` and the learner settings' flags, for ``train`` and every study that trains
-    (each flag overrides one setting of the named learner; docs/semantics.md section 5.7)."""
+    """``--learner`` and the learner settings' flags of ``train`` (each flag overrides one setting
+    of the named learner; docs/semantics.md section 5.7). Studies take
+    :func:`add_study_learner_arguments`."""
     p.add_argument("--learner", default=DEFAULT_LEARNER,
                    help="named learner: " + ", ".join(LEARNERS) + " (default %(default)s: the "
                         "released runner that trained the paper's policies)")

@@ -9,7 +9,8 @@ new normalisation, which it will be used with). After every epoch a row is appen
 folder's ``progress.csv`` and a checkpoint is written atomically; running the same command again
 resumes from the checkpoint and ends with exactly the parameters and progress table of an
 uninterrupted run. The policies after each of the last :data:`KEPT_POLICIES` epochs are kept in the
-folder's ``policies/`` too, for the released runner's evaluation (:mod:`repro.learn.kept`).
+folder's ``policies/`` too, for the released runner's evaluation
+(:func:`repro.experiments.transfer.score_policy`).
 
 Threads: torch and numpy's BLAS run on one thread (:func:`~repro.learn.policy.blas_on_one_thread`
 says why). Memory: malloc keeps freed blocks (:func:`~repro.core.memory.keep_freed_memory` says

@@ -13,8 +13,9 @@ import argparse
 import numpy as np
 
 from repro.core.errors import require
-from repro.envs.wildfire.params import (QUIRKS, SIM_VERSIONS, EpisodeDraws, WildfireConfig,
-                                        draw_episodes, fire_positions)
+from repro.envs.wildfire.params import (FIGURE_VERSION, QUIRKS, RELEASED_VERSION, SIM_VERSIONS,
+                                        EpisodeDraws, WildfireConfig, draw_episodes,
+                                        fire_positions, version_suffix)
 
 TRAIN_DEFAULTS = dict(lam=1.0, batch_episodes=600, epochs=300)
 """The paper's training settings: lambda 1, 600-1200 episodes per epoch, 300 epochs."""
@@ -112,7 +113,8 @@ def make_reference_env(cfg: WildfireConfig, count_races: bool = False):
     return ReferenceEnv(cfg, count_races)
 
 
-__all__ = ["WildfireConfig", "QUIRKS", "SIM_VERSIONS", "EpisodeDraws", "draw_episodes",
+__all__ = ["WildfireConfig", "QUIRKS", "SIM_VERSIONS", "RELEASED_VERSION", "FIGURE_VERSION",
+           "version_suffix", "EpisodeDraws", "draw_episodes",
            "fire_positions",
            "add_env_arguments", "config_from_args", "make_env", "make_reference_env",
            "make_vector_env"]

@@ -57,6 +57,15 @@ settings in which they differ (the crowding penalty is their only difference in 
 "2017-04-22" is b3bef87, four minutes before the transfer study's training runs started (their
 folders, dated 2017-04-22 18:17-19:15, are listed in cluster_fire_smdp.py's evaluation block).
 docs/semantics.md section 3.13 gives the evidence."""
+RELEASED_VERSION, FIGURE_VERSION = "2017-05-16", "2017-04-22"
+"""The released HEAD (the default everywhere), and the version the transfer figure was drawn
+with."""
+
+
+def version_suffix(version: str) -> tuple[str, ...]:
+    """The part of a result's file stem that names a simulator version other than the released
+    HEAD: ``("20170422",)``, or nothing."""
+    return () if version == RELEASED_VERSION else (version.replace("-", ""),)
 
 
 @dataclass(frozen=True)
