@@ -43,7 +43,7 @@ from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.experiments.bus_policies import read_thresholds
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
-from repro.learn.config import LEARNERS, learner_suffix, train_config
+from repro.learn.config import LEARNERS, add_learner_option, learner_stem, train_config
 
 SWEEPS = ("lambda", "batch")
 
@@ -112,7 +112,7 @@ class BusSweepConfig(Validated):
 
     def stem(self, sweep: str) -> str:
         """File stem of a sweep's results: bus_<sweep>, then _suite for the suite's learner."""
-        return "_".join((f"bus_{sweep}", *learner_suffix(self.learner)))
+        return learner_stem(f"bus_{sweep}", self.learner)
 
 
 def sweep_config(scale: str, learner: str | None = None, **overrides: Any) -> BusSweepConfig:
@@ -222,8 +222,7 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, "runs per setting")
-    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
-                   + " (default authors; suite writes bus_<sweep>_suite*)")
+    add_learner_option(p, "bus_<sweep>_suite*")
     p.add_argument("--epochs", type=int, help="policy updates per run")
     p.add_argument("--final-epochs", type=int, help="epochs averaged into a run's final return")
     add_switch_arguments(p)

@@ -345,12 +345,12 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem)
 
 
-def add_size_arguments(p: argparse.ArgumentParser) -> None:
+def add_size_arguments(p: argparse.ArgumentParser, writes: str) -> None:
     """The transfer study's sizes and its sweep's options (``beyond-order`` trains transfer
-    studies too)."""
+    studies too); ``writes``: the results another learner writes."""
     add_study_arguments(p, "policies per training simulator (paper: 5)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
-    add_study_learner_arguments(p)
+    add_study_learner_arguments(p, writes)
     p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
 
 
@@ -364,7 +364,7 @@ def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_size_arguments(p)
+    add_size_arguments(p, "transfer*_suite*")
     p.add_argument("--corrected", action="store_true",
                    help="quirks Q1-Q6 off (paper's prose); writes transfer_corrected*")
     p.add_argument("--no-quirk", action="append", default=[], metavar="Q",
