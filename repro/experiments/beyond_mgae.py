@@ -45,7 +45,8 @@ from repro.envs.bus import BusConfig
 from repro.experiments import bus_sweeps, transfer
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
-from repro.learn.config import DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_stem
+from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
+                                learner_stem)
 from repro.learn.m_gae import ESTIMATORS
 
 REFERENCE = "m-gae"
@@ -199,6 +200,15 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
     save_figure(fig, stem)
 
 
+def title(cfg: MgaeStudyConfig, scale: str) -> str:
+    """The figure's title: the learner and both studies' sizes at ``scale``."""
+    bus, wildfire = cfg.bus(scale), cfg.wildfire(scale)
+    return (f"X1: advantage estimators, everything else equal, {learner_label(cfg.learner)}; "
+            f"{scale} scale: bus {bus.seeds} x {bus.epochs} epochs x {bus.lambda_batch} "
+            f"{bus.unit.removeprefix('batch_')}, wildfire {wildfire.seeds} x {wildfire.epochs} x "
+            f"{transfer.batch_label(wildfire)} (ED)")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, "policies per estimator and environment (paper: 5)")
     add_learner_option(p, "beyond_mgae_suite*")
@@ -217,10 +227,6 @@ def run(args: argparse.Namespace) -> int:
                       wall_seconds=time.perf_counter() - t0)
     write_result(results / f"{cfg.stem}.csv", runs, prov)
     write_result(results / f"{cfg.stem}_summary.csv", summary, prov)
-    unit = bus.unit.removeprefix("batch_")
-    plot(runs, summary, figures / cfg.stem,
-         f"X1: advantage estimators, everything else equal, {cfg.learner}'s learner; "
-         f"{args.scale} scale: bus {bus.seeds} x {bus.epochs} epochs x {bus.lambda_batch} {unit}, "
-         f"wildfire {wildfire.seeds} x {wildfire.epochs} x {transfer.batch_label(wildfire)} (ED)")
+    plot(runs, summary, figures / cfg.stem, title(cfg, args.scale))
     print(summary.to_string(index=False))
     return 0

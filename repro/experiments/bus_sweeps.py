@@ -43,7 +43,8 @@ from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.experiments.bus_policies import read_thresholds
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
-from repro.learn.config import LEARNERS, add_learner_option, learner_stem, train_config
+from repro.learn.config import (LEARNERS, add_learner_option, learner_label, learner_stem,
+                                train_config)
 
 SWEEPS = ("lambda", "batch")
 
@@ -211,8 +212,8 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     ax.axhline(baselines["nohold"], color="k", ls=":", lw=1, label="No Holding")
     fixed = (f"batch {cfg.lambda_batch} {cfg.unit.split('_')[1]}/epoch" if sweep == "lambda"
              else f"$\\lambda$ = {cfg.batch_lambda:g}")
-    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {cfg.learner}'s learner ({fixed}; {cfg.seeds} "
-                 "seeds, 95% CI)", fontsize=9)
+    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {learner_label(cfg.learner)} ({fixed}; "
+                 f"{cfg.seeds} seeds, 95% CI)", fontsize=9)
     ax.set_xlabel("Epoch")
     ax.set_ylabel("Average return per episode")
     ax.grid(True, alpha=0.3)

@@ -45,7 +45,7 @@ from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
 from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
-                                check_study_learner, learner_suffix, setting_tag)
+                                check_study_learner, learner_label, learner_suffix, setting_tag)
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -425,7 +425,7 @@ def run(args: argparse.Namespace) -> int:
     semantics += "" if cfg.fire_out_first else ", UAV before fire at one instant"
     plot(per_policy, summary, figures / cfg.name,
          f"Transfer to ED, {semantics}; {args.scale} scale: {cfg.seeds} policies x "
-         f"{cfg.epochs} epochs x {batch_label(cfg)}, {cfg.learner}'s learner, simulator of "
+         f"{cfg.epochs} epochs x {batch_label(cfg)}, {learner_label(cfg.learner)}, simulator of "
          f"{cfg.sim_version}")
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high",
                    "paper_mean"]].to_string(index=False))

@@ -33,7 +33,8 @@ from repro.core.errors import require
 from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.experiments import beyond_races, transfer
 from repro.experiments.sweep import add_study_arguments, check_study_arguments
-from repro.learn.config import DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_stem
+from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
+                                learner_stem)
 
 RACES = f"{beyond_races.RACES}.csv"
 """Claim X2's result (``beyond-races``): at least the columns policy, n_agents, dt,
@@ -138,6 +139,14 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, races: pd.DataFrame | 
     save_figure(fig, stem)
 
 
+def title(cfg: TransferDtConfig, scale: str) -> str:
+    """The figure's title: the learner and the study's sizes at ``scale``."""
+    study = cfg.study(scale)
+    return (f"X3: transfer to ED against the training step, {learner_label(cfg.learner)}; {scale} "
+            f"scale: {study.seeds} policies x {study.epochs} epochs x "
+            f"{transfer.batch_label(study)} per simulator")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, "policies per training simulator (paper: 5)")
     add_learner_option(p, "transfer_dt_grid_suite*")
@@ -159,10 +168,7 @@ def run(args: argparse.Namespace) -> int:
     write_result(results / f"{cfg.stem}.csv", per_policy, prov)
     write_result(results / f"{cfg.stem}_summary.csv", summary, prov)
     plot(per_policy, summary, read_races(results, cfg.race_agents), cfg.race_agents,
-         figures / cfg.stem,
-         f"X3: transfer to ED against the training step, {cfg.learner}'s learner; {args.scale} "
-         f"scale: {study.seeds} policies x {study.epochs} epochs x {transfer.batch_label(study)} "
-         f"per simulator")
+         figures / cfg.stem, title(cfg, args.scale))
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high"]]
           .to_string(index=False))
     return 0

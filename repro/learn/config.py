@@ -154,6 +154,12 @@ def learner_suffix(learner: str) -> tuple[str, ...]:
     return () if learner == DEFAULT_LEARNER else (learner,)
 
 
+def learner_label(learner: str) -> str:
+    """A named learner in prose: "the authors' learner", "the suite's learner"."""
+    owner = f"{learner}'" if learner.endswith("s") else f"{learner}'s"
+    return f"the {owner} learner"
+
+
 def learner_stem(stem: str, learner: str) -> str:
     """A study's result file stem for ``learner``: ``stem``, then ``_suite`` for the suite's."""
     return "_".join((stem, *learner_suffix(learner)))
