@@ -4,7 +4,8 @@ paper, X1.., in a section of their own.
 
 A check reads result files and returns a :class:`Verdict`. A claim whose result files do not exist,
 or lack the rows and columns its check reads (a stale or hand-edited file), reads "not yet run",
-never PASS. Each experiment module contributes its claims in
+never PASS; any other error a check raises is a bug in it and propagates
+(:func:`is_incomplete`). Each experiment module contributes its claims in
 ``repro/claims/<topic>.py`` as a list ``CLAIMS``.
 """
 
@@ -81,12 +82,37 @@ class Claim:
         except FileNotFoundError as err:
             return Verdict("-", NOT_RUN,
                            f"missing {Path(err.filename).name if err.filename else err}")
-        # a file without the rows or columns the check reads; pandas' EmptyDataError is a ValueError
-        except (KeyError, AttributeError, IndexError, ValueError) as err:
+        except Exception as err:
+            if not is_incomplete(err):
+                raise  # a bug in the check, which must not pass for missing data
             return Verdict("-", NOT_RUN, f"results incomplete ({type(err).__name__}: {err}); "
                            f"rerun `{self.command}`")
         require(v.verdict in VERDICTS, "verdict", "one of " + ", ".join(VERDICTS), v.verdict)
         return v
+
+
+class IncompleteResult(LookupError):
+    """A result file lacks rows or values a check reads, found by the check itself (a policy
+    without rows, say): the claim reads "not yet run"."""
+
+
+_TABLE_ERRORS = (KeyError, IndexError, ValueError, AttributeError)
+_TABLE_MODULES = ("pandas", "numpy")
+
+
+def is_incomplete(err: BaseException) -> bool:
+    """Whether ``err`` says that a result file lacks what a check reads: an
+    :class:`IncompleteResult`, or a lookup that failed inside pandas or numpy (a missing column,
+    row or attribute of a table, an empty file: pandas' EmptyDataError is a ValueError). The same
+    errors raised by a check's own code are bugs in it, not missing data."""
+    if isinstance(err, IncompleteResult):
+        return True
+    if not isinstance(err, _TABLE_ERRORS) or err.__traceback__ is None:
+        return False
+    tb = err.__traceback__
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return str(tb.tb_frame.f_globals.get("__name__", "")).split(".")[0] in _TABLE_MODULES
 
 
 def scale_of(result: Path) -> str:

@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import Claim, Reading, Verdict, scale_of, side_by_side
+from repro.claims import (Claim, IncompleteResult, Reading, Verdict, is_incomplete, scale_of,
+                          side_by_side)
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_SHARE,
@@ -118,7 +119,7 @@ def check_c5(results: Path) -> Verdict:
     episodes = {p: arrivals[arrivals.policy == p] for p in pols}
     for p, a in episodes.items():
         if a.empty:  # read as "results incomplete", not as a verdict
-            raise KeyError(f"no {p} rows in {path.name}")
+            raise IncompleteResult(f"no {p} rows in {path.name}")
     t_uni = {p: time_to_uniform(a, cfg.headway) for p, a in episodes.items()}
     t_reg = {p: time_to_regularity(a, cfg.headway) for p, a in episodes.items()}
     var = {p: float(load_variance_per_record(loads[loads.policy == p]).mean()) for p in pols}
@@ -201,8 +202,9 @@ def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic'
             lines += section(results)
         except FileNotFoundError:
             pass
-        # a stale or hand-edited file, as in Claim.evaluate
-        except (KeyError, AttributeError, IndexError, ValueError) as err:
+        except Exception as err:  # a stale or hand-edited file, as in Claim.evaluate
+            if not is_incomplete(err):
+                raise
             lines += ["", f"({section.__doc__.split(':')[0]}: results incomplete, "
                       f"{type(err).__name__})"]
     return "\n".join(lines)
