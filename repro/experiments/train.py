@@ -13,6 +13,7 @@ from repro.learn.baseline import BASELINES
 from repro.learn.config import (TrainConfig, add_learner_arguments, learner_overrides,
                                 train_config)
 from repro.learn.m_gae import ESTIMATORS
+from repro.learn.process import configure_process
 from repro.learn.trainer import Trainer
 
 
@@ -54,6 +55,7 @@ def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainCon
 
 
 def run(args: argparse.Namespace) -> int:
+    configure_process()
     cfg, env, env_cfg = make_from_args(args)
     out = check_writable_dir(f"runs/{cfg.env}/seed{cfg.seed}" if args.out is None else args.out,
                              "--out")
