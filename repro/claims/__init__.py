@@ -39,7 +39,7 @@ TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
           "repro.claims.wildfire", "repro.claims.learner", "repro.claims.beyond",
           "repro.claims.beyond_races")
 BEYOND = "X"
-"""Id prefix of the claims beyond the paper (issue 20): questions the paper raises and leaves open.
+"""Id prefix of the claims beyond the paper: questions the paper raises and leaves open.
 They are rendered in a section of their own, and a scale's results are complete without them (so
 that `make claims` keeps reading the paper scale until they are run there)."""
 
@@ -229,7 +229,7 @@ def render(results: Path) -> str:
     for note in filter(None, notes):
         lines += ["", note.strip()]
     if beyond:
-        intro = ("Questions the paper raises and leaves open (issue 20), answered with the same "
+        intro = ("Questions the paper raises and leaves open, answered with the same "
                  "machinery; a verdict says whether the hypothesis holds. "
                  f"**{len(beyond)} questions: {_tally(beyond)}** ({_scales(beyond)} scale).")
         lines += ["", "## Beyond the paper", "", *textwrap.wrap(intro, WIDTH),

@@ -174,21 +174,21 @@ CLAIMS = [
 
 CORRECTED_DIR = "corrected"
 """Subfolder of the results with the bus results of the corrected semantics (``--corrected``):
-the sweeps' CSVs as they were before issue 23 made the released semantics the default, and the
-figure CSVs redrawn from them with --corrected (its MLP runs were not kept, so no MLP panel)."""
+the sweeps' CSVs made with B1-B5 off, and the figure CSVs redrawn from them with --corrected
+(their MLP runs are not kept, so there is no MLP panel)."""
 
 
 def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic's notes)
     """C1-C5 on the corrected semantics beside the released ones, and the load panels' distances
     to the paper's."""
-    lines = ["## Bus: released semantics (default) and corrected (`--corrected`, before issue 23)",
-             "", "Since issue 23 both bus engines follow the authors' released simulator "
+    lines = ["## Bus: released semantics (default) and corrected (`--corrected`)",
+             "", "Both bus engines follow the authors' released simulator "
              "(BusBunching/busbunchingenv.py) path for path, because it draws the paper's "
              "pictures: with it the authors' thresholds reproduce the paper's thresholds load "
              "panel at all 55 points, which the paper's prose (docs/semantics.md section "
              "4.9) does not. Each "
              "departure from the prose is a switch, B1-B5 (README, 'Deviations from the "
-             "paper'); `--corrected` turns them off and gives the earlier rollouts bit for bit.",
+             "paper'); `--corrected` turns them all off.",
              "", "| id | released: verdict, ours | corrected: verdict, ours |", "|---|---|---|"]
     for c in CLAIMS:
         rel, cor = c.evaluate(results), c.evaluate(results / CORRECTED_DIR)
