@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
@@ -137,11 +137,13 @@ class Trainer:
         n_rows = max(1, int(cfg.fvp_subsample * n_decisions))
         return torch.as_tensor(np.sort(rng.choice(n_decisions, n_rows, replace=False)))
 
-    def train(self) -> pd.DataFrame:
+    def train(self, on_epoch: Callable[[dict[str, Any]], None] | None = None) -> pd.DataFrame:
         """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table. A run folder
-        also gets ``progress.provenance.json``: what this call ran, from which commit, on what."""
+        also gets ``progress.provenance.json``: what this call ran, from which commit, on what.
+        ``on_epoch`` is handed each epoch's progress row once the epoch is recorded (``train
+        --tensorboard`` logs it); it sees the epochs this call trains, not those resumed from."""
         if self.out is None:
-            self._epochs()
+            self._epochs(on_epoch)
             return self.progress()
         t_start = time.perf_counter()
         with run_folder.writer_lock(self.out, self.param):
@@ -153,12 +155,12 @@ class Trainer:
             if state is not None:
                 self.load_state_dict(state)
             first_epoch = self.epoch
-            self._epochs()
+            self._epochs(on_epoch)
             run_folder.finish(self.out, self.run_config, self.cfg.seed,
                               time.perf_counter() - t_start, first_epoch, self.epoch)
         return self.progress()
 
-    def _epochs(self) -> None:
+    def _epochs(self, on_epoch: Callable[[dict[str, Any]], None] | None) -> None:
         with blas_on_one_thread():
             for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
                               total=self.cfg.epochs - self.epoch):
@@ -169,6 +171,8 @@ class Trainer:
                 if self.out is not None:
                     run_folder.record_epoch(self.out, row, PROGRESS_COLUMNS, self.state_dict(),
                                             self.cfg.epochs)
+                if on_epoch is not None:
+                    on_epoch(row)
 
     def progress(self) -> pd.DataFrame:
         return pd.DataFrame(self.rows, columns=PROGRESS_COLUMNS)
