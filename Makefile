@@ -22,7 +22,7 @@ STAMP  := $(VENV)/.installed
 .DEFAULT_GOAL := help
 
 help:
-	@echo "make reproduce   # every driver at SCALE=$(SCALE), then paper_claims.md"
+	@echo "make reproduce   # every driver at SCALE=$(SCALE), then its verdicts (results/$(SCALE)/claims.md; paper: paper_claims.md)"
 	@echo "make test        # lint (ruff), then the test suite"
 	@grep -E '^[a-z0-9-]+:.*## ' $(MAKEFILE_LIST) | sed 's/:.*## /\t/' | sort
 
@@ -46,7 +46,7 @@ test: lint ## lint, then run the test suite
 lint: $(STAMP) ## ruff: style (100 columns) and likely bugs (pyproject.toml says which rules)
 	$(BIN)/ruff check repro tests
 
-reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
+reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke check below paper scale
 	$(MAKE) race SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) bus-thresholds SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) fig-bus-lambda SCALE=$(SCALE) SEED=$(SEED)
@@ -65,10 +65,10 @@ reproduce: $(STAMP) ## run every driver at SCALE, then render paper_claims.md
 	$(MAKE) beyond-transfer-dt SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) learner-ablation SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) c9-inputs SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) claims
+	$(REPRO) claims --results-dir results/$(SCALE)
 
-claims: $(STAMP) ## render paper_claims.md from results/<largest complete scale>/
-	$(REPRO) claims
+claims: $(STAMP) ## render paper_claims.md from results/paper/ (ARGS="--results-dir results/quick": a smoke check)
+	$(REPRO) claims $(ARGS)
 
 race: $(STAMP) ## race-condition table and figure (C10; alias table-race)
 	$(REPRO) race --scale $(SCALE) --seed $(SEED) $(ARGS)

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from repro.claims import NOT_RUN, Claim, Verdict, is_incomplete
-from tests.conftest import write_result_csv
+from tests.conftest import tree_snapshot, write_result_csv
 
 
 def claim(check) -> Claim:
@@ -69,3 +69,54 @@ def test_only_errors_raised_inside_pandas_or_numpy_count_as_incomplete():
     except KeyError as err:
         assert not is_incomplete(err)
     assert not is_incomplete(KeyError("raised nowhere"))
+
+
+# --- paper_claims.md from paper-scale results only; a smaller scale's verdicts a smoke check ---
+
+def race_results(folder: Path, scale: str) -> None:
+    """C10's result file, as the race driver writes it at ``scale``, passing."""
+    folder.mkdir()
+    rows = [dict(distribution=d, parameters="", beta=b, beta_se=0.03, alpha=1.0, n_sets=10000,
+                 delta=0.1, n_min=2, n_max=20)
+            for d, b in (("Exponential", 2.21), ("Chi-Squared", 2.2), ("Gamma", 2.22))]
+    write_result_csv(pd.DataFrame(rows), folder / "table_race.csv", scale=scale)
+
+
+def test_smaller_scales_render_a_smoke_check_beside_their_results(tmp_path, monkeypatch, capsys):
+    from repro.cli import main
+
+    race_results(tmp_path / "smoke", "smoke")
+    monkeypatch.chdir(tmp_path)
+    assert main(["claims", "--results-dir", "smoke"]) == 0
+    printed = capsys.readouterr().out
+    text = (tmp_path / "smoke" / "claims.md").read_text()
+    assert text.startswith("# Smoke check (smoke scale)")
+    assert "**A smoke check, not evidence.**" in text and "**A smoke check" in printed
+    assert "| C10 |" in printed and "## Details" not in printed  # the table, printed at the end
+    assert printed.rstrip().endswith("wrote smoke/claims.md")
+    assert not (tmp_path / "paper_claims.md").exists()
+
+
+def test_paper_claims_md_is_never_rendered_from_a_smaller_scale(tmp_path, monkeypatch, capsys):
+    from repro.cli import main
+
+    race_results(tmp_path / "quick", "quick")
+    monkeypatch.chdir(tmp_path)
+    before = tree_snapshot(tmp_path)
+    assert main(["claims", "--results-dir", "quick", "--out", "paper_claims.md"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "error: --out:" in err
+    assert "paper-scale results only" in err
+    assert tree_snapshot(tmp_path) == before
+
+
+def test_paper_scale_results_render_paper_claims_md(tmp_path, monkeypatch):
+    from repro.cli import main
+
+    race_results(tmp_path / "paper", "paper")
+    monkeypatch.chdir(tmp_path)
+    assert main(["claims", "--results-dir", "paper"]) == 0
+    text = (tmp_path / "paper_claims.md").read_text()
+    assert text.startswith("# Paper claims") and "smoke check, not evidence" not in text
+    assert "from the paper-scale result CSVs only" in text
+    assert not (tmp_path / "paper" / "claims.md").exists()

@@ -2,6 +2,11 @@
 to ``paper_claims.md`` by ``python -m repro claims`` (``make claims``), and the questions beyond the
 paper, X1.., in a section of their own.
 
+Only paper-scale results make ``paper_claims.md``. The verdicts of a smaller scale's results
+(``claims --results-dir results/quick``, the end of ``make reproduce SCALE=quick``) go to
+``results/<scale>/claims.md``, marked as a smoke check: they show that every driver ran and every
+check reads its files, and are no evidence for or against a claim (:data:`SMOKE_NOTE`).
+
 A check reads result files and returns a :class:`Verdict`. A claim whose result files do not exist,
 or lack the rows and columns its check reads (a stale or hand-edited file), reads "not yet run",
 never PASS; any other error a check raises is a bug in it and propagates
@@ -14,12 +19,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib
+import json
 import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from repro.core.config import SCALES
 from repro.core.errors import require
 from repro.core.io import check_names, check_writable_dir, read_provenance, write_text
 
@@ -204,18 +209,53 @@ def _cell(s: str) -> str:
     return s.replace("|", "\\|").replace("\n", " ")
 
 
+PAPER = "paper"
+"""The scale whose results, and only whose, make paper_claims.md."""
+PAPER_CLAIMS = "paper_claims.md"
+SMOKE_OUT = "claims.md"
+"""The file a smaller scale's verdicts go to, in its results folder."""
+SMOKE_NOTE = (
+    "**A smoke check, not evidence.** These verdicts come from results of the {scale} scale: a "
+    "few seeds, short training and few test episodes, so intervals are wide or points and "
+    "trained policies are far from what the paper's budgets give. They show that every driver "
+    "ran and that each claim's check reads its files; a verdict here may differ from the "
+    "paper-scale one either way. The evidence is paper_claims.md, rendered from `results/paper/`.")
+
+
+def result_scales(results: Path) -> set[str]:
+    """The scales recorded by the provenance sidecars of the result files directly in
+    ``results``."""
+    return {str(json.loads(side.read_text()).get("scale", "unknown"))
+            for side in results.glob("*.provenance.json")}
+
+
+def is_paper_scale(results: Path) -> bool:
+    """Whether every result file directly in ``results`` is of the paper scale (and there is
+    one)."""
+    return result_scales(results) == {PAPER}
+
+
 def render(results: Path) -> str:
-    """paper_claims.md: a tally, one short row per claim, then each claim's detail."""
+    """paper_claims.md (paper-scale results), or a smaller scale's smoke check: a tally, one short
+    row per claim, then each claim's detail."""
     evaluated = [(c, c.evaluate(results)) for c in registry()]
     rows = [(c, v) for c, v in evaluated if not is_beyond(c)]
     beyond = [(c, v) for c, v in evaluated if is_beyond(c)]
+    paper = is_paper_scale(results)
+    scale = " and ".join(sorted(result_scales(results))) or "no"
+    title = ("# Paper claims: the paper's numbers beside ours" if paper else
+             f"# Smoke check ({scale} scale): the paper's numbers beside a short run's")
+    source = ("from the paper-scale result CSVs only (a smaller scale's verdicts are a smoke "
+              f"check, `results/<scale>/{SMOKE_OUT}`)" if paper else
+              f"from the result CSVs in `{results}/`")
     lines = [
-        "# Paper claims: the paper's numbers beside ours",
+        title,
         "",
         f"**{len(rows)} claims: {_tally(rows)}** (results in `{results}/`, {_scales(rows)} scale).",
         "",
-        "Rendered by `make claims` (`python -m repro claims`) from the result CSVs; do not edit by "
-        "hand. The verdicts:",
+        *([] if paper else [*textwrap.wrap(SMOKE_NOTE.format(scale=scale), WIDTH), ""]),
+        f"Rendered by `make claims` (`python -m repro claims`) {source}; do not edit by hand. "
+        "The verdicts:",
         "",
         *(f"- **{k}**: {m}." for k, m in LEGEND.items()),
         "",
@@ -271,36 +311,34 @@ WIDTH = 100
 """Line width of the details."""
 
 
-def default_results(root: Path = Path("results")) -> Path:
-    """The folder ``claims`` reads unless told: the largest scale that has every paper claim's
-    results (outdated ones count; the questions beyond the paper need not be there), else the
-    largest scale that has results at all (paper, then quick, then smoke)."""
-    folders = [root / s for s in reversed(SCALES) if (root / s).is_dir()]
-    claims = [c for c in registry() if not is_beyond(c)]
-    complete = (f for f in folders if all(v.verdict != NOT_RUN or v.outdated
-                                          for v in (c.evaluate(f) for c in claims)))
-    return next(complete, folders[0] if folders else root / SCALES[-1])
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--results-dir", help="folder the checks read (default: results/<scale> of the "
-                   "largest scale whose results are complete)")
-    p.add_argument("--out", default="paper_claims.md", help="the rendered table")
+    p.add_argument("--results-dir", default="results/paper",
+                   help="folder the checks read (default results/paper)")
+    p.add_argument("--out", help=f"the rendered table (default {PAPER_CLAIMS} for paper-scale "
+                   f"results; for those of a smaller scale, a smoke check, "
+                   f"<results-dir>/{SMOKE_OUT}, never {PAPER_CLAIMS})")
 
 
 def run(args: argparse.Namespace) -> int:
-    require(args.results_dir is None or args.results_dir.strip() != "", "--results-dir",
+    require(args.results_dir.strip() != "", "--results-dir",
             "a folder of result files (not an empty path)", args.results_dir)
-    results = Path(args.results_dir) if args.results_dir is not None else default_results()
-    require(args.out.strip() != "", "--out", "a file name", args.out)
-    out = check_names(args.out, "--out")
+    results = Path(args.results_dir)
     # a mistyped or empty folder would otherwise render a table of "not yet run" over the claims
     require(results.is_dir() and any(results.glob("*.provenance.json")), "--results-dir",
             "an existing folder of result files (CSVs with their provenance sidecars)",
             str(results))
+    paper = is_paper_scale(results)
+    default = PAPER_CLAIMS if paper else str(results / SMOKE_OUT)
+    require(args.out is None or args.out.strip() != "", "--out", "a file name", args.out)
+    out = check_names(default if args.out is None else args.out, "--out")
+    require(paper or out.name != PAPER_CLAIMS, "--out", f"another file than {PAPER_CLAIMS} for "
+            f"results of the {' and '.join(sorted(result_scales(results)))} scale "
+            f"({PAPER_CLAIMS} is rendered from paper-scale results only)", str(out))
     require(not out.is_dir(), "--out", "a file, not a folder", str(out))
     check_writable_dir(out.parent, "--out")
     text = render(results)
     write_text(out, text)
+    if not paper:  # the smoke check's table, for the end of `make reproduce`
+        print(text.split("\n## Details")[0].rstrip())
     print(f"wrote {out}")
     return 0
