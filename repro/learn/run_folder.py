@@ -3,7 +3,9 @@
 A run folder holds ``config.json`` (the settings that determine the run), ``progress.csv`` (one row
 per finished epoch), ``checkpoint.pt`` (everything needed to go on), ``policies/epochNNNN.pt`` (the
 policy after each of the run's last :data:`KEPT_POLICIES` epochs, a checkpoint holding what acting
-needs) and, while a process trains in it, ``run.lock``.
+needs) and, while a process trains in it, ``run.lock``. A trainer starts or resumes its run with
+:func:`start`, hands each epoch to :func:`record_epoch` and ends with :func:`finish`; it writes
+nothing itself.
 
 - **Safe to load.** A checkpoint holds only tensors, numbers and strings (the run's config and the
   sampler's generator state as JSON) and is read with ``torch.load(weights_only=True)``, which
