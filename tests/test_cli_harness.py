@@ -207,19 +207,6 @@ def test_a_smaller_scale_never_writes_the_paper_folders(scale, monkeypatch):
         assert getattr(args, "figures_dir", f"figures/{scale}") == f"figures/{scale}", name
 
 
-def test_claims_read_the_largest_complete_scale(tmp_path):
-    from repro.claims import default_results
-
-    assert default_results(tmp_path) == tmp_path / "paper"  # nothing yet: where results will be
-    (tmp_path / "smoke").mkdir()
-    assert default_results(tmp_path) == tmp_path / "smoke"  # the only one there
-    shutil.copytree(ROOT / "results" / "paper", tmp_path / "quick")
-    (tmp_path / "paper").mkdir()  # begun, not complete
-    (tmp_path / "paper" / "table_race.csv").write_text("x\n")
-    assert default_results(tmp_path) == tmp_path / "quick"
-    assert default_results(ROOT / "results") == ROOT / "results" / "paper"
-
-
 # --- what a hostile user tries -------------------------------------------------------------------
 
 @pytest.mark.parametrize("argv, param", [

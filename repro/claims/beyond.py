@@ -1,4 +1,4 @@
-"""Beyond the paper (issue 20): questions the paper raises and leaves open, checked like its claims
+"""Beyond the paper: questions the paper raises and leaves open, checked like its claims
 and rendered in a section of their own. A verdict says whether the hypothesis in the table holds.
 
 Intervals are the drivers' 95% percentile bootstrap CIs of the mean over seeds

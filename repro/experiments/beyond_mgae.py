@@ -1,4 +1,4 @@
-"""Claim X1, beyond the paper: does M-GAE matter? (issue 20; docs/semantics.md section 6.9)
+"""Claim X1, beyond the paper: does M-GAE matter? (docs/semantics.md section 6.9)
 
 PS-TRPO is trained with each advantage estimator of ``repro.learn.m_gae.ESTIMATORS``, everything
 else equal: M-GAE (the paper's), decision-step GAE (every macro-action one step, one discount

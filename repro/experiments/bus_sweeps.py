@@ -236,7 +236,7 @@ def run_named(sweep: str, args: argparse.Namespace) -> int:
     bus = config_from_args(args)
     root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")
     t0 = time.perf_counter()
-    baselines = baseline_returns(results, bus)  # needs table-thresholds: fails before training
+    baselines = baseline_returns(results, bus)  # needs bus-thresholds: fails before training
     job_list = jobs(cfg, sweep, args.seed, bus)
     run_sweep(job_list, root, n_jobs=args.n_jobs, scheduler=args.scheduler)
     table = curves(cfg, job_list, root)

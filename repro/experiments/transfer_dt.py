@@ -1,5 +1,5 @@
-"""Claim X3, beyond the paper: transfer to ED against dT, with the race rate beside it (issue 20;
-docs/semantics.md section 6.11).
+"""Claim X3, beyond the paper: transfer to ED against dT, with the race rate beside it
+(docs/semantics.md section 6.11).
 
 The transfer study (``repro.experiments.transfer``, C8) on a fine grid: policies trained on ED and
 on FS-dT for dT = 10^(-2 + 0.25 k) s, k = 0..12, are tested on ED. The grid contains the study's
