@@ -81,6 +81,7 @@ def file_argv(parser: argparse.ArgumentParser, settings: dict[str, Any], argv: l
                if o.startswith("--") and a.dest not in ("help", "config")}
     tokens: list[str] = []
     keys: dict[str, str] = {}
+    seen: dict[str, str] = {}  # dest -> the key that gave it
     for key, value in settings.items():
         option = "--" + str(key).removeprefix("--").replace("_", "-")
         action = options.get(option)
@@ -89,6 +90,9 @@ def file_argv(parser: argparse.ArgumentParser, settings: dict[str, Any], argv: l
                 sorted({o.removeprefix("--") for o, a in options.items()
                         if o == "--" + a.dest.replace("_", "-")})))
             continue
+        require(action.dest not in seen, f"{path}: {key}",
+                f"given once (the file also gives it as {seen.get(action.dest)})")
+        seen[action.dest] = key
         keys.update(dict.fromkeys(action.option_strings, key))
         if any(t == o or t.startswith(o + "=") for t in argv for o in action.option_strings):
             continue

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from repro.core.config import SCALES
+from repro.core.config import SCALES, canonical_keys
 from repro.core.errors import require
 from repro.core.io import check_writable_dir
 from repro.core.rollout import BatchEnv
@@ -31,20 +31,21 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
 
 
 def saved_settings(data: dict[str, Any]) -> dict[str, Any]:
-    """A ``--config`` file's table; a run's config.json (a ``train`` section) completed with what
-    the run held for the settings it lacks, which were added to the code after it started
-    (:func:`repro.learn.trainer.saved_run_defaults`)."""
-    train = data.get("train")
-    if not isinstance(train, dict):
+    """A ``--config`` file's table; a run's config.json (sections ``train`` and ``env``, and
+    ``env_name``) with old spellings of its keys renamed (the configs' ``ALIASES``) and completed
+    with what the run held for the settings it lacks, which were added to the code after it
+    started (:func:`repro.learn.trainer.saved_run_defaults`)."""
+    train, env, name = data.get("train"), data.get("env"), data.get("env_name")
+    if not (isinstance(train, dict) and "env_name" in data):
         return data
-    name = train.get("env", data.get("env_name"))
-    require(isinstance(name, str), "--config", "a run config naming its environment (train.env)",
+    require(isinstance(name, str), "--config", "a run config naming its environment (env_name)",
             name)
     env_cfg = env_package(name).config_from_args(argparse.Namespace())
     saved = saved_run_defaults(env_cfg, name)
-    env = data.get("env")
-    return {**data, "train": {**saved["train"], **train},
-            "env": {**saved["env"], **env} if isinstance(env, dict) and saved["env"] else env}
+    train = {**saved["train"], **canonical_keys(TrainConfig, train)}
+    if isinstance(env, dict) and saved["env"]:
+        env = {**saved["env"], **canonical_keys(type(env_cfg), env)}
+    return {**data, "train": train, "env": env}
 
 
 def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainConfig, BatchEnv, Any]:

@@ -204,15 +204,18 @@ def read_config(folder: Path, param: str = "--out") -> dict[str, Any] | None:
                          str(path)) from None
 
 
-def run_difference(saved: dict[str, Any], mine: dict[str, Any],
-                   defaults: dict[str, Any]) -> str | None:
+def run_difference(saved: dict[str, Any], mine: dict[str, Any], defaults: dict[str, Any],
+                   aliases: dict[str, dict[str, str]] | None = None) -> str | None:
     """The first setting (other than ``train.epochs``) in which the run config ``saved`` differs
     from ``mine``, as "part.key: saved vs mine"; None if they are the same run. Settings that
-    ``saved`` lacks were added to the code after the run started, so they held their defaults."""
+    ``saved`` lacks were added to the code after the run started, so they held their defaults;
+    ``aliases`` (part -> old key -> key) renames keys that ``saved`` spells the old way."""
     for part in sorted(set(saved) | set(mine)):
         a, b = saved.get(part), _as_json(mine.get(part))
         if isinstance(a, dict) and isinstance(b, dict):
-            a = {**_as_json(defaults.get(part) or {}), **a}
+            renamed = (aliases or {}).get(part, {})
+            a = {**_as_json(defaults.get(part) or {}), **{renamed.get(k, k): v
+                                                          for k, v in a.items()}}
             for key in sorted(set(a) | set(b)):
                 if (part, key) != ("train", "epochs") and a.get(key) != b.get(key):
                     return f"{part}.{key}: {a.get(key)!r} there, {b.get(key)!r} here"
@@ -254,14 +257,15 @@ def kept_policies(folder: Path, last: int, epochs: int) -> list[Path]:
 
 
 def check_same_run(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
-                   param: str = "--out") -> None:
+                   param: str = "--out",
+                   aliases: dict[str, dict[str, str]] | None = None) -> None:
     """Refuse (UsageError naming ``param``) a folder that is neither new nor a run with the
-    settings ``mine``; reads only."""
+    settings ``mine`` (:func:`run_difference`); reads only."""
     saved = read_config(folder, param)
     if saved is None:
         require(is_new(folder), param, "new, empty or a run folder", str(folder))
         return
-    diff = run_difference(saved, mine, defaults)
+    diff = run_difference(saved, mine, defaults, aliases)
     require(diff is None, param, f"a run folder made with these settings ({CONFIG}: {diff})",
             str(folder))
 
@@ -270,17 +274,18 @@ def check_same_run(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
 
 def resume_state(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
                  param: str = "--out", *, obs_dim: int | None = None,
-                 n_actions: int | None = None) -> dict[str, Any] | None:
+                 n_actions: int | None = None,
+                 aliases: dict[str, dict[str, str]] | None = None) -> dict[str, Any] | None:
     """Check everything a (re)start needs, changing nothing: the folder holds this run (or none),
     its checkpoint (if any) is readable, whole (for an environment of ``obs_dim`` and
     ``n_actions``, if given) and of this run, and progress.csv holds its epochs. Returns the
     checkpoint's state, or None."""
-    check_same_run(folder, mine, defaults, param)
+    check_same_run(folder, mine, defaults, param, aliases)
     path = folder / CHECKPOINT
     if not path.exists():
         return None
     state = load_checkpoint(path, param, obs_dim=obs_dim, n_actions=n_actions, training=True)
-    diff = run_difference(state.get("run_config") or {}, mine, defaults)
+    diff = run_difference(state.get("run_config") or {}, mine, defaults, aliases)
     require(diff is None, param, f"a run folder whose {CHECKPOINT} belongs to its run ({diff}; "
             f"delete {CHECKPOINT} to start again)", str(folder))
     rows = _rows(folder / PROGRESS)

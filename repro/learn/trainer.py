@@ -218,7 +218,8 @@ class Trainer:
         assert self.out is not None
         defaults = saved_run_defaults(self.env_config, self.env.name)
         state = resume_state(self.out, self.run_config, defaults, self.param,
-                             obs_dim=self.env.obs_dim, n_actions=self.env.n_actions)
+                             obs_dim=self.env.obs_dim, n_actions=self.env.n_actions,
+                             aliases=saved_run_aliases(self.env_config))
         epochs = 0 if state is None else int(state["epoch"])
         config = self.run_config
         if state is not None:
@@ -269,11 +270,17 @@ def saved_run_defaults(env_config: Any, env_name: str) -> dict[str, Any]:
             "env_name": env_name}
 
 
+def saved_run_aliases(env_config: Any) -> dict[str, dict[str, str]]:
+    """Old spellings of the settings a run folder's config.json may carry (the configs'
+    ``ALIASES``: old key -> key), by section."""
+    return {"train": TrainConfig.ALIASES, "env": getattr(type(env_config), "ALIASES", {})}
+
+
 def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str,
                      param: str = "--out") -> None:
     """Refuse (UsageError naming ``param`` and the first differing setting) a folder ``out`` that
     is neither new nor a run with these settings; only ``epochs`` may differ."""
     check_same_run(Path(out), run_config(cfg, env_config, env_name),
-                   saved_run_defaults(env_config, env_name), param)
+                   saved_run_defaults(env_config, env_name), param, saved_run_aliases(env_config))
 
 
