@@ -320,3 +320,20 @@ def test_the_numba_record_of_a_config_is_its_fields_and_nothing_hand_listed():
     args = parser_of(Grown).parse_args(["--new-switch"])
     assert given_fields(args, Grown) == dict(new_switch=True)
     assert np.isclose(rec["t_max"], Grown().t_max)
+
+
+@pytest.mark.parametrize("argv", [
+    ["--no-quirk-q3-unclamped-health", "--no-quirk-q5-discount-from-action-start"],
+    ["--no-quirk-q5", "--no-quirk-q3"],
+    ["--no-quirk", "q3", "--no-quirk", "Q5"],
+    ["--no-quirk-q3-unclamped-health", "--no-quirk", "q5", "--quirk-q1-stale-attack"],
+])
+def test_a_study_spells_a_quirk_as_train_does_and_takes_the_old_spellings(argv, tmp_path):
+    """fig-transfer switches a quirk off by train's flag; the old ones give the same study."""
+    from repro.experiments.transfer import config_from_args
+
+    cfg = config_from_args(parsed(["fig-transfer", "--scale", "smoke", *argv]))
+    assert cfg.quirks_off == ("q3", "q5") and cfg.name == "transfer_no_q3_no_q5"
+    sim = cfg.test_simulator()
+    assert not (sim.quirk_q3_unclamped_health or sim.quirk_q5_discount_from_action_start)
+    assert sim.quirk_q1_stale_attack and sim.quirk_q4_latency_not_interrupted

@@ -37,7 +37,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.rollout import children
@@ -367,9 +367,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_size_arguments(p)
     p.add_argument("--corrected", action="store_true",
                    help="quirks Q1-Q6 off (paper's prose); writes transfer_corrected*")
+    # each quirk's flag as train spells it: --no-quirk-q3-unclamped-health switches Q3 off in
+    # every simulator of the study (an ablation; writes transfer_no_q3*)
+    add_config_arguments(p, WildfireConfig, QUIRKS)
     p.add_argument("--no-quirk", action="append", default=[], metavar="Q",
-                   help="switch quirk Q (q1..q6) off, repeatable: an ablation; writes "
-                        "transfer_no_<Q>*")
+                   help="old spelling: --no-quirk q3 is --no-quirk-q3-unclamped-health "
+                        "(repeatable)")
     p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
                    help="train and test only this simulator (e.g. FS-1), repeatable")
     p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
@@ -405,12 +408,19 @@ def train_and_test(cfg: TransferConfig, args: argparse.Namespace,
         median_seconds_per_epoch=round(float(np.median(np.concatenate(seconds))), 4))
 
 
+def config_from_args(args: argparse.Namespace) -> TransferConfig:
+    """The study's config of :func:`add_arguments`'s options (UsageError if bad)."""
+    off = [q.split("_")[1] for q, on in given_fields(args, WildfireConfig).items() if not on]
+    return study_config(args, corrected=args.corrected or None,
+                        quirks_off=tuple(sorted({*off, *(q.lower() for q in args.no_quirk)}))
+                        or None,
+                        only=tuple(args.simulator) or None,
+                        fire_out_first=False if args.no_fire_out_first else None,
+                        sim_version=args.sim_version)
+
+
 def run(args: argparse.Namespace) -> int:
-    cfg = study_config(args, corrected=args.corrected or None,
-                       quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
-                       only=tuple(args.simulator) or None,
-                       fire_out_first=False if args.no_fire_out_first else None,
-                       sim_version=args.sim_version)
+    cfg = config_from_args(args)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
