@@ -16,8 +16,9 @@ Per simulator the summary gives the mean over the trained policies with its stan
 paper's error bars), the IQM, and a bootstrap CI of the mean (``repro.core.stats``).
 
 ``--corrected`` trains and tests with quirks Q1-Q6 switched off (the paper's prose) and writes
-``transfer_corrected*.csv`` and ``figures/transfer_corrected.*`` instead; ``--no-quirk Q`` switches
-one quirk off (``transfer_no_<Q>*``), ``--no-fire-out-first`` reverses the same-instant order of a
+``transfer_corrected*.csv`` and ``figures/transfer_corrected.*`` instead; a quirk's flag, as
+``train`` spells it (``--no-quirk-q3-unclamped-health``; the old ``--no-quirk q3`` too), switches
+one quirk off (``transfer_no_q3*``), ``--no-fire-out-first`` reverses the same-instant order of a
 macro-action's end and a fire's extinguishing (``*_no_fire_out_first``; claim X4).
 
 Training runs are checkpointed under ``--runs-dir``/transfer[-corrected]/<scale>/; re-running
