@@ -113,13 +113,13 @@ def _tokens(action: argparse.Action, option: str, value: Any, param: str) -> lis
     values = list(value) if isinstance(value, (list, tuple)) else [value]
     many = action.nargs in ("+", "*") or isinstance(action, argparse._AppendAction)
     require(many or len(values) == 1, param, "one value", value)
+    allowed = getattr(action.type, "allowed", f"a value {option} takes")
     for v in values:
+        require(not isinstance(v, (bool, dict, list)), param, allowed, v)
         try:
             parsed = v if action.type is None else action.type(str(v))
         except (ValueError, TypeError, argparse.ArgumentTypeError):
-            raise UsageError(param, getattr(action.type, "allowed", f"a value {option} takes"),
-                             v) from None
-        require(not isinstance(v, (bool, dict, list)), param, f"a value of {option}", v)
+            raise UsageError(param, allowed, v) from None
         require(action.choices is None or parsed in action.choices, param,
                 "one of " + ", ".join(map(str, action.choices or ())), v)
     if isinstance(action, argparse._AppendAction):
@@ -133,6 +133,29 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         print(f"{self.prog}: error: {message}", file=sys.stderr)
         raise SystemExit(2)
+
+
+def parse_arguments(module: Any, parser: argparse.ArgumentParser,
+                    argv: list[str]) -> tuple[argparse.Namespace, dict[str, str]]:
+    """The command's arguments: ``--config FILE``'s settings (:func:`file_argv`), then ``argv``
+    (flags given override the file); and each flag the file gave, as "FILE: key", so that a bad
+    value is named by its key there."""
+    parser.add_argument("--config", metavar="FILE",
+                        help="a JSON or TOML file of settings (a run's config.json, or keys named "
+                             "as this command's flags); flags given override it")
+    pre = OneLineParser(prog=parser.prog, add_help=False)
+    pre.add_argument("--config")
+    path = pre.parse_known_args(argv)[0].config
+    data = read_config_file(path) if path else {}
+    # a run's config.json: what it held for settings that did not exist yet (train)
+    if hasattr(module, "saved_settings"):
+        data = module.saved_settings(data)
+    settings = flat_settings(data, path)
+    # options that depend on other options (train: the chosen environment's own options)
+    if hasattr(module, "extend_arguments"):
+        module.extend_arguments(parser, file_argv(parser, settings, argv, path, True)[0] + argv)
+    tokens, keys = file_argv(parser, settings, argv, path)
+    return parser.parse_args(tokens + argv), {flag: f"{path}: {key}" for flag, key in keys.items()}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -150,26 +173,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     module = importlib.import_module(COMMANDS[name][0])
     parser = OneLineParser(prog=f"repro {name}", description=COMMANDS[name][1])
-    keys: dict[str, str] = {}  # flag -> its key in the --config file
+    keys: dict[str, str] = {}  # flag -> "FILE: key" of the --config file that gave it
     try:
         module.add_arguments(parser)
-        parser.add_argument("--config", metavar="FILE",
-                            help="a JSON or TOML file of settings (a run's config.json, or keys "
-                                 "named as this command's flags); flags given override it")
-        pre = argparse.ArgumentParser(add_help=False)
-        pre.add_argument("--config")
-        path = pre.parse_known_args(argv[1:])[0].config
-        data = read_config_file(path) if path else {}
-        # a run's config.json: what it held for settings that did not exist yet (train)
-        if hasattr(module, "saved_settings"):
-            data = module.saved_settings(data)
-        settings = flat_settings(data, path)
-        # options that depend on other options (train: the chosen environment's own options)
-        if hasattr(module, "extend_arguments"):
-            known = file_argv(parser, settings, argv[1:], path, partial=True)[0]
-            module.extend_arguments(parser, known + argv[1:])
-        tokens, keys = file_argv(parser, settings, argv[1:], path) if path else ([], {})
-        args = parser.parse_args(tokens + argv[1:])
+        args, keys = parse_arguments(module, parser, argv[1:])
         # every seed becomes a numpy SeedSequence, which takes no negative entropy
         if getattr(args, "seed", None) is not None and args.seed < 0:
             raise UsageError("--seed", "an integer >= 0", args.seed)
@@ -180,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(module.run(args) or 0)
     except UsageError as err:
         if err.param in keys:  # a bad value from the --config file: named by its key there
-            err = UsageError(f"{path}: {keys[err.param]}", err.allowed, err.got)
+            err = UsageError(keys[err.param], err.allowed, err.got)
         print(f"repro {name}: error: {err}", file=sys.stderr)
         return 2
     except OSError as err:
