@@ -44,6 +44,7 @@ class Scratch(Validated):
     """A mode, left out of the numba record."""
 
     ALIASES: ClassVar[dict[str, str]] = {"old_loud": "loud"}
+    SCALES: ClassVar[dict[str, dict]] = {"smoke": dict(count=1), "quick": {}, "paper": {}}
 
     def validate(self) -> None:
         self.check(self.count >= 1, "count", "an integer >= 1")
@@ -60,7 +61,7 @@ def test_a_new_field_is_a_flag_a_help_text_a_message_and_a_record_entry():
     parser = parser_of(Scratch)
     help_text = parser.format_help()
     for text in ("--count", "How many.", "--rate", "--sizes", "--loud", "--no-loud",
-                 "--old-loud", "(default: 3)"):
+                 "--old-loud", "(default: 3; smoke: 1)", "(default: 1.0 2.0)"):
         assert text in help_text
     assert "More words" not in help_text  # the first sentence only
     args = parser.parse_args(["--rate", "0.5", "--sizes", "4", "5", "--no-old-loud"])

@@ -110,10 +110,15 @@ def settings(cls: type) -> list[str]:
     return [f.name for f in dataclasses.fields(cls)]
 
 
+@functools.cache
+def _type_hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
 def _field_type(cls: type, field: str) -> tuple[type, bool, bool]:
     """(scalar type, optional: None allowed, sequence: a tuple of that type) of a field, from its
     annotation: ``int``, ``float | None``, ``tuple[int, ...]`` and so on."""
-    hint = typing.get_type_hints(cls)[field]
+    hint = _type_hints(cls)[field]
     args = typing.get_args(hint)
     optional = isinstance(hint, types.UnionType) and type(None) in args
     if optional:
@@ -158,9 +163,7 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
         kind, optional, sequence = _field_type(cls, name)
         text = field_help(cls, name)
         if show_defaults and defaults[name] is not dataclasses.MISSING:
-            default = defaults[name]
-            shown = " ".join(map(str, default)) if isinstance(default, tuple) else default
-            text += f" (default: {shown})"
+            text += f" (default: {_default_text(cls, name, defaults[name])})"
         if old.get(name):
             text += f" (old spelling: {', '.join(old[name])})"
         names = (flag(name), *old.get(name, ()))
@@ -173,10 +176,22 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
                                 help=text)
 
 
-def given_fields(args: argparse.Namespace, cls: type) -> dict[str, Any]:
-    """The fields of ``cls`` that flags of :func:`add_config_arguments` gave (tuples as tuples)."""
+def _default_text(cls: type, name: str, default: Any) -> str:
+    """A field's default as help shows it, with the scales that change it (``cls.SCALES``)."""
+    def shown(value: Any) -> str:
+        return " ".join(map(str, value)) if isinstance(value, tuple) else str(value)
+
+    scaled = [f"{scale}: {shown(fields[name])}" for scale, fields in
+              getattr(cls, "SCALES", {}).items() if name in fields]
+    return "; ".join([shown(default), *scaled])
+
+
+def given_fields(args: argparse.Namespace, cls: type,
+                 fields: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """The fields of ``cls`` (or of ``fields``) that flags of :func:`add_config_arguments` gave
+    (tuples as tuples)."""
     given = {}
-    for name in settings(cls):
+    for name in fields or settings(cls):
         if hasattr(args, name):
             value = getattr(args, name)
             given[name] = tuple(value) if isinstance(value, list) else value

@@ -31,7 +31,7 @@ import pandas as pd
 from scipy import optimize
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.progress import progress
@@ -273,19 +273,14 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
-    p.add_argument("--n-sets", type=int, help="Monte Carlo sets per N (paper: 10000)")
-    p.add_argument("--n-min", type=int, help="smallest N (paper: 2)")
-    p.add_argument("--n-max", type=int, help="largest N (paper: 20)")
-    p.add_argument("--delta", type=float, help="race-probability threshold (paper: 0.1)")
+    add_config_arguments(p, RaceConfig)
     p.add_argument("--distribution", action="append", dest="distributions",
-                   help="event-time distribution, repeatable: " + ", ".join(DISTRIBUTIONS))
+                   help="old spelling of --distributions, one a flag: " + ", ".join(DISTRIBUTIONS))
     p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(RaceConfig, args.scale, n_sets=args.n_sets, n_min=args.n_min,
-                    n_max=args.n_max, delta=args.delta,
-                    distributions=tuple(args.distributions) if args.distributions else None)
+    cfg = for_scale(RaceConfig, args.scale, **given_fields(args, RaceConfig))
     results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()

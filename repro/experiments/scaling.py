@@ -34,7 +34,7 @@ import pandas as pd
 from scipy import special
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.memory import require_memory
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -238,20 +238,17 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
-    p.add_argument("--n-agents", type=int, nargs="+", help="agent counts (at least 3, each >= 2)")
-    p.add_argument("--delta", type=float, help="race-probability threshold for dT (paper: 0.1)")
-    p.add_argument("--duration", type=float, help="simulated duration")
+    add_config_arguments(p, ScalingConfig)
     p.add_argument("--distribution", action="append", dest="distributions",
-                   help="inter-event time distribution, repeatable: " + ", ".join(DISTRIBUTIONS))
-    p.add_argument("--repeats", type=int, help="timed runs per point (median reported)")
+                   help="old spelling of --distributions, one a flag: " + ", ".join(DISTRIBUTIONS))
     p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(ScalingConfig, args.scale, delta=args.delta, duration=args.duration,
-                    repeats=args.repeats,
-                    n_agents=tuple(sorted(args.n_agents)) if args.n_agents else None,
-                    distributions=tuple(args.distributions) if args.distributions else None)
+    given = given_fields(args, ScalingConfig)
+    if given.get("n_agents"):
+        given["n_agents"] = tuple(sorted(given["n_agents"]))  # the fits read them in order
+    cfg = for_scale(ScalingConfig, args.scale, **given)
     check_work(cfg)
     results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")

@@ -45,9 +45,10 @@ from repro.core.rollout import children
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
-from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
-                                check_study_learner, learner_suffix, setting_tag)
-from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
+from repro.learn.config import (LEARNERS, SETTING_FIELDS, check_study_learner, learner_suffix,
+                                setting_tag)
+from repro.experiments.options import add_common
+from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
 
@@ -346,22 +347,23 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem)
 
 
+SIZES = ("seeds", "epochs", "learner", "batch_decisions", "batch_episodes", "test_episodes")
+"""The TransferConfig fields that every study of the transfer family takes as flags."""
+
+
 def add_size_arguments(p: argparse.ArgumentParser) -> None:
-    """The transfer study's sizes and its sweep's options (``beyond-order`` trains transfer
-    studies too)."""
-    add_study_arguments(p, "policies per training simulator (paper: 5)")
-    p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
-    add_study_learner_arguments(p)
-    p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
+    """Every driver's options, the sweep's, and the transfer study's sizes (``beyond-order``,
+    ``learner-ablation`` and ``c9-inputs`` train transfer studies too)."""
+    add_common(p)
+    add_sweep_arguments(p)
+    add_config_arguments(p, TransferConfig, SIZES)
 
 
 def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
     """The config of :func:`add_size_arguments`'s options at ``args.scale``, with ``fields``
     (None: the scale's)."""
-    return for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                     learner=args.learner, batch_decisions=args.batch_decisions,
-                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
-                     **fields)
+    return for_scale(TransferConfig, args.scale, **{**given_fields(args, TransferConfig, SIZES),
+                                                    **fields})
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
