@@ -176,6 +176,10 @@ def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:
     (["train", "--env", "wildfire", "--no-quirk-q3-unclamped-health=1"], "ignored explicit"),
     (["train", "--env", "bus", "--n-buses", "0"], "--n-buses: must be an integer >= 1"),
     (["train", "--env", "bus", "--alight-fraction", "0.5"], "--alight-fraction: must be 10"),
+    (["race", "--exact-n", "1"], "--exact-n: must be one or more integers >= 2"),
+    (["scaling", "--split-n", "1"], "--split-n: must be an integer >= 2"),
+    (["fig-transfer", "--seeds", "0"], "--seeds: must be an integer >= 1"),
+    (["learner-ablation", "--test-episodes", "x"], "--test-episodes takes an integer"),
 ])
 def test_a_bad_flag_is_one_line_and_exit_2_and_writes_nothing(argv, says, tmp_path, monkeypatch,
                                                               capsys):

@@ -80,6 +80,8 @@ class RaceConfig(Validated):
             require(d in DISTRIBUTIONS, "--distribution", "one of " + ", ".join(DISTRIBUTIONS), d)
         require(self.bisection_steps >= 1, "--bisection-steps", "an integer >= 1",
                 self.bisection_steps)
+        self.check(len(self.exact_n) >= 1 and min(self.exact_n) >= 2, "exact_n",
+                   "one or more integers >= 2")
 
 
 # --- Monte Carlo ---------------------------------------------------------------------------------

@@ -89,6 +89,7 @@ class ScalingConfig(Validated):
         for d in self.distributions:
             require(d in DISTRIBUTIONS, "--distribution", "one of " + ", ".join(DISTRIBUTIONS), d)
         require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
+        self.check(self.split_n >= 2, "split_n", "an integer >= 2")
 
 
 WORK_LIMIT = 10**12
