@@ -23,9 +23,15 @@ from repro.envs.toy import ToyConfig
 from repro.envs.wildfire import WildfireConfig
 from repro.envs.wildfire.engine import params_record as wildfire_record
 from repro.experiments import train
+from repro.experiments.beyond_races import BeyondRacesConfig
+from repro.experiments.race import RaceConfig
+from repro.experiments.scaling import ScalingConfig
+from repro.experiments.wildfire_behaviour import BehaviourConfig
 from repro.learn.config import TrainConfig
 
-CONFIGS = (WildfireConfig, BusConfig, ToyConfig, TrainConfig)
+CONFIGS = (WildfireConfig, BusConfig, ToyConfig, TrainConfig, RaceConfig, ScalingConfig,
+           BeyondRacesConfig, BehaviourConfig)
+"""The configs every field of which is a flag."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -103,6 +109,9 @@ def test_aliases_name_fields_and_are_not_fields_themselves(cls):
     (BusConfig, ["--no-b1", "--b4"], ["--no-b1-reward", "--b4-round-half-even"]),
     (TrainConfig, ["--obs-norm"], ["--normalize-obs"]),
     (TrainConfig, ["--no-obs-norm"], ["--no-normalize-obs"]),
+    (RaceConfig, ["--distribution", "chi2", "--distribution", "gamma"],
+     ["--distributions", "chi2", "gamma"]),
+    (BeyondRacesConfig, ["--policy", "random"], ["--policies", "random"]),
 ])
 def test_an_old_spelling_sets_the_same_field(cls, old, new):
     given = given_fields(parser_of(cls).parse_args(old), cls)

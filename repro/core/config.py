@@ -152,7 +152,8 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
                          show_defaults: bool = True) -> None:
     """A flag for each field of ``cls`` (or of ``fields``), and one for each of its old spellings
     (``cls.ALIASES``): ``--field`` takes a value of the field's type ("none" where None is
-    allowed), several for a tuple; a boolean field is ``--field`` / ``--no-field``. A flag not
+    allowed), one or more for a tuple (``--sizes 1 2``, or ``--sizes 1 --sizes 2``); a boolean
+    field is ``--field`` / ``--no-field``. A flag not
     given leaves no attribute (:func:`given_fields`). ``show_defaults``: the help ends with the
     field's default (False where another layer, such as a named learner, sets the default)."""
     old = {}
@@ -170,10 +171,12 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
         if kind is bool and not sequence:
             parser.add_argument(*names, dest=name, action=argparse.BooleanOptionalAction,
                                 default=argparse.SUPPRESS, help=text)
+        elif sequence:  # --sizes 1 2, or --sizes 1 --sizes 2
+            parser.add_argument(*names, dest=name, type=_parse_value(kind, optional, flag(name)),
+                                action="extend", nargs="+", default=argparse.SUPPRESS, help=text)
         else:
             parser.add_argument(*names, dest=name, type=_parse_value(kind, optional, flag(name)),
-                                nargs="+" if sequence else None, default=argparse.SUPPRESS,
-                                help=text)
+                                default=argparse.SUPPRESS, help=text)
 
 
 def _default_text(cls: type, name: str, default: Any) -> str:

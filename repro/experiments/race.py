@@ -61,6 +61,9 @@ class RaceConfig(Validated):
     exact_n: tuple[int, ...] = (2, 3, 4, 5, 7, 10, 14, 20, 30, 50, 70, 100)
     """Agent counts for the exact (sampling-free) curve, reaching well past the paper's range."""
 
+    ALIASES: ClassVar[dict[str, str]] = {"distribution": "distributions"}
+    """``--distribution chi2 --distribution gamma``, the older flag, still taken."""
+
     SCALES: ClassVar[dict] = {
         "smoke": dict(exact_n=(2, 3, 5, 10, 20, 30, 50)),
         "quick": {},
@@ -77,7 +80,7 @@ class RaceConfig(Validated):
                 "are held in memory)", self.n_sets)
         require(0.0 < self.delta < 1.0, "--delta", "in (0, 1)", self.delta)
         for d in self.distributions:
-            require(d in DISTRIBUTIONS, "--distribution", "one of " + ", ".join(DISTRIBUTIONS), d)
+            require(d in DISTRIBUTIONS, "--distributions", "one of " + ", ".join(DISTRIBUTIONS), d)
         require(self.bisection_steps >= 1, "--bisection-steps", "an integer >= 1",
                 self.bisection_steps)
         self.check(len(self.exact_n) >= 1 and min(self.exact_n) >= 2, "exact_n",
@@ -276,8 +279,6 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
     add_config_arguments(p, RaceConfig)
-    p.add_argument("--distribution", action="append", dest="distributions",
-                   help="old spelling of --distributions, one a flag: " + ", ".join(DISTRIBUTIONS))
     p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
 
 

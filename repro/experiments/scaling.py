@@ -72,6 +72,9 @@ class ScalingConfig(Validated):
     """Exponents are also fitted over N <= this (the paper's range) and N >= this (large N, where
     fixed per-call overheads no longer flatten the wall-time exponents)."""
 
+    ALIASES: ClassVar[dict[str, str]] = {"distribution": "distributions"}
+    """``--distribution chi2 --distribution gamma``, the older flag, still taken."""
+
     SCALES: ClassVar[dict] = {
         "smoke": dict(n_agents=(2, 3, 5, 8, 12), duration=20.0, distributions=("exponential",),
                       repeats=1),
@@ -87,7 +90,7 @@ class ScalingConfig(Validated):
         require(self.duration > 0 and math.isfinite(self.duration), "--duration",
                 "a finite number > 0", self.duration)
         for d in self.distributions:
-            require(d in DISTRIBUTIONS, "--distribution", "one of " + ", ".join(DISTRIBUTIONS), d)
+            require(d in DISTRIBUTIONS, "--distributions", "one of " + ", ".join(DISTRIBUTIONS), d)
         require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
         self.check(self.split_n >= 2, "split_n", "an integer >= 2")
 
@@ -240,8 +243,6 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
     add_config_arguments(p, ScalingConfig)
-    p.add_argument("--distribution", action="append", dest="distributions",
-                   help="old spelling of --distributions, one a flag: " + ", ".join(DISTRIBUTIONS))
     p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
 
 

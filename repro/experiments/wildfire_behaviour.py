@@ -50,7 +50,7 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import Rollout
@@ -61,7 +61,7 @@ from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL, FlowchartPolicy
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
-from repro.learn.config import add_study_learner_arguments, check_study_learner, learner_suffix
+from repro.learn.config import check_study_learner, learner_suffix
 
 PAPER = dict(hold_shared=0.27, hold_alone=0.84, fly_rank_1=0.15, fly_rank_2=0.15, fly_rank_3=0.68,
              closest_cluster=0.98, flowchart_worse=0.28)
@@ -240,26 +240,15 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     add_sweep_arguments(p)
-    p.add_argument("--seeds", type=int, help="policies trained (paper: 1)")
-    p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 3000)")
-    add_study_learner_arguments(p)
-    p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
-                   help="the released simulator's version (default 2017-05-16; 2017-04-22 "
-                        "writes *_20170422)")
-    p.add_argument("--test-episodes", type=int, help="ED episodes measured per policy")
-    p.add_argument("--max-decisions", type=int,
-                   help="decision limit per UAV and episode; 0: none (default: "
-                        f"{BehaviourConfig.max_decisions})")
+    add_config_arguments(p, BehaviourConfig)
 
 
 def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
-    """The validated config of the command line at its scale (UsageError if bad)."""
-    no_limit = args.max_decisions == 0  # asked for no limit (the default has one)
-    cfg = for_scale(BehaviourConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                    learner=args.learner, batch_decisions=args.batch_decisions,
-                    batch_episodes=args.batch_episodes, sim_version=args.sim_version,
-                    test_episodes=args.test_episodes,
-                    max_decisions=None if no_limit else args.max_decisions)
+    """The validated config of the command line at its scale (UsageError if bad);
+    ``--max-decisions 0`` (or none): no limit."""
+    given = given_fields(args, BehaviourConfig)
+    no_limit = "max_decisions" in given and not given.pop("max_decisions")
+    cfg = for_scale(BehaviourConfig, args.scale, **given)
     return dataclasses.replace(cfg, max_decisions=None) if no_limit else cfg
 
 
