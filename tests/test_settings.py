@@ -175,7 +175,7 @@ def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:
 
 
 @pytest.mark.parametrize("argv, says", [
-    (["train", "--env", "toy", "--epochs", "x"], "--epochs takes an integer"),
+    (["train", "--env", "toy", "--epochs", "x"], "argument --epochs: must be an integer, got 'x'"),
     (["train", "--env", "toy", "--epochs", "0"], "--epochs: must be an integer >= 1"),
     (["train", "--env", "toy", "--hidden", "0"], "--hidden: must be one or more positive"),
     (["train", "--env", "toy", "--init", "zeros"], "--init: must be one of xavier, orthogonal"),
@@ -188,7 +188,7 @@ def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:
     (["race", "--exact-n", "1"], "--exact-n: must be one or more integers >= 2"),
     (["scaling", "--split-n", "1"], "--split-n: must be an integer >= 2"),
     (["fig-transfer", "--seeds", "0"], "--seeds: must be an integer >= 1"),
-    (["learner-ablation", "--test-episodes", "x"], "--test-episodes takes an integer"),
+    (["learner-ablation", "--test-episodes", "x"], "argument --test-episodes: must be an integer"),
 ])
 def test_a_bad_flag_is_one_line_and_exit_2_and_writes_nothing(argv, says, tmp_path, monkeypatch,
                                                               capsys):

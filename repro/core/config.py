@@ -127,7 +127,7 @@ def _field_type(cls: type, field: str) -> tuple[type, bool, bool]:
     return (typing.get_args(hint)[0] if sequence else hint), optional, sequence
 
 
-def _parse_value(kind: type, optional: bool, name: str):
+def _parse_value(kind: type, optional: bool):
     """argparse's ``type`` of one value of a field: the scalar type, and "none" for None."""
     def parse(text: str) -> Any:
         if optional and text.lower() == "none":
@@ -135,8 +135,7 @@ def _parse_value(kind: type, optional: bool, name: str):
         try:
             return kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"{name} takes {parse.allowed}, got {text!r}") from None
+            raise argparse.ArgumentTypeError(f"must be {parse.allowed}, got {text!r}") from None
     parse.__name__ = kind.__name__
     parse.optional = optional  # type: ignore[attr-defined]
     parse.allowed = _describe(kind, optional)  # type: ignore[attr-defined]
@@ -172,10 +171,10 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
             parser.add_argument(*names, dest=name, action=argparse.BooleanOptionalAction,
                                 default=argparse.SUPPRESS, help=text)
         elif sequence:  # --sizes 1 2, or --sizes 1 --sizes 2
-            parser.add_argument(*names, dest=name, type=_parse_value(kind, optional, flag(name)),
+            parser.add_argument(*names, dest=name, type=_parse_value(kind, optional),
                                 action="extend", nargs="+", default=argparse.SUPPRESS, help=text)
         else:
-            parser.add_argument(*names, dest=name, type=_parse_value(kind, optional, flag(name)),
+            parser.add_argument(*names, dest=name, type=_parse_value(kind, optional),
                                 default=argparse.SUPPRESS, help=text)
 
 

@@ -28,7 +28,7 @@ from typing import ClassVar
 
 import pandas as pd
 
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.experiments import beyond_races, transfer
@@ -128,11 +128,12 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, races: pd.DataFrame | 
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_study_arguments(p, "policies per training simulator (paper: 5)")
+    add_study_arguments(p, TransferDtConfig)
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(TransferDtConfig, args.scale, seeds=args.seeds)
+    cfg = for_scale(TransferDtConfig, args.scale,
+                    **given_fields(args, TransferDtConfig, ("seeds",)))
     study = cfg.study(args.scale)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
