@@ -152,9 +152,9 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
     """A flag for each field of ``cls`` (or of ``fields``), and one for each of its old spellings
     (``cls.ALIASES``): ``--field`` takes a value of the field's type ("none" where None is
     allowed), one or more for a tuple (``--sizes 1 2``, or ``--sizes 1 --sizes 2``); a boolean
-    field is ``--field`` / ``--no-field``. A flag not
-    given leaves no attribute (:func:`given_fields`). ``show_defaults``: the help ends with the
-    field's default (False where another layer, such as a named learner, sets the default)."""
+    field is ``--field`` / ``--no-field``. A flag not given leaves no attribute
+    (:func:`given_fields`). ``show_defaults``: the help ends with the field's default and the
+    scales that change it (False where another layer, such as a named learner, sets it)."""
     old = {}
     for alias, name in getattr(cls, "ALIASES", {}).items():
         old.setdefault(name, []).append(flag(alias))
