@@ -163,6 +163,8 @@ def test_every_option_of_every_command_has_help(name):
         module.extend_arguments(parser, ["--env", "wildfire"])
     missing = [a.option_strings for a in parser._actions if not a.help]
     assert missing == []
+    shown = parser.format_help()  # argparse fills in the help texts here (a bare % fails)
+    assert all(a.option_strings[0] in shown for a in parser._actions)
 
 
 def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:

@@ -167,6 +167,7 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
         if old.get(name):
             text += f" (old spelling: {', '.join(old[name])})"
         names = (flag(name), *old.get(name, ()))
+        text = text.replace("%", "%%")  # argparse formats help with %
         if kind is bool and not sequence:
             parser.add_argument(*names, dest=name, action=argparse.BooleanOptionalAction,
                                 default=argparse.SUPPRESS, help=text)
