@@ -247,7 +247,9 @@ def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
     """The validated config of the command line at its scale (UsageError if bad);
     ``--max-decisions 0`` (or none): no limit."""
     given = given_fields(args, BehaviourConfig)
-    no_limit = "max_decisions" in given and not given.pop("max_decisions")
+    no_limit = "max_decisions" in given and not given["max_decisions"]
+    if no_limit:
+        del given["max_decisions"]  # for_scale takes None as "not given"
     cfg = for_scale(BehaviourConfig, args.scale, **given)
     return dataclasses.replace(cfg, max_decisions=None) if no_limit else cfg
 
