@@ -11,7 +11,6 @@ never PASS. Each experiment module contributes its claims in
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import importlib
 import textwrap
 from dataclasses import dataclass
@@ -113,6 +112,10 @@ class Reading:
     suffix: str
 
 
+LEARNER_READINGS = (Reading("authors' learner", ""), Reading("suite's learner", "_suite"))
+"""The two named learners' results (``learner_stem``), the authors' deciding."""
+
+
 def side_by_side(check: Callable[[Path, str], Verdict],
                  readings: tuple[Reading, ...]) -> Callable[[Path], Verdict]:
     """A check decided on the first reading, the others beside it: the table shows each one's
@@ -148,18 +151,6 @@ def learner_of(result: Path) -> str:
             return config["learner"]
         return next(filter(None, map(find, config.values())), None)
     return find(read_provenance(result).get("config", {})) or "suite"
-
-
-def learned_by(check: Callable[[Path], Verdict], stem: str) -> Callable[[Path], Verdict]:
-    """``check``, its value and detail saying which learner trained the policies of its result
-    file ``stem``."""
-    def checked(results: Path) -> Verdict:
-        v = check(results)
-        learner = learner_of(results / stem)
-        return dataclasses.replace(v, ours=f"{v.ours} ({learner}'s learner)",
-                                   detail=f"{v.detail} Policies trained with the {learner}'s "
-                                          f"learner (docs/semantics.md section 5.7).")
-    return checked
 
 
 def registry() -> list[Claim]:

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import Claim, Reading, Verdict, scale_of, side_by_side
+from repro.claims import LEARNER_READINGS, Claim, Verdict, scale_of, side_by_side
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_SHARE,
@@ -147,20 +147,18 @@ def check_c5(results: Path) -> Verdict:
                    scale_of(path))
 
 
-READINGS = (Reading("authors' learner", ""), Reading("suite's learner", "_suite"))
-"""C1-C3 are decided on the released runner's learner, the suite's beside it."""
-
+# C1-C3 are decided on the released runner's learner, the suite's beside it
 CLAIMS = [
     Claim("C1", "PS-TRPO + M-GAE (MLP) beats Optimized Thresholds beats No Holding",
           "MLP > thresholds > no holding",
           "ordering holds with bootstrap CIs over seeds", "make fig-bus-lambda",
-          side_by_side(check_c1, READINGS), where="Figs. 2, 3"),
+          side_by_side(check_c1, LEARNER_READINGS), where="Figs. 2, 3"),
     Claim("C2", "lambda matters little next to the MLP-thresholds gap", "spread over lambda small",
           "spread over lambda < gap MLP - thresholds",
-          "make fig-bus-lambda", side_by_side(check_c2, READINGS), where="Fig. 2"),
+          "make fig-bus-lambda", side_by_side(check_c2, LEARNER_READINGS), where="Fig. 2"),
     Claim("C3", "smaller batches converge worse",
           "return after E epochs rises with batch size",
-          "monotone in batch size", "make fig-bus-batch", side_by_side(check_c3, READINGS),
+          "monotone in batch size", "make fig-bus-batch", side_by_side(check_c3, LEARNER_READINGS),
           where="Fig. 3"),
     Claim("C4", "No Holding bunches the fleet: a full leader, empty followers",
           "leader loads 50, 64, 60, 75, ... and followers 0 (records 40-50)", "exact",

@@ -45,6 +45,8 @@ from repro.envs.bus import BusConfig
 from repro.experiments import bus_sweeps, transfer
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
+from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
+                                learner_stem)
 from repro.learn.m_gae import ESTIMATORS
 
 REFERENCE = "m-gae"
@@ -58,6 +60,9 @@ class MgaeStudyConfig(Validated):
     """What X1 compares. The sizes are the bus lambda sweep's and the transfer study's at the same
     scale, so that the M-GAE runs are theirs."""
 
+    learner: str = DEFAULT_LEARNER
+    """The named learner of every run (``repro.learn.config.LEARNERS``), with the sizes the two
+    studies give it."""
     estimators: tuple[str, ...] = tuple(ESTIMATORS)
     """Advantage estimators trained (``repro.learn.m_gae.ESTIMATORS``); M-GAE first, the others
     are compared with it."""
@@ -72,16 +77,25 @@ class MgaeStudyConfig(Validated):
         require(len(self.estimators) >= 2 and self.estimators[0] == REFERENCE
                 and set(self.estimators) <= set(ESTIMATORS), "estimators",
                 f"{REFERENCE} and one or more of " + ", ".join(ESTIMATORS), self.estimators)
+        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
+                self.learner)
         require(self.seeds is None or self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
         require(self.n_boot >= 1, "n_boot", "an integer >= 1", self.n_boot)
 
     def bus(self, scale: str) -> bus_sweeps.BusSweepConfig:
         """The bus lambda sweep at ``scale``."""
-        return for_scale(bus_sweeps.BusSweepConfig, scale, seeds=self.seeds)
+        return bus_sweeps.sweep_config(scale, self.learner, seeds=self.seeds)
 
     def wildfire(self, scale: str) -> transfer.TransferConfig:
         """The transfer study at ``scale``, ED only."""
-        return for_scale(transfer.TransferConfig, scale, seeds=self.seeds, only=("ED",))
+        return for_scale(transfer.TransferConfig, scale, seeds=self.seeds, only=("ED",),
+                         learner=self.learner)
+
+    @property
+    def stem(self) -> str:
+        """File stem of the results and the figure: beyond_mgae, then _suite for the suite's
+        learner."""
+        return learner_stem("beyond_mgae", self.learner)
 
 
 def with_estimator(job: TrainJob, estimator: str) -> TrainJob:
@@ -186,12 +200,22 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
     save_figure(fig, stem)
 
 
+def title(cfg: MgaeStudyConfig, scale: str) -> str:
+    """The figure's title: the learner and both studies' sizes at ``scale``."""
+    bus, wildfire = cfg.bus(scale), cfg.wildfire(scale)
+    return (f"X1: advantage estimators, everything else equal, {learner_label(cfg.learner)}; "
+            f"{scale} scale: bus {bus.seeds} x {bus.epochs} epochs x {bus.lambda_batch} "
+            f"{bus.unit.removeprefix('batch_')}, wildfire {wildfire.seeds} x {wildfire.epochs} x "
+            f"{transfer.batch_label(wildfire)} (ED)")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, MgaeStudyConfig)
+    add_learner_option(p, "beyond_mgae_suite*")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(MgaeStudyConfig, args.scale,
+    cfg = for_scale(MgaeStudyConfig, args.scale, learner=args.learner,
                     **given_fields(args, MgaeStudyConfig, ("seeds",)))
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
@@ -202,11 +226,8 @@ def run(args: argparse.Namespace) -> int:
                            wildfire=dataclasses.asdict(wildfire)),
                       command="beyond-mgae", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0)
-    write_result(results / "beyond_mgae.csv", runs, prov)
-    write_result(results / "beyond_mgae_summary.csv", summary, prov)
-    plot(runs, summary, figures / "beyond_mgae",
-         f"X1: advantage estimators, everything else equal; {args.scale} scale: bus "
-         f"{bus.seeds} x {bus.epochs} epochs x {bus.lambda_batch} episodes, wildfire "
-         f"{wildfire.seeds} x {wildfire.epochs} x {wildfire.batch_episodes} (ED)")
+    write_result(results / f"{cfg.stem}.csv", runs, prov)
+    write_result(results / f"{cfg.stem}_summary.csv", summary, prov)
+    plot(runs, summary, figures / cfg.stem, title(cfg, args.scale))
     print(summary.to_string(index=False))
     return 0

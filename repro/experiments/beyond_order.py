@@ -38,6 +38,7 @@ import pandas as pd
 from repro.core.io import provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci
 from repro.experiments.sweep import check_jobs, check_study_arguments
+from repro.learn.config import learner_label, learner_stem
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
                                         make_jobs, runs_folder, study_config, summarise,
                                         train_and_test)
@@ -109,8 +110,14 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem)
 
 
+def title(base: TransferConfig, scale: str) -> str:
+    """The figure's title: the study's sizes at ``scale`` and its learner."""
+    return (f"C9's pair under both same-instant orders; {scale} scale: {base.seeds} policies x "
+            f"{base.epochs} epochs x {batch_label(base)}, {learner_label(base.learner)}")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_size_arguments(p)
+    add_size_arguments(p, "order_reversal_suite*")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -132,15 +139,14 @@ def run(args: argparse.Namespace) -> int:
     per_policy, summary = pd.concat(per_policy, ignore_index=True), pd.concat(summary,
                                                                              ignore_index=True)
     effect = effects(per_policy, base.variant_pair(), base.n_boot, args.seed)
+    stem = learner_stem(NAME, base.learner)
     config = dict(dataclasses.asdict(base), studies=[cfg.name for _, _, cfg, _ in plan])
     prov = provenance(config, command="beyond-order", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dirs=[str(runs) for *_, runs in plan]))
-    write_result(results / f"{NAME}.csv", per_policy, prov)
-    write_result(results / f"{NAME}_summary.csv", summary, prov)
-    write_result(results / f"{NAME}_effect.csv", effect, prov)
-    plot(per_policy, summary, figures / NAME,
-         f"C9's pair under both same-instant orders; {args.scale} scale: {base.seeds} policies x "
-         f"{base.epochs} epochs x {batch_label(base)}, {base.learner}'s learner")
+    write_result(results / f"{stem}.csv", per_policy, prov)
+    write_result(results / f"{stem}_summary.csv", summary, prov)
+    write_result(results / f"{stem}_effect.csv", effect, prov)
+    plot(per_policy, summary, figures / stem, title(base, args.scale))
     print(effect.to_string(index=False))
     return 0

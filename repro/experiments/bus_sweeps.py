@@ -43,7 +43,8 @@ from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.experiments.bus_policies import read_thresholds
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
-from repro.learn.config import LEARNERS, learner_suffix, train_config
+from repro.learn.config import (LEARNERS, add_learner_option, learner_label, learner_stem,
+                                train_config)
 
 SWEEPS = ("lambda", "batch")
 
@@ -112,7 +113,7 @@ class BusSweepConfig(Validated):
 
     def stem(self, sweep: str) -> str:
         """File stem of a sweep's results: bus_<sweep>, then _suite for the suite's learner."""
-        return "_".join((f"bus_{sweep}", *learner_suffix(self.learner)))
+        return learner_stem(f"bus_{sweep}", self.learner)
 
 
 def sweep_config(scale: str, learner: str | None = None, **overrides: Any) -> BusSweepConfig:
@@ -211,8 +212,8 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     ax.axhline(baselines["nohold"], color="k", ls=":", lw=1, label="No Holding")
     fixed = (f"batch {cfg.lambda_batch} {cfg.unit.split('_')[1]}/epoch" if sweep == "lambda"
              else f"$\\lambda$ = {cfg.batch_lambda:g}")
-    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {cfg.learner}'s learner ({fixed}; {cfg.seeds} "
-                 "seeds, 95% CI)", fontsize=9)
+    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {learner_label(cfg.learner)} ({fixed}; "
+                 f"{cfg.seeds} seeds, 95% CI)", fontsize=9)
     ax.set_xlabel("Epoch")
     ax.set_ylabel("Average return per episode")
     ax.grid(True, alpha=0.3)
@@ -220,18 +221,18 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     save_figure(fig, stem)
 
 
-FLAGS = ("seeds", "learner", "epochs", "final_epochs")
-"""The BusSweepConfig fields the sweeps take as flags (the suite's learner writes
-bus_<sweep>_suite*)."""
+FLAGS = ("seeds", "epochs", "final_epochs")
+"""The BusSweepConfig fields the sweeps take as flags, besides ``--learner``."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, BusSweepConfig, FLAGS)
+    add_learner_option(p, "bus_<sweep>_suite*")
     add_switch_arguments(p)
 
 
 def run_named(sweep: str, args: argparse.Namespace) -> int:
-    cfg = sweep_config(args.scale, **given_fields(args, BusSweepConfig, FLAGS))
+    cfg = sweep_config(args.scale, args.learner, **given_fields(args, BusSweepConfig, FLAGS))
     results, figures = check_study_arguments(args)
     bus = config_from_args(args)
     root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")

@@ -33,6 +33,7 @@ from repro.core.io import provenance, save_figure, write_result
 from repro.envs.wildfire import FIGURE_VERSION, RELEASED_VERSION
 from repro.experiments.beyond_order import effects
 from repro.experiments.sweep import check_jobs, check_study_arguments
+from repro.learn.config import learner_stem
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
                                         make_jobs, runs_folder, study_config, summarise,
                                         train_and_test)
@@ -91,7 +92,7 @@ def plot(summary: pd.DataFrame, stem: Path, title: str) -> None:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_size_arguments(p)
+    add_size_arguments(p, "learner_ablation_suite*")
     p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
                    help="training simulator of every row, repeatable (default: "
                         + ", ".join(DEFAULT_SIMULATORS) + ")")
@@ -120,14 +121,15 @@ def run(args: argparse.Namespace) -> int:
                                             ("last 40 policies", "adr_ed_kept"))]
                    if set(pair) <= set(base.only) else [], ignore_index=True)
     config = dict(dataclasses.asdict(base), rows=[cfg.name for _, cfg, _ in plan])
+    stem = learner_stem(NAME, base.learner)
     prov = provenance(config, command="learner-ablation", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dirs=[str(runs) for *_, runs in plan]))
-    write_result(results / f"{NAME}.csv", per_policy, prov)
-    write_result(results / f"{NAME}_summary.csv", summary, prov)
+    write_result(results / f"{stem}.csv", per_policy, prov)
+    write_result(results / f"{stem}_summary.csv", summary, prov)
     if len(c9):
-        write_result(results / f"{NAME}_c9.csv", c9, prov)
-    plot(summary, figures / NAME,
+        write_result(results / f"{stem}_c9.csv", c9, prov)
+    plot(summary, figures / stem,
          f"One learner setting at a time from the authors' (simulator of {FIGURE_VERSION}); "
          f"{args.scale} scale: {base.seeds} policies x {base.epochs} epochs x "
          f"{batch_label(base)}")

@@ -45,8 +45,8 @@ from repro.core.rollout import children
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
-from repro.learn.config import (LEARNERS, SETTING_FIELDS, check_study_learner, learner_suffix,
-                                setting_tag)
+from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
+                                check_study_learner, learner_label, learner_suffix, setting_tag)
 from repro.experiments.options import add_common
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
@@ -347,27 +347,31 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem)
 
 
-SIZES = ("seeds", "epochs", "learner", "batch_decisions", "batch_episodes", "test_episodes")
-"""The TransferConfig fields that every study of the transfer family takes as flags."""
+SIZES = ("seeds", "epochs", "test_episodes")
+"""The TransferConfig fields that every study of the transfer family takes as flags, besides the
+learner and its batch sizes (:func:`repro.learn.config.add_study_learner_arguments`)."""
 
 
-def add_size_arguments(p: argparse.ArgumentParser) -> None:
+def add_size_arguments(p: argparse.ArgumentParser, writes: str) -> None:
     """Every driver's options, the sweep's, and the transfer study's sizes (``beyond-order``,
-    ``learner-ablation`` and ``c9-inputs`` train transfer studies too)."""
+    ``learner-ablation`` and ``c9-inputs`` train transfer studies too); ``writes``: the results
+    another learner writes."""
     add_common(p)
     add_sweep_arguments(p)
     add_config_arguments(p, TransferConfig, SIZES)
+    add_study_learner_arguments(p, writes)
 
 
 def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
     """The config of :func:`add_size_arguments`'s options at ``args.scale``, with ``fields``
     (None: the scale's)."""
-    return for_scale(TransferConfig, args.scale, **{**given_fields(args, TransferConfig, SIZES),
-                                                    **fields})
+    given = given_fields(args, TransferConfig, (*SIZES, "learner", "batch_decisions",
+                                                "batch_episodes"))
+    return for_scale(TransferConfig, args.scale, **{**given, **fields})
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_size_arguments(p)
+    add_size_arguments(p, "transfer*_suite*")
     p.add_argument("--corrected", action="store_true",
                    help="quirks Q1-Q6 off (paper's prose); writes transfer_corrected*")
     # each quirk's flag as train spells it: --no-quirk-q3-unclamped-health switches Q3 off in
@@ -438,7 +442,7 @@ def run(args: argparse.Namespace) -> int:
     semantics += "" if cfg.fire_out_first else ", UAV before fire at one instant"
     plot(per_policy, summary, figures / cfg.name,
          f"Transfer to ED, {semantics}; {args.scale} scale: {cfg.seeds} policies x "
-         f"{cfg.epochs} epochs x {batch_label(cfg)}, {cfg.learner}'s learner, simulator of "
+         f"{cfg.epochs} epochs x {batch_label(cfg)}, {learner_label(cfg.learner)}, simulator of "
          f"{cfg.sim_version}")
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high",
                    "paper_mean"]].to_string(index=False))

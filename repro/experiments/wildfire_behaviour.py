@@ -61,7 +61,7 @@ from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL, FlowchartPolicy
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
-from repro.learn.config import check_study_learner, learner_suffix
+from repro.learn.config import add_study_learner_arguments, check_study_learner, learner_suffix
 
 PAPER = dict(hold_shared=0.27, hold_alone=0.84, fly_rank_1=0.15, fly_rank_2=0.15, fly_rank_3=0.68,
              closest_cluster=0.98, flowchart_worse=0.28)
@@ -237,10 +237,16 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
     return pd.DataFrame(rows), pd.DataFrame([flow_row])
 
 
+FLAGS = ("seeds", "epochs", "sim_version", "test_episodes", "max_decisions")
+"""The BehaviourConfig fields the study takes as flags, besides the learner and its batch sizes
+(:func:`repro.learn.config.add_study_learner_arguments`)."""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     add_sweep_arguments(p)
-    add_config_arguments(p, BehaviourConfig)
+    add_config_arguments(p, BehaviourConfig, FLAGS)
+    add_study_learner_arguments(p, "wildfire_behaviour_suite*")
 
 
 def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
