@@ -18,7 +18,7 @@ from repro.learn.config import TrainConfig
 @pytest.mark.parametrize("make, param", [
     (lambda: WildfireConfig(n_agents=-3), "--n-agents"),
     (lambda: dataclasses.replace(WildfireConfig(), t_health=0.0), "--t-health"),
-    (lambda: BusConfig(n_buses=0), "n_buses"),
+    (lambda: BusConfig(n_buses=0), "--n-buses"),
     (lambda: ToyConfig(n_agents=0), "--n-agents"),
     (lambda: TrainConfig(epochs=0), "--epochs"),
     (lambda: RaceConfig(n_sets=0), "--n-sets"),

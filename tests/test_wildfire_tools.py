@@ -96,7 +96,7 @@ def test_cli_json():
     ("--policy", "greedy"), ("--policy", "nearest", "--engine", "gpu"),
     ("--policy", "nearest", "--sim", "fs", "--dt", "0"),
     ("--policy", "nearest", "--t-health", "-1"), ("--policy", "nearest", "--episodes", "0"),
-    ("--policy", "nearest", "--sim", "fs"), ("--policy", "nearest", "--dt", "1"),
+    ("--policy", "nearest", "--sim", "fs"), ("--policy", "nearest", "--sim", "ed", "--dt", "1"),
     ("--policy", "nearest", "--t-health", "inf"), ("--policy", "nearest", "--t-health", "nan"),
     ("--policy", "nearest", "--same-instant-order", "fifo"),
     ("--policy", "nearest", "--ranking-resolution", "-1e-9"),
@@ -134,6 +134,10 @@ def test_cli_bad_input(args, tmp_path, monkeypatch, capsys):
           cut_flight_continues=False, ranking_resolution=0.0)),
     (["--sim", "fs", "--dt", "0.316", "--t-health", "2.9999", "--gamma", "0.05",
       "--max-decisions", "7"], dict(dt=0.316, t_health=2.9999, gamma=0.05, max_decisions=7)),
+    (["--dt", "0.5", "--no-quirk-q3-unclamped-health", "--quirk-q4-latency-not-interrupted",
+      "--max-decisions", "none"],
+     dict(dt=0.5, quirk_q3_unclamped_health=False, quirk_q4_latency_not_interrupted=True,
+          max_decisions=None)),
 ])
 def test_command_line_options_give_the_config(argv, expected):
     import argparse

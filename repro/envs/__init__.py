@@ -4,7 +4,9 @@ An environment is a module (a built-in package ``repro.envs.<name>``, or any imp
 the user's) that provides the environment contract:
 
 - ``add_env_arguments(parser)``: its command-line options;
-- ``config_from_args(args) -> config``: its config (a dataclass) from the parsed options;
+- ``config_from_args(args) -> config``: its config (a dataclass) from the parsed options (for a
+  config dataclass, :func:`repro.core.config.add_config_arguments` and
+  :func:`~repro.core.config.given_fields` make both from its fields, as the built-in ones do);
 - ``make_env(config) -> BatchEnv``: its fast engine (:class:`repro.core.rollout.BatchEnv`);
 - optionally ``make_reference_env(config)``: a plain reference model the engine is tested
   against, ``make_vector_env(n_envs, seed, **config)``: the engine's step API

@@ -49,7 +49,7 @@ import pandas as pd
 import torch
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import provenance, write_result
 from repro.core.memory import require_memory
@@ -206,9 +206,7 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
-    p.add_argument("--fast-episodes", type=int, help="episodes per batch of the fast engine")
-    p.add_argument("--reference-episodes", type=int, help="episodes per batch of the reference")
-    p.add_argument("--repeats", type=int, help="batches each engine runs per policy")
+    add_config_arguments(p, BenchConfig)
     p.add_argument("--checkpoint", help="time this training run's policy (its checkpoint.pt) "
                                         "instead of a fresh network, on that run's environment")
 
@@ -217,8 +215,7 @@ def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
         measure_env: Callable[[BenchConfig, int, dict[str, Any] | None], pd.DataFrame]) -> int:
     """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``
     (``<command>_checkpoint.csv`` with ``--checkpoint``)."""
-    cfg = for_scale(config, args.scale, fast_episodes=args.fast_episodes,
-                    reference_episodes=args.reference_episodes, repeats=args.repeats)
+    cfg = for_scale(config, args.scale, **given_fields(args, config))
     trained = (None if args.checkpoint is None
                else load_trained_run(args.checkpoint, command.removeprefix("bench-")))
     results = results_folder(args)

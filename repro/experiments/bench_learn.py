@@ -22,7 +22,7 @@ import pandas as pd
 import torch
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale, to_dict
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields, to_dict
 from repro.core.errors import require
 from repro.core.io import provenance, write_result
 from repro.envs import BUILT_IN, env_package
@@ -145,9 +145,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="named learner whose network and Fisher products are timed: "
                         + ", ".join(LEARNERS) + " (default %(default)s; its batch is counted in "
                         "episodes here)")
-    p.add_argument("--episodes", type=int, help="episodes per epoch (1000)")
-    p.add_argument("--epochs", type=int, help="epochs timed (3)")
-    p.add_argument("--repeats", type=int, help="calls of each piece, median reported (15)")
+    add_config_arguments(p, BenchConfig)
 
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
@@ -156,8 +154,7 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     configure_process()  # as in training
-    cfg = for_scale(BenchConfig, args.scale, episodes=args.episodes, epochs=args.epochs,
-                    repeats=args.repeats)
+    cfg = for_scale(BenchConfig, args.scale, **given_fields(args, BenchConfig))
     pkg = env_package(args.env)
     train_cfg = train_config("quick", args.env, args.learner, seed=args.seed, epochs=cfg.epochs,
                              batch_episodes=cfg.episodes)

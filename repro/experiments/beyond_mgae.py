@@ -37,7 +37,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, ci_side, iqm, sem
@@ -210,12 +210,13 @@ def title(cfg: MgaeStudyConfig, scale: str) -> str:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_study_arguments(p, "policies per estimator and environment (paper: 5)")
+    add_study_arguments(p, MgaeStudyConfig)
     add_learner_option(p, "beyond_mgae_suite*")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(MgaeStudyConfig, args.scale, seeds=args.seeds, learner=args.learner)
+    cfg = for_scale(MgaeStudyConfig, args.scale, learner=args.learner,
+                    **given_fields(args, MgaeStudyConfig, ("seeds",)))
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     runs = pd.concat([bus_runs(cfg, args), wildfire_runs(cfg, args)], ignore_index=True)

@@ -11,9 +11,10 @@ and 2.9999 and tested on ED, under the released order and reversed, on the relea
 
 Each (semantics, order) is a transfer study (:mod:`repro.experiments.transfer`) restricted to the
 pair, trained and tested by that module in its own run folders. So the released-order runs are
-those of ``fig-transfer`` and ``fig-transfer --no-quirk q3`` (a sweep skips finished runs), and
-the reversed ones are those of ``fig-transfer [--no-quirk q3] --no-fire-out-first``. With Q3 off
-the numbers are those of ``fig-transfer --no-quirk q3 --simulator FS-1 --simulator "FS-1
+those of ``fig-transfer`` and ``fig-transfer --no-quirk-q3-unclamped-health`` (a sweep skips
+finished runs), and the reversed ones are those of ``fig-transfer
+[--no-quirk-q3-unclamped-health] --no-fire-out-first``. With Q3 off the numbers are those of
+``fig-transfer --no-quirk-q3-unclamped-health --simulator FS-1 --simulator "FS-1
 (T_health=2.9999)"``; with Q3 on, the same policies as the full study's, but each samples its test
 actions from another stream (a policy's stream is its place in its study), so its ADR differs from
 ``transfer.csv``'s within the noise.

@@ -26,7 +26,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import (check_writable_dir, provenance, read_result, save_figure,
                            write_result)
@@ -64,6 +64,9 @@ class BeyondRacesConfig(Validated):
     delta: float = 0.1
     """The race probability per episode that dT* keeps below (C10's)."""
 
+    ALIASES: ClassVar[dict[str, str]] = {"policy": "policies"}
+    """``--policy nearest --policy random``, the older flag, still taken."""
+
     SCALES: ClassVar[dict] = {
         "smoke": dict(episodes=20, n_agents=(3, 6), log10_dt_step=0.5),
         "quick": {},
@@ -74,7 +77,7 @@ class BeyondRacesConfig(Validated):
         require(self.episodes >= 1, "--episodes", "an integer >= 1", self.episodes)
         require(len(set(self.n_agents)) >= 2 and min(self.n_agents) >= 1, "--n-agents",
                 "at least two different integers >= 1", list(self.n_agents))
-        require(set(self.policies) <= set(POLICIES) and len(self.policies) >= 1, "--policy",
+        require(set(self.policies) <= set(POLICIES) and len(self.policies) >= 1, "--policies",
                 "one of " + ", ".join(POLICIES), list(self.policies))
         require(self.log10_dt_step > 0, "--log10-dt-step", "a number > 0", self.log10_dt_step)
         # ten times the race count's tolerance (1 ns) at least
@@ -200,24 +203,12 @@ def plot(table: pd.DataFrame, fits: pd.DataFrame, stem: Path) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
-    p.add_argument("--episodes", type=int, help="FS episodes per (policy, N, dT)")
-    p.add_argument("--n-agents", type=int, action="append", metavar="N",
-                   help="number of UAVs (and clusters), repeatable (default: 3, 6, 12, 24)")
-    p.add_argument("--policy", action="append", dest="policies", metavar="NAME",
-                   help="heuristic policy, repeatable: " + ", ".join(POLICIES))
-    p.add_argument("--log10-dt-min", type=float, help="smallest dT of the grid, 10^x s")
-    p.add_argument("--log10-dt-max", type=float, help="largest dT of the grid, 10^x s")
-    p.add_argument("--log10-dt-step", type=float, help="spacing of the grid in decades")
-    p.add_argument("--delta", type=float, help="race probability per episode (C10: 0.1)")
+    add_config_arguments(p, BeyondRacesConfig)
     p.add_argument("--n-jobs", type=int, help="worker processes (default: all cores)")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(BeyondRacesConfig, args.scale, episodes=args.episodes,
-                    n_agents=tuple(args.n_agents) if args.n_agents else None,
-                    policies=tuple(args.policies) if args.policies else None,
-                    log10_dt_min=args.log10_dt_min, log10_dt_max=args.log10_dt_max,
-                    log10_dt_step=args.log10_dt_step, delta=args.delta)
+    cfg = for_scale(BeyondRacesConfig, args.scale, **given_fields(args, BeyondRacesConfig))
     check_sweep_arguments(args)
     results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")

@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm
@@ -221,17 +221,18 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     save_figure(fig, stem)
 
 
+FLAGS = ("seeds", "epochs", "final_epochs")
+"""The BusSweepConfig fields the sweeps take as flags, besides ``--learner``."""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_study_arguments(p, "runs per setting")
+    add_study_arguments(p, BusSweepConfig, FLAGS)
     add_learner_option(p, "bus_<sweep>_suite*")
-    p.add_argument("--epochs", type=int, help="policy updates per run")
-    p.add_argument("--final-epochs", type=int, help="epochs averaged into a run's final return")
     add_switch_arguments(p)
 
 
 def run_named(sweep: str, args: argparse.Namespace) -> int:
-    cfg = sweep_config(args.scale, args.learner, seeds=args.seeds, epochs=args.epochs,
-                       final_epochs=args.final_epochs)
+    cfg = sweep_config(args.scale, args.learner, **given_fields(args, BusSweepConfig, FLAGS))
     results, figures = check_study_arguments(args)
     bus = config_from_args(args)
     root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")

@@ -23,7 +23,7 @@ import pandas as pd
 from scipy.optimize import differential_evolution
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale, to_dict
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields, to_dict
 from repro.core.errors import require
 from repro.core.io import provenance, write_result
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
@@ -87,12 +87,11 @@ def optimise(cfg: ThresholdsConfig, bus: BusConfig, seed: int) -> pd.DataFrame:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     add_switch_arguments(p)
-    p.add_argument("--popsize", type=int, help="DE population multiplier")
-    p.add_argument("--maxiter", type=int, help="DE generations")
+    add_config_arguments(p, ThresholdsConfig)
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(ThresholdsConfig, args.scale, popsize=args.popsize, maxiter=args.maxiter)
+    cfg = for_scale(ThresholdsConfig, args.scale, **given_fields(args, ThresholdsConfig))
     bus = config_from_args(args)
     results = results_folder(args)
     t0 = time.perf_counter()

@@ -31,7 +31,7 @@ import pandas as pd
 from scipy import optimize
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.progress import progress
@@ -61,6 +61,9 @@ class RaceConfig(Validated):
     exact_n: tuple[int, ...] = (2, 3, 4, 5, 7, 10, 14, 20, 30, 50, 70, 100)
     """Agent counts for the exact (sampling-free) curve, reaching well past the paper's range."""
 
+    ALIASES: ClassVar[dict[str, str]] = {"distribution": "distributions"}
+    """``--distribution chi2 --distribution gamma``, the older flag, still taken."""
+
     SCALES: ClassVar[dict] = {
         "smoke": dict(exact_n=(2, 3, 5, 10, 20, 30, 50)),
         "quick": {},
@@ -77,9 +80,11 @@ class RaceConfig(Validated):
                 "are held in memory)", self.n_sets)
         require(0.0 < self.delta < 1.0, "--delta", "in (0, 1)", self.delta)
         for d in self.distributions:
-            require(d in DISTRIBUTIONS, "--distribution", "one of " + ", ".join(DISTRIBUTIONS), d)
+            require(d in DISTRIBUTIONS, "--distributions", "one of " + ", ".join(DISTRIBUTIONS), d)
         require(self.bisection_steps >= 1, "--bisection-steps", "an integer >= 1",
                 self.bisection_steps)
+        self.check(len(self.exact_n) >= 1 and min(self.exact_n) >= 2, "exact_n",
+                   "one or more integers >= 2")
 
 
 # --- Monte Carlo ---------------------------------------------------------------------------------
@@ -273,19 +278,12 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
-    p.add_argument("--n-sets", type=int, help="Monte Carlo sets per N (paper: 10000)")
-    p.add_argument("--n-min", type=int, help="smallest N (paper: 2)")
-    p.add_argument("--n-max", type=int, help="largest N (paper: 20)")
-    p.add_argument("--delta", type=float, help="race-probability threshold (paper: 0.1)")
-    p.add_argument("--distribution", action="append", dest="distributions",
-                   help="event-time distribution, repeatable: " + ", ".join(DISTRIBUTIONS))
+    add_config_arguments(p, RaceConfig)
     p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(RaceConfig, args.scale, n_sets=args.n_sets, n_min=args.n_min,
-                    n_max=args.n_max, delta=args.delta,
-                    distributions=tuple(args.distributions) if args.distributions else None)
+    cfg = for_scale(RaceConfig, args.scale, **given_fields(args, RaceConfig))
     results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()

@@ -34,7 +34,7 @@ import pandas as pd
 from scipy import special
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.memory import require_memory
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -72,6 +72,9 @@ class ScalingConfig(Validated):
     """Exponents are also fitted over N <= this (the paper's range) and N >= this (large N, where
     fixed per-call overheads no longer flatten the wall-time exponents)."""
 
+    ALIASES: ClassVar[dict[str, str]] = {"distribution": "distributions"}
+    """``--distribution chi2 --distribution gamma``, the older flag, still taken."""
+
     SCALES: ClassVar[dict] = {
         "smoke": dict(n_agents=(2, 3, 5, 8, 12), duration=20.0, distributions=("exponential",),
                       repeats=1),
@@ -87,8 +90,9 @@ class ScalingConfig(Validated):
         require(self.duration > 0 and math.isfinite(self.duration), "--duration",
                 "a finite number > 0", self.duration)
         for d in self.distributions:
-            require(d in DISTRIBUTIONS, "--distribution", "one of " + ", ".join(DISTRIBUTIONS), d)
+            require(d in DISTRIBUTIONS, "--distributions", "one of " + ", ".join(DISTRIBUTIONS), d)
         require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
+        self.check(self.split_n >= 2, "split_n", "an integer >= 2")
 
 
 WORK_LIMIT = 10**12
@@ -238,20 +242,15 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
-    p.add_argument("--n-agents", type=int, nargs="+", help="agent counts (at least 3, each >= 2)")
-    p.add_argument("--delta", type=float, help="race-probability threshold for dT (paper: 0.1)")
-    p.add_argument("--duration", type=float, help="simulated duration")
-    p.add_argument("--distribution", action="append", dest="distributions",
-                   help="inter-event time distribution, repeatable: " + ", ".join(DISTRIBUTIONS))
-    p.add_argument("--repeats", type=int, help="timed runs per point (median reported)")
+    add_config_arguments(p, ScalingConfig)
     p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(ScalingConfig, args.scale, delta=args.delta, duration=args.duration,
-                    repeats=args.repeats,
-                    n_agents=tuple(sorted(args.n_agents)) if args.n_agents else None,
-                    distributions=tuple(args.distributions) if args.distributions else None)
+    given = given_fields(args, ScalingConfig)
+    if given.get("n_agents"):
+        given["n_agents"] = tuple(sorted(given["n_agents"]))  # the fits read them in order
+    cfg = for_scale(ScalingConfig, args.scale, **given)
     check_work(cfg)
     results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from repro.core.config import add_config_arguments
 from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, write_bytes
 from repro.core.locks import folder_lock
@@ -299,12 +300,13 @@ def add_sweep_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", help="address of an existing Dask scheduler to run on instead")
 
 
-def add_study_arguments(p: argparse.ArgumentParser, seeds_help: str) -> None:
+def add_study_arguments(p: argparse.ArgumentParser, config: type,
+                        fields: tuple[str, ...] = ("seeds",)) -> None:
     """The options of a driver that trains a sweep: every driver's (``add_common``), the
-    sweep's, and ``--seeds`` (``seeds_help``: what they count)."""
+    sweep's, and a flag for each of ``fields`` of the study's ``config``."""
     add_common(p)
     add_sweep_arguments(p)
-    p.add_argument("--seeds", type=int, help=seeds_help)
+    add_config_arguments(p, config, fields)
 
 
 def check_sweep_arguments(args: argparse.Namespace) -> None:

@@ -11,35 +11,23 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from repro.core.config import SCALES
-from repro.core.errors import UsageError
+from repro.core.config import SCALES, canonical_keys
+from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir
 from repro.core.rollout import BatchEnv
 from repro.envs import BUILT_IN, env_package
-from repro.learn.baseline import BASELINES
 from repro.learn.config import (TrainConfig, add_learner_arguments, learner_overrides,
                                 train_config)
-from repro.learn.m_gae import ESTIMATORS
 from repro.learn.process import configure_process
+from repro.learn.run_folder import saved_run_defaults
 from repro.learn.trainer import Trainer
 
 TENSORBOARD_INSTALL = "pip install tensorboard"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--env", required=True, help="environment: " + ", ".join(BUILT_IN)
-                   + ", or an importable module that provides the environment contract")
     p.add_argument("--scale", default="quick", help="one of " + ", ".join(SCALES))
-    p.add_argument("--seed", type=int, default=0, help="root seed of every random stream")
     p.add_argument("--out", help="run folder (default runs/<env>/seed<seed>); rerun to resume")
-    p.add_argument("--epochs", type=int, help="policy updates")
-    p.add_argument("--batch-episodes", type=int,
-                   help="batch counted in episodes (suite: the environment's paper value)")
-    p.add_argument("--lam", type=float, help="M-GAE lambda (wildfire 1.0, bus 2.0)")
-    p.add_argument("--advantage", help="advantage estimator: " + ", ".join(ESTIMATORS)
-                   + " (m-gae, the paper's)")
-    p.add_argument("--max-kl", type=float, help="TRPO max step (0.01)")
-    p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
     p.add_argument("--tensorboard", metavar="DIR",
                    help="also log each epoch's progress row as TensorBoard scalars in DIR "
                         f"(needs the tensorboard package: {TENSORBOARD_INSTALL})")
@@ -55,13 +43,30 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
         env_package(name).add_env_arguments(p)
 
 
+def saved_settings(data: dict[str, Any]) -> dict[str, Any]:
+    """A ``--config`` file's table; a run's config.json (sections ``train`` and ``env``, and
+    ``env_name``) with old spellings of its keys renamed (the configs' ``ALIASES``) and completed
+    with what the run held for the settings it lacks, which were added to the code after it
+    started (:func:`repro.learn.run_folder.saved_run_defaults`)."""
+    train, env, name = data.get("train"), data.get("env"), data.get("env_name")
+    if not (isinstance(train, dict) and "env_name" in data):
+        return data
+    require(isinstance(name, str), "--config", "a run config naming its environment (env_name)",
+            name)
+    env_cfg = env_package(name).config_from_args(argparse.Namespace())
+    saved = saved_run_defaults(env_cfg, name)
+    train = {**saved["train"], **canonical_keys(TrainConfig, train)}
+    if isinstance(env, dict) and saved["env"]:
+        env = {**saved["env"], **canonical_keys(type(env_cfg), env)}
+    return {**data, "train": train, "env": env}
+
+
 def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainConfig, BatchEnv, Any]:
     """Train config, environment and environment config from parsed ``train``-style options."""
+    require(hasattr(args, "env"), "--env", "given: " + ", ".join(BUILT_IN)
+            + ", or an importable module that provides the environment contract")
     pkg = env_package(args.env)
-    cfg = train_config(args.scale, args.env, seed=args.seed, epochs=args.epochs,
-                       batch_episodes=args.batch_episodes, lam=args.lam,
-                       advantage=args.advantage, max_kl=args.max_kl, baseline=args.baseline,
-                       **learner_overrides(args), **overrides)
+    cfg = train_config(args.scale, **{**learner_overrides(args), **overrides})
     env_cfg = pkg.config_from_args(args)
     return cfg, pkg.make_env(env_cfg), env_cfg
 

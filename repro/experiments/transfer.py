@@ -16,8 +16,9 @@ Per simulator the summary gives the mean over the trained policies with its stan
 paper's error bars), the IQM, and a bootstrap CI of the mean (``repro.core.stats``).
 
 ``--corrected`` trains and tests with quirks Q1-Q6 switched off (the paper's prose) and writes
-``transfer_corrected*.csv`` and ``figures/transfer_corrected.*`` instead; ``--no-quirk Q`` switches
-one quirk off (``transfer_no_<Q>*``), ``--no-fire-out-first`` reverses the same-instant order of a
+``transfer_corrected*.csv`` and ``figures/transfer_corrected.*`` instead; a quirk's flag, as
+``train`` spells it (``--no-quirk-q3-unclamped-health``; the old ``--no-quirk q3`` too), switches
+one quirk off (``transfer_no_q3*``), ``--no-fire-out-first`` reverses the same-instant order of a
 macro-action's end and a fire's extinguishing (``*_no_fire_out_first``; claim X4).
 
 Training runs are checkpointed under ``--runs-dir``/transfer[-corrected]/<scale>/; re-running
@@ -37,7 +38,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.rollout import children
@@ -46,7 +47,8 @@ from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, Wildfir
                                  version_suffix)
 from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
                                 check_study_learner, learner_label, learner_suffix, setting_tag)
-from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
+from repro.experiments.options import add_common
+from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
 
@@ -345,31 +347,39 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem)
 
 
+SIZES = ("seeds", "epochs", "test_episodes")
+"""The TransferConfig fields that every study of the transfer family takes as flags, besides the
+learner and its batch sizes (:func:`repro.learn.config.add_study_learner_arguments`)."""
+
+
 def add_size_arguments(p: argparse.ArgumentParser, writes: str) -> None:
-    """The transfer study's sizes and its sweep's options (``beyond-order`` trains transfer
-    studies too); ``writes``: the results another learner writes."""
-    add_study_arguments(p, "policies per training simulator (paper: 5)")
-    p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
+    """Every driver's options, the sweep's, and the transfer study's sizes (``beyond-order``,
+    ``learner-ablation`` and ``c9-inputs`` train transfer studies too); ``writes``: the results
+    another learner writes."""
+    add_common(p)
+    add_sweep_arguments(p)
+    add_config_arguments(p, TransferConfig, SIZES)
     add_study_learner_arguments(p, writes)
-    p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
 
 
 def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
     """The config of :func:`add_size_arguments`'s options at ``args.scale``, with ``fields``
     (None: the scale's)."""
-    return for_scale(TransferConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                     learner=args.learner, batch_decisions=args.batch_decisions,
-                     batch_episodes=args.batch_episodes, test_episodes=args.test_episodes,
-                     **fields)
+    given = given_fields(args, TransferConfig, (*SIZES, "learner", "batch_decisions",
+                                                "batch_episodes"))
+    return for_scale(TransferConfig, args.scale, **{**given, **fields})
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_size_arguments(p, "transfer*_suite*")
     p.add_argument("--corrected", action="store_true",
                    help="quirks Q1-Q6 off (paper's prose); writes transfer_corrected*")
+    # each quirk's flag as train spells it: --no-quirk-q3-unclamped-health switches Q3 off in
+    # every simulator of the study (an ablation; writes transfer_no_q3*)
+    add_config_arguments(p, WildfireConfig, QUIRKS)
     p.add_argument("--no-quirk", action="append", default=[], metavar="Q",
-                   help="switch quirk Q (q1..q6) off, repeatable: an ablation; writes "
-                        "transfer_no_<Q>*")
+                   help="old spelling: --no-quirk q3 is --no-quirk-q3-unclamped-health "
+                        "(repeatable)")
     p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
                    help="train and test only this simulator (e.g. FS-1), repeatable")
     p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
@@ -405,12 +415,19 @@ def train_and_test(cfg: TransferConfig, args: argparse.Namespace,
         median_seconds_per_epoch=round(float(np.median(np.concatenate(seconds))), 4))
 
 
+def config_from_args(args: argparse.Namespace) -> TransferConfig:
+    """The study's config of :func:`add_arguments`'s options (UsageError if bad)."""
+    off = [q.split("_")[1] for q, on in given_fields(args, WildfireConfig).items() if not on]
+    return study_config(args, corrected=args.corrected or None,
+                        quirks_off=tuple(sorted({*off, *(q.lower() for q in args.no_quirk)}))
+                        or None,
+                        only=tuple(args.simulator) or None,
+                        fire_out_first=False if args.no_fire_out_first else None,
+                        sim_version=args.sim_version)
+
+
 def run(args: argparse.Namespace) -> int:
-    cfg = study_config(args, corrected=args.corrected or None,
-                       quirks_off=tuple(q.lower() for q in args.no_quirk) or None,
-                       only=tuple(args.simulator) or None,
-                       fire_out_first=False if args.no_fire_out_first else None,
-                       sim_version=args.sim_version)
+    cfg = config_from_args(args)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))

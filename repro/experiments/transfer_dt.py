@@ -28,7 +28,7 @@ from typing import ClassVar
 
 import pandas as pd
 
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.experiments import beyond_races, transfer
@@ -148,12 +148,13 @@ def title(cfg: TransferDtConfig, scale: str) -> str:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_study_arguments(p, "policies per training simulator (paper: 5)")
+    add_study_arguments(p, TransferDtConfig)
     add_learner_option(p, "transfer_dt_grid_suite*")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(TransferDtConfig, args.scale, seeds=args.seeds, learner=args.learner)
+    cfg = for_scale(TransferDtConfig, args.scale, learner=args.learner,
+                    **given_fields(args, TransferDtConfig, ("seeds",)))
     study = cfg.study(args.scale)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()

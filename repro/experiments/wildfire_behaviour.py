@@ -50,7 +50,7 @@ import numpy as np
 import pandas as pd
 
 from repro.experiments.options import add_common, results_folder
-from repro.core.config import Validated, for_scale
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import Rollout
@@ -237,29 +237,26 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
     return pd.DataFrame(rows), pd.DataFrame([flow_row])
 
 
+FLAGS = ("seeds", "epochs", "sim_version", "test_episodes", "max_decisions")
+"""The BehaviourConfig fields the study takes as flags, besides the learner and its batch sizes
+(:func:`repro.learn.config.add_study_learner_arguments`)."""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     add_sweep_arguments(p)
-    p.add_argument("--seeds", type=int, help="policies trained (paper: 1)")
-    p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 3000)")
+    add_config_arguments(p, BehaviourConfig, FLAGS)
     add_study_learner_arguments(p, "wildfire_behaviour_suite*")
-    p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
-                   help="the released simulator's version (default 2017-05-16; 2017-04-22 "
-                        "writes *_20170422)")
-    p.add_argument("--test-episodes", type=int, help="ED episodes measured per policy")
-    p.add_argument("--max-decisions", type=int,
-                   help="decision limit per UAV and episode; 0: none (default: "
-                        f"{BehaviourConfig.max_decisions})")
 
 
 def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
-    """The validated config of the command line at its scale (UsageError if bad)."""
-    no_limit = args.max_decisions == 0  # asked for no limit (the default has one)
-    cfg = for_scale(BehaviourConfig, args.scale, seeds=args.seeds, epochs=args.epochs,
-                    learner=args.learner, batch_decisions=args.batch_decisions,
-                    batch_episodes=args.batch_episodes, sim_version=args.sim_version,
-                    test_episodes=args.test_episodes,
-                    max_decisions=None if no_limit else args.max_decisions)
+    """The validated config of the command line at its scale (UsageError if bad);
+    ``--max-decisions 0`` (or none): no limit."""
+    given = given_fields(args, BehaviourConfig)
+    no_limit = "max_decisions" in given and not given["max_decisions"]
+    if no_limit:
+        del given["max_decisions"]  # for_scale takes None as "not given"
+    cfg = for_scale(BehaviourConfig, args.scale, **given)
     return dataclasses.replace(cfg, max_decisions=None) if no_limit else cfg
 
 

@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
                seconds=round(seconds, 3), decisions_per_second=rollout.n_decisions / seconds,
                mean_episode_return=float(rollout.episode_return.mean()), policy=args.policy,
                engine=args.engine, sim=cfg.label, t_health=cfg.t_health,
-               **{f"quirk_{f.split('_')[1]}": getattr(cfg, f) for f in QUIRKS},
+               **{f: getattr(cfg, f) for f in QUIRKS},
                same_instant_order=cfg.same_instant_order,
                max_decisions=cfg.max_decisions or 0, truncated_episodes=rollout.n_truncated,
                seed=args.seed)

@@ -17,7 +17,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from repro.core.config import for_scale
+from repro.core.config import add_config_arguments, for_scale, given_fields
 from repro.core.io import provenance, write_result
 from repro.envs.wildfire import make_env
 from repro.envs.wildfire.policies import POLICIES
@@ -45,11 +45,12 @@ def heuristic_adrs(cfg: TransferConfig, seed: int) -> pd.DataFrame:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
-    p.add_argument("--test-episodes", type=int, help="ED test episodes (the transfer study's)")
+    add_config_arguments(p, TransferConfig, ("test_episodes",))
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(TransferConfig, args.scale, test_episodes=args.test_episodes)
+    cfg = for_scale(TransferConfig, args.scale, **given_fields(args, TransferConfig,
+                                                               ("test_episodes",)))
     results = results_folder(args)
     t0 = time.perf_counter()
     table = pd.concat([heuristic_adrs(dataclasses.replace(cfg, corrected=corrected), args.seed)

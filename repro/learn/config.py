@@ -8,12 +8,11 @@ docs/semantics.md section 5.7 tables every setting with the released code's line
 
 from __future__ import annotations
 
-import argparse
 import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from repro.core.config import Validated, SCALES
+from repro.core.config import SCALES, Validated, add_config_arguments, given_fields
 from repro.core.errors import require
 from repro.envs import env_package, train_defaults
 from repro.learn.baseline import BASELINES
@@ -98,34 +97,35 @@ class TrainConfig(Validated):
     BEFORE_ADDED: ClassVar[dict[str, Any]] = dict(init="orthogonal", batch_decisions=None)
     """What runs recorded before these settings existed used: the suite's learner."""
 
+    ALIASES: ClassVar[dict[str, str]] = {"obs_norm": "normalize_obs"}
+    """Older flags (``--obs-norm``, ``--no-obs-norm``), still taken."""
+
     def validate(self) -> None:
-        require(isinstance(self.env, str) and self.env != "", "--env", "an environment name",
-                self.env)
-        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        require((self.batch_decisions is None) != (self.batch_episodes is None),
-                "--batch-decisions", "given instead of --batch-episodes, not with it",
-                self.batch_decisions)
-        require(self.batch_decisions is None or self.batch_decisions >= 1, "--batch-decisions",
-                "an integer >= 1", self.batch_decisions)
-        require(self.batch_episodes is None or self.batch_episodes >= 1, "--batch-episodes",
-                "an integer >= 1", self.batch_episodes)
-        require(self.batch_workers >= 1, "--batch-workers", "an integer >= 1", self.batch_workers)
-        require(self.init in INITS, "--init", "one of " + ", ".join(INITS), self.init)
-        require(self.lam >= 0 and math.isfinite(self.lam), "--lam", "a number >= 0", self.lam)
-        require(self.advantage in ESTIMATORS, "--advantage", "one of " + ", ".join(ESTIMATORS),
-                self.advantage)
-        require(self.max_kl > 0 and math.isfinite(self.max_kl), "--max-kl", "a number > 0",
-                self.max_kl)
-        require(len(self.hidden) >= 1 and min(self.hidden) >= 1, "--hidden",
-                "one or more positive layer sizes", list(self.hidden))
-        require(self.baseline in BASELINES, "--baseline", "one of " + ", ".join(BASELINES),
-                self.baseline)
-        require(self.baseline_iters >= 1, "baseline_iters", "an integer >= 1", self.baseline_iters)
-        require(self.cg_iters >= 1, "cg_iters", "an integer >= 1", self.cg_iters)
-        require(self.cg_damping >= 0, "cg_damping", ">= 0", self.cg_damping)
-        require(0 < self.backtrack_ratio < 1, "backtrack_ratio", "in (0, 1)", self.backtrack_ratio)
-        require(0 < self.fvp_subsample <= 1, "--fvp-subsample", "in (0, 1]", self.fvp_subsample)
-        require(self.max_backtracks >= 1, "max_backtracks", "an integer >= 1", self.max_backtracks)
+        self.check(isinstance(self.env, str) and self.env != "", "env", "an environment name")
+        self.check(self.epochs >= 1, "epochs", "an integer >= 1")
+        self.check((self.batch_decisions is None) != (self.batch_episodes is None),
+                   "batch_decisions", "given instead of --batch-episodes, not with it")
+        self.check(self.batch_decisions is None or self.batch_decisions >= 1, "batch_decisions",
+                   "an integer >= 1")
+        self.check(self.batch_episodes is None or self.batch_episodes >= 1, "batch_episodes",
+                   "an integer >= 1")
+        self.check(self.batch_workers >= 1, "batch_workers", "an integer >= 1")
+        self.check(self.init in INITS, "init", "one of " + ", ".join(INITS))
+        self.check(self.lam >= 0 and math.isfinite(self.lam), "lam", "a number >= 0")
+        self.check(self.advantage in ESTIMATORS, "advantage", "one of " + ", ".join(ESTIMATORS))
+        self.check(self.max_kl > 0 and math.isfinite(self.max_kl), "max_kl", "a number > 0")
+        self.check(len(self.hidden) >= 1 and min(self.hidden) >= 1, "hidden",
+                   "one or more positive layer sizes")
+        self.check(self.baseline in BASELINES, "baseline", "one of " + ", ".join(BASELINES))
+        self.check(len(self.baseline_hidden) >= 1 and min(self.baseline_hidden) >= 1,
+                   "baseline_hidden", "one or more positive layer sizes")
+        self.check(self.baseline_iters >= 1, "baseline_iters", "an integer >= 1")
+        self.check(self.cg_iters >= 1, "cg_iters", "an integer >= 1")
+        self.check(self.cg_damping >= 0, "cg_damping", ">= 0")
+        self.check(0 < self.backtrack_ratio < 1, "backtrack_ratio", "in (0, 1)")
+        self.check(0 < self.fvp_subsample <= 1, "fvp_subsample", "in (0, 1]")
+        self.check(self.max_backtracks >= 1, "max_backtracks", "an integer >= 1")
+        self.check(self.seed >= 0, "seed", "an integer >= 0")
 
 
 INITS = ("xavier", "orthogonal")
@@ -251,30 +251,16 @@ def check_study_learner(learner: str, batch_decisions: int, batch_episodes: int)
 
 
 def add_learner_arguments(p: Any) -> None:
-    """``--learner`` and the learner settings' flags of ``train`` (each flag overrides one setting
-    of the named learner; docs/semantics.md section 5.7). Studies take
-    :func:`add_study_learner_arguments`."""
+    """``--learner`` and a flag for every TrainConfig setting (each overrides the named learner's,
+    the environment's and the scale's value of that setting; docs/semantics.md section 5.7).
+    Studies take :func:`add_study_learner_arguments`."""
     p.add_argument("--learner", default=DEFAULT_LEARNER,
                    help="named learner: " + ", ".join(LEARNERS) + " (default %(default)s: the "
                         "released runner that trained the paper's policies)")
-    p.add_argument("--hidden", type=int, nargs="+", help="policy hidden sizes (authors: 32)")
-    p.add_argument("--init", help="initial policy weights: " + ", ".join(INITS)
-                   + " (authors: xavier)")
-    p.add_argument("--obs-norm", action=argparse.BooleanOptionalAction, default=None,
-                   help="running observation normalisation (authors: off, suite: on)")
-    p.add_argument("--fvp-subsample", type=float,
-                   help="fraction of decisions for Fisher-vector products (authors: 1 = all)")
-    p.add_argument("--batch-decisions", type=int,
-                   help="batch counted in decisions (authors: 12000), whole episodes")
-    p.add_argument("--batch-workers", type=int,
-                   help="parallel workers whose in-flight episodes a decision-counted batch "
-                        "keeps (authors: 40)")
+    add_config_arguments(p, TrainConfig, show_defaults=False)
 
 
 def learner_overrides(args: Any) -> dict[str, Any]:
-    """The train_config arguments of :func:`add_learner_arguments`'s options (None: not given)."""
-    return dict(learner=args.learner, hidden=tuple(args.hidden) if args.hidden else None,
-                init=args.init, normalize_obs=args.obs_norm, fvp_subsample=args.fvp_subsample,
-                batch_decisions=args.batch_decisions, batch_workers=args.batch_workers)
-
-
+    """The train_config arguments of :func:`add_learner_arguments`'s options: the learner, and
+    the settings given."""
+    return dict(learner=args.learner, **given_fields(args, TrainConfig))

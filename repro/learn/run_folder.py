@@ -211,12 +211,18 @@ def saved_run_defaults(env_config: Any, env_name: str) -> dict[str, Any]:
     return {"train": saved_defaults(TrainConfig), "env": env, "env_name": env_name}
 
 
+def saved_run_aliases(env_config: Any) -> dict[str, dict[str, str]]:
+    """Old spellings of the settings a run folder's config.json may carry (the configs'
+    ``ALIASES``: old key -> key), by section."""
+    return {"train": TrainConfig.ALIASES, "env": getattr(type(env_config), "ALIASES", {})}
+
+
 def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str,
                      param: str = "--out") -> None:
     """Refuse (UsageError naming ``param`` and the first differing setting) a folder ``out`` that
     is neither new nor a run with these settings; only ``epochs`` may differ."""
     check_same_run(Path(out), run_config(cfg, env_config, env_name),
-                   saved_run_defaults(env_config, env_name), param)
+                   saved_run_defaults(env_config, env_name), param, saved_run_aliases(env_config))
 
 
 def read_config(folder: Path, param: str = "--out") -> dict[str, Any] | None:
@@ -234,15 +240,18 @@ def read_config(folder: Path, param: str = "--out") -> dict[str, Any] | None:
                          str(path)) from None
 
 
-def run_difference(saved: dict[str, Any], mine: dict[str, Any],
-                   defaults: dict[str, Any]) -> str | None:
+def run_difference(saved: dict[str, Any], mine: dict[str, Any], defaults: dict[str, Any],
+                   aliases: dict[str, dict[str, str]] | None = None) -> str | None:
     """The first setting (other than ``train.epochs``) in which the run config ``saved`` differs
     from ``mine``, as "part.key: saved vs mine"; None if they are the same run. Settings that
-    ``saved`` lacks were added to the code after the run started, so they held their defaults."""
+    ``saved`` lacks were added to the code after the run started, so they held their defaults;
+    ``aliases`` (part -> old key -> key) renames keys that ``saved`` spells the old way."""
     for part in sorted(set(saved) | set(mine)):
         a, b = saved.get(part), _as_json(mine.get(part))
         if isinstance(a, dict) and isinstance(b, dict):
-            a = {**_as_json(defaults.get(part) or {}), **a}
+            renamed = (aliases or {}).get(part, {})
+            a = {**_as_json(defaults.get(part) or {}), **{renamed.get(k, k): v
+                                                          for k, v in a.items()}}
             for key in sorted(set(a) | set(b)):
                 if (part, key) != ("train", "epochs") and a.get(key) != b.get(key):
                     return f"{part}.{key}: {a.get(key)!r} there, {b.get(key)!r} here"
@@ -284,14 +293,15 @@ def kept_policies(folder: Path, last: int, epochs: int) -> list[Path]:
 
 
 def check_same_run(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
-                   param: str = "--out") -> None:
+                   param: str = "--out",
+                   aliases: dict[str, dict[str, str]] | None = None) -> None:
     """Refuse (UsageError naming ``param``) a folder that is neither new nor a run with the
-    settings ``mine``; reads only."""
+    settings ``mine`` (:func:`run_difference`); reads only."""
     saved = read_config(folder, param)
     if saved is None:
         require(is_new(folder), param, "new, empty or a run folder", str(folder))
         return
-    diff = run_difference(saved, mine, defaults)
+    diff = run_difference(saved, mine, defaults, aliases)
     require(diff is None, param, f"a run folder made with these settings ({CONFIG}: {diff})",
             str(folder))
 
@@ -300,17 +310,18 @@ def check_same_run(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
 
 def resume_state(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
                  param: str = "--out", *, obs_dim: int | None = None,
-                 n_actions: int | None = None) -> dict[str, Any] | None:
+                 n_actions: int | None = None,
+                 aliases: dict[str, dict[str, str]] | None = None) -> dict[str, Any] | None:
     """Check everything a (re)start needs, changing nothing: the folder holds this run (or none),
     its checkpoint (if any) is readable, whole (for an environment of ``obs_dim`` and
     ``n_actions``, if given) and of this run, and progress.csv holds its epochs. Returns the
     checkpoint's state, or None."""
-    check_same_run(folder, mine, defaults, param)
+    check_same_run(folder, mine, defaults, param, aliases)
     path = folder / CHECKPOINT
     if not path.exists():
         return None
     state = load_checkpoint(path, param, obs_dim=obs_dim, n_actions=n_actions, training=True)
-    diff = run_difference(state.get("run_config") or {}, mine, defaults)
+    diff = run_difference(state.get("run_config") or {}, mine, defaults, aliases)
     require(diff is None, param, f"a run folder whose {CHECKPOINT} belongs to its run ({diff}; "
             f"delete {CHECKPOINT} to start again)", str(folder))
     rows = _rows(folder / PROGRESS)
@@ -348,14 +359,17 @@ def restore(folder: Path, epochs: int, config: dict[str, Any],
 
 
 def start(folder: Path, config: dict[str, Any], defaults: dict[str, Any], columns: list[str],
-          param: str = "--out", *, obs_dim: int | None = None,
-          n_actions: int | None = None) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
+          param: str = "--out", *, obs_dim: int | None = None, n_actions: int | None = None,
+          aliases: dict[str, dict[str, str]] | None = None
+          ) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
     """Start or resume the run ``config`` in ``folder``: check the folder (changing nothing if
     it is refused, :func:`resume_state`), then bring it to the state of an uninterrupted run after
     its checkpoint's epochs (:func:`restore`). Returns the checkpoint's state (None for a new
     run) and the progress rows of those epochs. Only ``epochs`` may differ from the folder's run
-    (to extend or finish it); its config.json keeps the larger number."""
-    state = resume_state(folder, config, defaults, param, obs_dim=obs_dim, n_actions=n_actions)
+    (to extend or finish it); its config.json keeps the larger number. ``aliases``: the old
+    spellings the folder's config.json may carry (:func:`saved_run_aliases`)."""
+    state = resume_state(folder, config, defaults, param, obs_dim=obs_dim, n_actions=n_actions,
+                         aliases=aliases)
     epochs = 0 if state is None else int(state["epoch"])
     if state is not None:
         saved = state["run_config"]["train"].get("epochs", 0)

@@ -151,7 +151,8 @@ class Trainer:
                 self.out, self.run_config, run_folder.saved_run_defaults(self.env_config,
                                                                          self.env.name),
                 PROGRESS_COLUMNS, self.param, obs_dim=self.env.obs_dim,
-                n_actions=self.env.n_actions)
+                n_actions=self.env.n_actions,
+                aliases=run_folder.saved_run_aliases(self.env_config))
             if state is not None:
                 self.load_state_dict(state)
             first_epoch = self.epoch

@@ -79,6 +79,7 @@ from typing import Protocol
 import numpy as np
 from numba import njit
 
+from repro.core.config import numba_record
 from repro.core.errors import require
 from repro.core.paths import path_layout
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
@@ -101,21 +102,11 @@ jit = njit(cache=True)
 
 
 def params_record(cfg: BusConfig) -> np.ndarray:
-    """The (1,) structured array of the kernels' parameters."""
-    k = cfg.n_stops
-    rec = np.zeros(1, np.dtype([
-        ("n_actions", np.int64), ("l_max", np.int64), ("rt", np.float64), ("t_a", np.float64),
-        ("t_b", np.float64), ("headway", np.float64), ("t_hold", np.float64),
-        ("gamma", np.float64), ("horizon", np.float64), ("alight", np.float64, k),
-        ("rate", np.float64, k), ("rate_s", np.float64, k), ("headway_s", np.float64),
-        ("latency", np.float64), ("b1", np.bool_), ("b2", np.bool_), ("b3", np.bool_),
-        ("b4", np.bool_), ("b5", np.bool_)], align=True))
-    rate = np.array(cfg.arrival_rate, float)
-    rec[0] = (cfg.n_actions, cfg.l_max, cfg.travel_time, cfg.t_alight, cfg.t_board, cfg.headway,
-              cfg.t_hold, cfg.gamma, cfg.horizon, cfg.alight_fraction, rate, rate / 60.0,
-              60.0 * cfg.headway, DECISION_LATENCY, cfg.b1_reward, cfg.b2_headway,
-              cfg.b3_boarding, cfg.b4_round_half_even, cfg.b5_timing)
-    return rec
+    """The (1,) structured array of the kernels' parameters: the config's fields by name
+    (:func:`repro.core.config.numba_record`), then the arrival rates per second, the planned
+    headway in seconds, and the decision latency."""
+    return numba_record(cfg, rate_s=np.array(cfg.arrival_rate, float) / 60.0,
+                        headway_s=60.0 * cfg.headway, decision_latency=DECISION_LATENCY)
 
 
 def episode_dtype(cfg: BusConfig) -> np.dtype:
@@ -192,7 +183,7 @@ def _headway(params, state, b, t):
     stops, one travel time for all), so the latest departure from the stop is that of the bus
     ahead, B2's reference, whenever that bus has left the stop in this lap."""
     dep = state.departed[state.stop[b]]
-    if not params.b2:
+    if not params.b2_headway:
         return t - max(dep, 0.0)  # the episode start if nobody has left yet
     if state.n_dec[b] == 0 or dep < 0.0:
         return -1.0
@@ -202,9 +193,9 @@ def _headway(params, state, b, t):
 @jit
 def _reward(params, k, h, visit):
     """The reward of an arrival at stop k with headway h (s) at the bus's visit-th stop visit."""
-    if not params.b1:
+    if not params.b1_reward:
         d = h / 60.0 - params.headway
-        return -params.rate[k] * (d * d)  # as the reference: the correctly rounded square
+        return -params.arrival_rate[k] * (d * d)  # as the reference: the correctly rounded square
     if h <= 0.0 or visit <= 2:
         return 0.0
     d = h - params.headway_s
@@ -222,7 +213,7 @@ def _arrive(params, state, log, b, t):
     state.ret += reward
     for j in range(state.buffer.shape[0]):
         state.buffer[j] += np.exp(-params.gamma * (t - state.anchor[j])) * reward
-    if params.b5 and state.n_dec[b] > 0 and not _alone_at(state, t):
+    if params.b5_timing and state.n_dec[b] > 0 and not _alone_at(state, t):
         _schedule(state, t, SERVED, b)
     else:
         _observe(params, state, log, b, t)
@@ -241,7 +232,7 @@ def _observe(params, state, log, b, t):
     state.obs[b, 2] = state.load[b]
     state.obs[b, 3] = t - state.anchor[b]
     state.t_obs[b] = t
-    if not params.b5:
+    if not params.b5_timing:
         state.anchor[b] = t
     state.started[b] = 0
     state.n_dec[b] = n + 1
@@ -265,23 +256,23 @@ def _close(state, log, b, t):
 @jit
 def _h_obs(params, h):
     """The observed headway: seconds under B2, else minutes."""
-    return h if params.b2 else h / 60.0
+    return h if params.b2_headway else h / 60.0
 
 
 @jit
 def _round(params, x):
-    return np.int64(np.rint(x) if params.b4 else np.floor(x + 0.5))
+    return np.int64(np.rint(x) if params.b4_round_half_even else np.floor(x + 0.5))
 
 
 @jit
 def _alight_board(params, k, load, h, visit, t):
     """Passengers alighting U and boarding B at stop k, given the load and headway h (s) at the
     bus's visit-th stop visit, its service starting at t."""
-    u = _round(params, params.alight[k] * load)
-    if params.b3:
+    u = _round(params, params.alight_fraction[k] * load)
+    if params.b3_boarding:
         bd = _round(params, params.rate_s[k] * (h if visit > 2 else t))
     else:
-        bd = _round(params, params.rate[k] * (h / 60.0))
+        bd = _round(params, params.arrival_rate[k] * (h / 60.0))
     return u, min(bd, params.l_max - (load - u))
 
 
@@ -289,14 +280,14 @@ def _alight_board(params, k, load, h, visit, t):
 def _serve(params, state, b, t):
     """The action starts: alight, board, and dwell plus hold (a DWELL event; under B5 the hold is
     a timeout of its own after the dwell's)."""
-    if params.b5:
+    if params.b5_timing:
         state.anchor[b] = t
     state.started[b] = 1
     load = state.load[b]
     u, bd = _alight_board(params, state.stop[b], load, state.h[b], state.n_dec[b], t)
     state.load[b] = load - u + bd
-    dwell = max(params.t_a * u, params.t_b * bd)
-    if params.b5:
+    dwell = max(params.t_alight * u, params.t_board * bd)
+    if params.b5_timing:
         if dwell == 0.0 and _alone_at(state, t):
             _hold(params, state, b, t)
         else:
@@ -329,7 +320,7 @@ def _depart(params, state, b, t):
     state.departed[k] = t
     state.busy[k] = 0
     _schedule(state, t, RELEASE, k)
-    _schedule(state, t + params.rt, TRAVEL, b)
+    _schedule(state, t + params.travel_time, TRAVEL, b)
 
 
 @jit
@@ -373,7 +364,7 @@ def _run_episode(params, state, log):
             _observe(params, state, log, arg, t)
         elif kind == DECISION or kind == LATENCY:
             _serve(params, state, arg, t)
-        elif kind == DWELL and params.b5:
+        elif kind == DWELL and params.b5_timing:
             _hold(params, state, arg, t)
         else:  # DWELL without B5, HOLD: depart
             _depart(params, state, arg, t)
@@ -403,8 +394,8 @@ def _advance(actions, params_array, states, logs, obs, ids):
             row += 1
             # B5: the DECISION events would be the instant's last, each scheduling its latency
             # timeout and nothing else; so the timeouts are scheduled at once, in the same order
-            if params.b5:
-                _schedule(state, state.now + params.latency, LATENCY, b)
+            if params.b5_timing:
+                _schedule(state, state.now + params.decision_latency, LATENCY, b)
             else:
                 _schedule(state, state.now, DECISION, b)
         state.n_pending = 0
@@ -623,9 +614,9 @@ def _arrivals(params_array, states, logs, episode, time, bus, stop, h, load, ali
             time[o] = row[D_TIME]
             bus[o] = b
             stop[o] = k
-            h[o] = np.nan if params.b2 and h_s == -1.0 else h_s / 60.0
+            h[o] = np.nan if params.b2_headway and h_s == -1.0 else h_s / 60.0
             load[o] = load_at_arrival
-            start = row[D_TIME] + params.latency if params.b5 else row[D_TIME]
+            start = row[D_TIME] + params.decision_latency if params.b5_timing else row[D_TIME]
             alight[o], board[o] = _alight_board(params, k, load_at_arrival, h_s, seen[b], start)
             o += 1
     return o

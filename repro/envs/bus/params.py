@@ -9,7 +9,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from repro.core.config import Validated
-from repro.core.errors import require
 
 DECISION_LATENCY = 1e-5
 """Seconds between a bus's observation and the start of its action under B5 (the released
@@ -71,33 +70,36 @@ class BusConfig(Validated):
     hold are two timeouts. Off: it observes on getting the stop and acts at once, dwell + hold in
     one timeout."""
 
+    ALIASES: ClassVar[dict[str, str]] = {"b1": "b1_reward", "b2": "b2_headway",
+                                         "b3": "b3_boarding", "b4": "b4_round_half_even",
+                                         "b5": "b5_timing"}
+    """Older flags of the switches (``--b1``, ``--no-b1``), still taken."""
+
     def validate(self) -> None:
         for name, low in (("n_buses", 1), ("n_stops", 2), ("l_max", 1), ("n_actions", 1)):
             value = getattr(self, name)
-            require(isinstance(value, numbers.Integral) and value >= low, name,
-                    f"an integer >= {low}", value)
-        require(len(self.alight_fraction) == self.n_stops, "alight_fraction",
-                f"{self.n_stops} values (one per stop)", len(self.alight_fraction))
-        require(len(self.arrival_rate) == self.n_stops, "arrival_rate",
-                f"{self.n_stops} values (one per stop)", len(self.arrival_rate))
-        require(all(0.0 <= q <= 1.0 for q in self.alight_fraction), "alight_fraction",
-                "values in [0, 1]", self.alight_fraction)
-        require(all(v >= 0.0 for v in self.arrival_rate), "arrival_rate", "values >= 0",
-                self.arrival_rate)
-        require(self.travel_time > 0.0, "travel_time", "> 0", self.travel_time)
+            self.check(isinstance(value, numbers.Integral) and value >= low, name,
+                       f"an integer >= {low}")
+        self.check(len(self.alight_fraction) == self.n_stops, "alight_fraction",
+                   f"{self.n_stops} values (one per stop)")
+        self.check(len(self.arrival_rate) == self.n_stops, "arrival_rate",
+                   f"{self.n_stops} values (one per stop)")
+        self.check(all(0.0 <= q <= 1.0 for q in self.alight_fraction), "alight_fraction",
+                   "values in [0, 1]")
+        self.check(all(v >= 0.0 for v in self.arrival_rate), "arrival_rate", "values >= 0")
+        self.check(self.travel_time > 0.0, "travel_time", "> 0")
         # negative service times would schedule events in the past (SimPy refuses them)
-        require(self.t_alight >= 0.0, "t_alight", ">= 0", self.t_alight)
-        require(self.t_board >= 0.0, "t_board", ">= 0", self.t_board)
-        require(self.headway > 0.0, "headway", "> 0", self.headway)
-        require(self.t_hold >= 0.0, "t_hold", ">= 0", self.t_hold)
-        require(self.horizon > 0.0, "horizon", "> 0", self.horizon)
+        self.check(self.t_alight >= 0.0, "t_alight", ">= 0")
+        self.check(self.t_board >= 0.0, "t_board", ">= 0")
+        self.check(self.headway > 0.0, "headway", "> 0")
+        self.check(self.t_hold >= 0.0, "t_hold", ">= 0")
+        self.check(self.horizon > 0.0, "horizon", "> 0")
         # 0 (no discounting) is a valid corridor; training needs gamma > 0 (the trainer checks)
         # above 1/s a macro-action's later rewards vanish below double precision (e^-745)
-        require(0.0 <= self.gamma <= 1.0, "--gamma", "a number from 0 to 1 per second (> 0 to "
-                "train)", self.gamma)
+        self.check(0.0 <= self.gamma <= 1.0, "gamma", "a number from 0 to 1 per second (> 0 to "
+                   "train)")
         for name in SWITCHES:
-            require(isinstance(getattr(self, name), bool), name, "True or False",
-                    getattr(self, name))
+            self.check(isinstance(getattr(self, name), bool), name, "True or False")
 
     BEFORE_ADDED: ClassVar[dict[str, bool]] = dict.fromkeys(SWITCHES, False)
     """Runs recorded before B1-B5 existed ran the corrected semantics."""

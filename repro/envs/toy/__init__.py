@@ -28,8 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from repro.core.config import Validated
-from repro.core.errors import require
+from repro.core.config import Validated, add_config_arguments, given_fields
 from repro.core.paths import path_layout
 from repro.core.rollout import DecisionBatch, Policy, Rollout, episode_streams
 
@@ -54,10 +53,9 @@ class ToyConfig(Validated):
     """Continuous-time discount rate (1/s)."""
 
     def validate(self) -> None:
-        require(self.n_agents >= 1, "--n-agents", "an integer >= 1", self.n_agents)
-        require(self.horizon >= 1, "--horizon", "an integer >= 1", self.horizon)
-        require(self.gamma > 0 and math.isfinite(self.gamma), "--gamma", "a number > 0",
-                self.gamma)
+        self.check(self.n_agents >= 1, "n_agents", "an integer >= 1")
+        self.check(self.horizon >= 1, "horizon", "an integer >= 1")
+        self.check(self.gamma > 0 and math.isfinite(self.gamma), "gamma", "a number > 0")
 
 
 class ToyEnv:
@@ -140,16 +138,13 @@ def optimal_policy(cfg: ToyConfig) -> tuple[np.ndarray, float]:
 
 
 def add_env_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--n-agents", type=int, default=ToyConfig.n_agents, help="workers")
-    parser.add_argument("--horizon", type=int, default=ToyConfig.horizon,
-                        help="episode length in whole seconds")
-    parser.add_argument("--gamma", type=float, default=ToyConfig.gamma,
-                        help="continuous-time discount rate (1/s)")
+    """A flag for every :class:`ToyConfig` field."""
+    add_config_arguments(parser, ToyConfig)
 
 
 def config_from_args(args: argparse.Namespace) -> ToyConfig:
-    cfg = ToyConfig(n_agents=args.n_agents, horizon=args.horizon, gamma=args.gamma)
-    return cfg
+    """The validated config of the options of :func:`add_env_arguments` (UsageError if bad)."""
+    return ToyConfig(**given_fields(args, ToyConfig))
 
 
 def make_env(cfg: ToyConfig) -> ToyEnv:

@@ -50,6 +50,7 @@ import math
 import numpy as np
 from numba import njit
 
+from repro.core.config import numba_record
 from repro.core.event_queue import (NORMAL, URGENT, event_key, heap_pop, heap_push,
                                     key_fields)
 from repro.core.fixed_step import fs_delay
@@ -92,33 +93,14 @@ rank_key_nb = jit(rank_key)
 
 
 def params_record(cfg: WildfireConfig, count_races: bool = False) -> np.ndarray:
-    """The (1,) structured array of the kernels' parameters, named as the config's fields
-    (``released_order``: the released same-instant order; ``latency``: the decision latency), and
-    whether the kernels count races (:class:`WildfireEnv`)."""
+    """The (1,) structured array of the kernels' parameters: the config's fields by name
+    (:func:`repro.core.config.numba_record`), then what the kernels derive from them
+    (``released_order``: the released same-instant order; the fires and T_max), and whether the
+    kernels count races (:class:`WildfireEnv`)."""
     fires = fire_positions(cfg)
-    rec = np.zeros(1, np.dtype([
-        ("n_agents", np.int64), ("n_fires", np.int64), ("n_observed", np.int64),
-        ("v_uav", np.float64), ("dt", np.float64), ("latency", np.float64),
-        ("at_fire_tol", np.float64), ("gamma", np.float64), ("r_ext", np.float64),
-        ("r_pen", np.float64), ("t_health", np.float64), ("t_max", np.float64),
-        ("max_decisions", np.int64), ("ranking_resolution", np.float64),
-        ("quirk_q1_stale_attack", np.bool_), ("quirk_q2_penalty_party_only", np.bool_),
-        ("quirk_q3_unclamped_health", np.bool_), ("quirk_q4_latency_not_interrupted", np.bool_),
-        ("quirk_q5_discount_from_action_start", np.bool_),
-        ("quirk_q6_short_flight_stays", np.bool_),
-        ("released_order", np.bool_), ("fs_round_negative_delays", np.bool_),
-        ("cut_flight_continues", np.bool_), ("fire_out_first", np.bool_),
-        ("count_races", np.bool_), ("fires", np.float64, fires.shape)], align=True))
-    rec[0] = (cfg.n_agents, len(fires), cfg.n_observed, cfg.v_uav, cfg.dt or 0.0,
-              cfg.decision_latency, cfg.at_fire_tol, cfg.gamma, cfg.r_ext, cfg.r_pen,
-              cfg.t_health, cfg.t_max, cfg.max_decisions or 0, cfg.ranking_resolution,
-              cfg.quirk_q1_stale_attack, cfg.quirk_q2_penalty_party_only,
-              cfg.quirk_q3_unclamped_health, cfg.quirk_q4_latency_not_interrupted,
-              cfg.quirk_q5_discount_from_action_start, cfg.quirk_q6_short_flight_stays,
-              cfg.same_instant_order == "released",
-              cfg.fs_round_negative_delays, cfg.cut_flight_continues, cfg.fire_out_first,
-              count_races, fires)
-    return rec
+    return numba_record(cfg, n_fires=len(fires), t_max=cfg.t_max,
+                        released_order=cfg.same_instant_order == "released",
+                        count_races=count_races, fires=fires)
 
 
 def state_dtype(cfg: WildfireConfig) -> np.dtype:
@@ -334,8 +316,8 @@ def _observe(state, params, record, row, e, i):
     state.rew[i] = 0.0
     state.in_lat[i] = True
     if params.count_races:
-        state.latency_due[i] = state.exact_now + params.latency
-    state.uav_wait[i] = _push(state, params.latency, NORMAL, LATENCY, i)
+        state.latency_due[i] = state.exact_now + params.decision_latency
+    state.uav_wait[i] = _push(state, params.decision_latency, NORMAL, LATENCY, i)
 
 
 @jit

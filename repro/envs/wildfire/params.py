@@ -203,48 +203,51 @@ class WildfireConfig(Validated):
         order stays), other fields as given."""
         return cls(**{**dict.fromkeys(QUIRKS, False), **fields})
 
+    ALIASES: ClassVar[dict[str, str]] = {
+        "quirk_q1": "quirk_q1_stale_attack", "quirk_q2": "quirk_q2_penalty_party_only",
+        "quirk_q3": "quirk_q3_unclamped_health", "quirk_q4": "quirk_q4_latency_not_interrupted",
+        "quirk_q5": "quirk_q5_discount_from_action_start",
+        "quirk_q6": "quirk_q6_short_flight_stays"}
+    """Older flags of the quirks (``--quirk-q3``, ``--no-quirk-q3``), still taken."""
+
     def validate(self) -> None:
         # the fast engine's event keys hold an agent index up to MAX_WHO = 2^20 - 1
-        require(isinstance(self.n_agents, numbers.Integral) and 1 <= self.n_agents <= MAX_WHO,
-                "--n-agents", "an integer from 1 to 2^20 - 1", self.n_agents)
-        require(self.t_health > 0 and math.isfinite(self.t_health), "--t-health", "a number > 0",
-                self.t_health)
-        require(self.dt is None or (self.dt > 0 and math.isfinite(self.dt)), "--dt",
-                "a number > 0", self.dt)
-        require(self.v_uav > 0 and math.isfinite(self.v_uav), "v_uav", "a number > 0",
-                self.v_uav)
-        require(0 < self.horizon_discount < 1, "horizon_discount", "in (0, 1)",
-                self.horizon_discount)
+        self.check(isinstance(self.n_agents, numbers.Integral) and 1 <= self.n_agents <= MAX_WHO,
+                   "n_agents", "an integer from 1 to 2^20 - 1")
+        self.check(self.t_health > 0 and math.isfinite(self.t_health), "t_health", "a number > 0")
+        self.check(self.dt is None or (self.dt > 0 and math.isfinite(self.dt)), "dt",
+                   "a number > 0")
+        self.check(self.v_uav > 0 and math.isfinite(self.v_uav), "v_uav", "a number > 0")
+        self.check(0 < self.horizon_discount < 1, "horizon_discount", "in (0, 1)")
         # T_max sets the hold table, drawn for a whole batch up front: 1e5 s is 48,000 holds per
         # UAV and episode (the paper's T_max is 265 s)
         least = math.log(1.0 / self.horizon_discount) / MAX_T_MAX
-        require(least <= self.gamma < math.inf, "--gamma", f"a number >= {least:.3g} (the "
-                f"episode cap T_max = ln(1/{self.horizon_discount:g}) / gamma is at most "
-                f"{MAX_T_MAX:g} s)", self.gamma)
-        require(self.dt is None or self.dt <= self.t_max, "--dt",
-                f"at most the episode cap T_max = {self.t_max:.4g} s", self.dt)
+        self.check(least <= self.gamma < math.inf, "gamma", f"a number >= {least:.3g} (the "
+                   f"episode cap T_max = ln(1/{self.horizon_discount:g}) / gamma is at most "
+                   f"{MAX_T_MAX:g} s)")
+        self.check(self.dt is None or self.dt <= self.t_max, "dt",
+                   f"at most the episode cap T_max = {self.t_max:.4g} s")
         # with no latency a UAV flying to the fire it is at would decide forever at one instant
-        require(self.decision_latency > 0 and math.isfinite(self.decision_latency),
-                "decision_latency", "a number > 0", self.decision_latency)
-        require(self.hold_mean > 0 and math.isfinite(self.hold_mean), "hold_mean", "a number > 0",
-                self.hold_mean)
-        require(self.hold_std >= 0 and math.isfinite(self.hold_std), "hold_std", "a number >= 0",
-                self.hold_std)
+        self.check(self.decision_latency > 0 and math.isfinite(self.decision_latency),
+                   "decision_latency", "a number > 0")
+        self.check(self.hold_mean > 0 and math.isfinite(self.hold_mean), "hold_mean",
+                   "a number > 0")
+        self.check(self.hold_std >= 0 and math.isfinite(self.hold_std), "hold_std",
+                   "a number >= 0")
         # a fire's index is a heap key's subject, like an agent's
-        require(isinstance(self.n_clusters, numbers.Integral) and 1 <= self.n_clusters < 2**18,
-                "n_clusters", "an integer from 1 to 2^18 - 1", self.n_clusters)
-        require(1 <= self.n_observed <= self.n_fires, "n_observed",
-                f"between 1 and the number of fires ({self.n_fires})", self.n_observed)
-        require(self.ranking_resolution >= 0 and math.isfinite(self.ranking_resolution),
-                "--ranking-resolution", "a number >= 0", self.ranking_resolution)
-        require(self.same_instant_order in SAME_INSTANT_ORDERS, "--same-instant-order",
-                " or ".join(SAME_INSTANT_ORDERS), self.same_instant_order)
+        self.check(isinstance(self.n_clusters, numbers.Integral) and 1 <= self.n_clusters < 2**18,
+                   "n_clusters", "an integer from 1 to 2^18 - 1")
+        self.check(1 <= self.n_observed <= self.n_fires, "n_observed",
+                   f"between 1 and the number of fires ({self.n_fires})")
+        self.check(self.ranking_resolution >= 0 and math.isfinite(self.ranking_resolution),
+                   "ranking_resolution", "a number >= 0")
+        self.check(self.same_instant_order in SAME_INSTANT_ORDERS, "same_instant_order",
+                   " or ".join(SAME_INSTANT_ORDERS))
         require(self.fire_out_first or self.same_instant_order == "released",
                 "--no-fire-out-first", "used with --same-instant-order released")
-        require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
-                "a positive integer (0: no limit)", self.max_decisions)
-        require(self.hold_table_size >= 1, "hold_table_size", "an integer >= 1",
-                self.hold_table_size)
+        self.check(self.max_decisions is None or self.max_decisions >= 1, "max_decisions",
+                   "a positive integer, or none (0: none, on the command line)")
+        self.check(self.hold_table_size >= 1, "hold_table_size", "an integer >= 1")
 
     @property
     def t_max(self) -> float:
