@@ -14,7 +14,7 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: setup reproduce test lint claims table-race table-thresholds fig-bus-lambda fig-bus-batch \
 	fig-bus-arrivals fig-bus-load wildfire-heuristics \
-	bench-bus bench-wildfire wildfire-eval bench-learn fig-scaling fig-transfer wildfire-behaviour render \
+	bench-bus bench-wildfire wildfire-eval bench-learn plot-runs fig-scaling fig-transfer wildfire-behaviour render \
 	beyond-races beyond-mgae beyond-order beyond-transfer-dt learner-ablation c9-inputs clean
 .DEFAULT_GOAL := help
 
@@ -99,6 +99,9 @@ render: $(STAMP) ## GIF of one episode (ARGS="--env wildfire --policy flowchart 
 
 bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS="--env wildfire")
 	$(REPRO) bench-learn --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+plot-runs: $(STAMP) ## training curves of run folders with seed intervals (ARGS="runs/wildfire/seed0 runs/wildfire/seed1 --out runs.png")
+	$(REPRO) plot-runs $(ARGS)
 
 fig-scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and figure (C11)
 	$(REPRO) scaling --scale $(SCALE) --seed $(SEED) $(ARGS)
