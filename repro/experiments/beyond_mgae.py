@@ -39,10 +39,12 @@ import pandas as pd
 
 from repro.core.config import Validated, for_scale
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import (check_writable_dir, provenance, read_provenance, save_figure,
+                           write_result)
 from repro.core.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.envs.bus import BusConfig
 from repro.experiments import bus_sweeps, transfer
+from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
 from repro.learn.m_gae import ESTIMATORS
@@ -166,6 +168,8 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
 
     envs = list(dict.fromkeys(summary.env))
     labels = {"bus": "final return (mean of the last epochs)", "wildfire": "ADR on ED"}
+    labels = {env: f"{label}\nmean over runs, error bars: 95% bootstrap CI"
+              for env, label in labels.items()}
     fig, axes = plt.subplots(1, len(envs), figsize=(4.2 * len(envs), 4), squeeze=False)
     for ax, env in zip(axes[0], envs):
         s = summary[summary.env == env].reset_index(drop=True)
@@ -188,9 +192,30 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, "policies per estimator and environment (paper: 5)")
+    add_replot(p)
+
+
+def figure_title(bus: dict, wildfire: dict, scale: str) -> str:
+    """The title of the study's figure: its two sweeps' sizes (as their configs' dicts)."""
+    return (f"X1: advantage estimators, everything else equal; {scale} scale: bus "
+            f"{bus['seeds']} x {bus['epochs']} epochs x {bus['lambda_batch']} episodes, wildfire "
+            f"{wildfire['seeds']} x {wildfire['epochs']} x {wildfire['batch_episodes']} (ED)")
+
+
+def replot(args: argparse.Namespace) -> int:
+    """``--replot``: the figure from the CSVs and the sizes their sidecar records."""
+    runs, summary = read_for_replot(args, "beyond_mgae.csv", "beyond_mgae_summary.csv")
+    config = read_provenance(Path(args.results_dir) / "beyond_mgae.csv")
+    stem = check_writable_dir(args.figures_dir, "--figures-dir") / "beyond_mgae"
+    plot(runs, summary, stem, figure_title(config["config"]["bus"], config["config"]["wildfire"],
+                                           config["scale"]))
+    print(f"wrote {stem}.png/.pdf")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.replot:
+        return replot(args)
     cfg = for_scale(MgaeStudyConfig, args.scale, seeds=args.seeds)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
@@ -204,8 +229,6 @@ def run(args: argparse.Namespace) -> int:
     write_result(results / "beyond_mgae.csv", runs, prov)
     write_result(results / "beyond_mgae_summary.csv", summary, prov)
     plot(runs, summary, figures / "beyond_mgae",
-         f"X1: advantage estimators, everything else equal; {args.scale} scale: bus "
-         f"{bus.seeds} x {bus.epochs} epochs x {bus.lambda_batch} episodes, wildfire "
-         f"{wildfire.seeds} x {wildfire.epochs} x {wildfire.batch_episodes} (ED)")
+         figure_title(dataclasses.asdict(bus), dataclasses.asdict(wildfire), args.scale))
     print(summary.to_string(index=False))
     return 0

@@ -34,12 +34,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from repro.core.io import provenance, save_figure, write_result
+from repro.core.io import check_writable_dir, provenance, read_provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci
+from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import check_jobs, check_study_arguments
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
-                                        make_jobs, runs_folder, study_config, summarise,
-                                        train_and_test)
+                                        make_jobs, recorded_config, runs_folder, study_config,
+                                        summarise, train_and_test)
 
 NAME = "order_reversal"
 """Stem of the result files and the figure."""
@@ -101,7 +102,8 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
                                                       [row.ci_high - row["mean"]]],
                         fmt="os"[k], color=color, capsize=3, label=label if x == 0 else None)
     ax.set_xticks(range(len(groups)), [f"{s}\n{o} order" for s, o in groups], fontsize=8)
-    ax.set_ylabel("ADR on ED (T_health = 3.0)")
+    ax.set_ylabel("ADR on ED (T_health = 3.0)\nmean over policies, error bars: 95% bootstrap "
+                  "CI", fontsize=8)
     ax.set_title(title, fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
@@ -110,9 +112,27 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_size_arguments(p)
+    add_replot(p)
+
+
+def figure_title(base: TransferConfig, scale: str) -> str:
+    return (f"C9's pair under both same-instant orders; {scale} scale: {base.seeds} policies x "
+            f"{base.epochs} epochs x {batch_label(base)}, {base.learner}'s learner")
+
+
+def replot(args: argparse.Namespace) -> int:
+    """``--replot``: the figure from the CSVs and the settings their sidecar records."""
+    per_policy, summary = read_for_replot(args, f"{NAME}.csv", f"{NAME}_summary.csv")
+    prov = read_provenance(Path(args.results_dir) / f"{NAME}.csv")
+    stem = check_writable_dir(args.figures_dir, "--figures-dir") / NAME
+    plot(per_policy, summary, stem, figure_title(recorded_config(prov), prov["scale"]))
+    print(f"wrote {stem}.png/.pdf")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.replot:
+        return replot(args)
     # the transfer study's sizes at every scale, so that the released-order runs are its own
     base = study_config(args)
     results, figures = check_study_arguments(args)
@@ -138,8 +158,6 @@ def run(args: argparse.Namespace) -> int:
     write_result(results / f"{NAME}.csv", per_policy, prov)
     write_result(results / f"{NAME}_summary.csv", summary, prov)
     write_result(results / f"{NAME}_effect.csv", effect, prov)
-    plot(per_policy, summary, figures / NAME,
-         f"C9's pair under both same-instant orders; {args.scale} scale: {base.seeds} policies x "
-         f"{base.epochs} epochs x {batch_label(base)}, {base.learner}'s learner")
+    plot(per_policy, summary, figures / NAME, figure_title(base, args.scale))
     print(effect.to_string(index=False))
     return 0
