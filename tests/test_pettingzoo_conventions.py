@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 import pytest
-from pettingzoo.test import api_test, parallel_api_test, render_test
+from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, render_test, seed_test
 
 from repro.core.errors import UsageError
 from repro.envs.bus import BusConfig
@@ -44,6 +44,15 @@ def test_api_test_passes_without_warnings(name, options):
 def test_parallel_api_test_passes_without_warnings(name, cfg):
     module = importlib.import_module(name)
     no_user_warnings(parallel_api_test, module.parallel_env(cfg), num_cycles=100_000)
+
+
+@pytest.mark.parametrize("name, options", [(MODULES[0], {}), (MODULES[0], {"engine": "fast"}),
+                                           (MODULES[1], {})])
+def test_a_seed_repeats_an_episode(name, options):
+    module = importlib.import_module(name)
+    seed_test(lambda: module.env(**options), num_cycles=100)
+    if not options:
+        parallel_seed_test(module.parallel_env, num_cycles=100)
 
 
 @pytest.mark.parametrize("name", MODULES)
