@@ -92,6 +92,9 @@ class EventParallelEnv(Renders, ParallelEnv):
         return obs
 
     def step(self, actions: dict) -> tuple[dict, dict, dict, dict, dict]:
+        """Answer the deciding agents, run the episode until it is blocked again (one round);
+        every live agent's observation, reward, termination, truncation and info (see the module
+        docstring)."""
         batch = self._batch
         names = [self.possible_agents[i] for i in batch.agent]
         missing = sorted(set(names) - set(actions))
