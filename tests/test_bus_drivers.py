@@ -116,4 +116,4 @@ def test_mlp_run_of_another_environment_is_refused(tmp_path):
 
 def test_missing_thresholds_file(tmp_path):
     proc = _repro("bus-eval", "--policy", "thresholds", "--results-dir", str(tmp_path))
-    assert proc.returncode == 2 and "make table-thresholds" in proc.stderr
+    assert proc.returncode == 2 and "make bus-thresholds" in proc.stderr

@@ -50,3 +50,24 @@ def test_x5_follows_the_normalised_rows_interval(tmp_path):
     _c9(tmp_path, 0.1)
     v = check_x5(tmp_path)
     assert v.verdict == "FAIL" and "Without normalisation it degrades" in v.detail
+
+
+TRAINED = ("beyond_mgae", "bus_batch", "bus_lambda", "c9_inputs", "learner_ablation",
+           "order_reversal", "transfer", "transfer_dt_grid", "wildfire_behaviour")
+"""Stems of the committed results made of trained policies (a learner's results)."""
+
+
+def test_committed_results_name_the_learner_their_sidecars_record():
+    """A committed result of trained policies is the suite learner's exactly when its stem says
+    ``_suite``: the claims read the two learners' results by name."""
+    from pathlib import Path
+
+    paper = Path(__file__).resolve().parents[1] / "results" / "paper"
+    checked = 0
+    for csv in sorted(paper.rglob("*.csv")):
+        if not csv.stem.startswith(TRAINED):
+            continue
+        suite = "_suite" in csv.stem
+        assert learner_of(csv) == ("suite" if suite else "authors"), csv
+        checked += 1
+    assert checked >= 20

@@ -15,6 +15,7 @@ import pytest
 
 from repro.envs import env_package
 from repro.learn.config import train_config
+from repro.learn.process import configure_process
 from repro.learn.trainer import TIMING_COLUMNS, Trainer
 
 RUNS = {  # name: (env, train overrides, env config fields)
@@ -48,6 +49,7 @@ def fingerprint(name: str, learner: str) -> str:
     pkg = env_package(env_name)
     env_cfg = (pkg.WildfireConfig if env_name == "wildfire" else pkg.BusConfig)(**env_fields)
     cfg = train_config("quick", env_name, learner, **overrides, **BATCH[learner][env_name])
+    configure_process()  # as the command line does
     trainer = Trainer(cfg, pkg.make_env(env_cfg), env_config=env_cfg)
     frame = trainer.train().drop(columns=TIMING_COLUMNS)
     h = hashlib.sha256(frame.to_csv(index=False).encode())

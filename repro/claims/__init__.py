@@ -2,23 +2,28 @@
 to ``paper_claims.md`` by ``python -m repro claims`` (``make claims``), and the questions beyond the
 paper, X1.., in a section of their own.
 
+Only paper-scale results make ``paper_claims.md``. The verdicts of a smaller scale's results
+(``claims --results-dir results/quick``, the end of ``make reproduce SCALE=quick``) go to
+``results/<scale>/claims.md``, marked as a smoke check: they show that every driver ran and every
+check reads its files, and are no evidence for or against a claim (:data:`SMOKE_NOTE`).
+
 A check reads result files and returns a :class:`Verdict`. A claim whose result files do not exist,
 or lack the rows and columns its check reads (a stale or hand-edited file), reads "not yet run",
-never PASS. Each experiment module contributes its claims in
+never PASS; any other error a check raises is a bug in it and propagates
+(:func:`is_incomplete`). Each experiment module contributes its claims in
 ``repro/claims/<topic>.py`` as a list ``CLAIMS``.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import importlib
+import json
 import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from repro.core.config import SCALES
 from repro.core.errors import require
 from repro.core.io import check_names, check_writable_dir, read_provenance, write_text
 
@@ -38,7 +43,7 @@ TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
           "repro.claims.wildfire", "repro.claims.learner", "repro.claims.beyond",
           "repro.claims.beyond_races")
 BEYOND = "X"
-"""Id prefix of the claims beyond the paper (issue 20): questions the paper raises and leaves open.
+"""Id prefix of the claims beyond the paper: questions the paper raises and leaves open.
 They are rendered in a section of their own, and a scale's results are complete without them (so
 that `make claims` keeps reading the paper scale until they are run there)."""
 
@@ -81,12 +86,37 @@ class Claim:
         except FileNotFoundError as err:
             return Verdict("-", NOT_RUN,
                            f"missing {Path(err.filename).name if err.filename else err}")
-        # a file without the rows or columns the check reads; pandas' EmptyDataError is a ValueError
-        except (KeyError, AttributeError, IndexError, ValueError) as err:
+        except Exception as err:
+            if not is_incomplete(err):
+                raise  # a bug in the check, which must not pass for missing data
             return Verdict("-", NOT_RUN, f"results incomplete ({type(err).__name__}: {err}); "
                            f"rerun `{self.command}`")
         require(v.verdict in VERDICTS, "verdict", "one of " + ", ".join(VERDICTS), v.verdict)
         return v
+
+
+class IncompleteResult(LookupError):
+    """A result file lacks rows or values a check reads, found by the check itself (a policy
+    without rows, say): the claim reads "not yet run"."""
+
+
+_TABLE_ERRORS = (KeyError, IndexError, ValueError, AttributeError)
+_TABLE_MODULES = ("pandas", "numpy")
+
+
+def is_incomplete(err: BaseException) -> bool:
+    """Whether ``err`` says that a result file lacks what a check reads: an
+    :class:`IncompleteResult`, or a lookup that failed inside pandas or numpy (a missing column,
+    row or attribute of a table, an empty file: pandas' EmptyDataError is a ValueError). The same
+    errors raised by a check's own code are bugs in it, not missing data."""
+    if isinstance(err, IncompleteResult):
+        return True
+    if not isinstance(err, _TABLE_ERRORS) or err.__traceback__ is None:
+        return False
+    tb = err.__traceback__
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return str(tb.tb_frame.f_globals.get("__name__", "")).split(".")[0] in _TABLE_MODULES
 
 
 def scale_of(result: Path) -> str:
@@ -111,6 +141,10 @@ class Reading:
 
     label: str
     suffix: str
+
+
+LEARNER_READINGS = (Reading("authors' learner", ""), Reading("suite's learner", "_suite"))
+"""The two named learners' results (``learner_stem``), the authors' deciding."""
 
 
 def side_by_side(check: Callable[[Path, str], Verdict],
@@ -150,18 +184,6 @@ def learner_of(result: Path) -> str:
     return find(read_provenance(result).get("config", {})) or "suite"
 
 
-def learned_by(check: Callable[[Path], Verdict], stem: str) -> Callable[[Path], Verdict]:
-    """``check``, its value and detail saying which learner trained the policies of its result
-    file ``stem``."""
-    def checked(results: Path) -> Verdict:
-        v = check(results)
-        learner = learner_of(results / stem)
-        return dataclasses.replace(v, ours=f"{v.ours} ({learner}'s learner)",
-                                   detail=f"{v.detail} Policies trained with the {learner}'s "
-                                          f"learner (docs/semantics.md section 5.7).")
-    return checked
-
-
 def registry() -> list[Claim]:
     claims: list[Claim] = []
     for mod in TOPICS:
@@ -178,18 +200,53 @@ def _cell(s: str) -> str:
     return s.replace("|", "\\|").replace("\n", " ")
 
 
+PAPER = "paper"
+"""The scale whose results, and only whose, make paper_claims.md."""
+PAPER_CLAIMS = "paper_claims.md"
+SMOKE_OUT = "claims.md"
+"""The file a smaller scale's verdicts go to, in its results folder."""
+SMOKE_NOTE = (
+    "**A smoke check, not evidence.** These verdicts come from results of the {scale} scale: a "
+    "few seeds, short training and few test episodes, so intervals are wide or points and "
+    "trained policies are far from what the paper's budgets give. They show that every driver "
+    "ran and that each claim's check reads its files; a verdict here may differ from the "
+    "paper-scale one either way. The evidence is paper_claims.md, rendered from `results/paper/`.")
+
+
+def result_scales(results: Path) -> set[str]:
+    """The scales recorded by the provenance sidecars of the result files directly in
+    ``results``."""
+    return {str(json.loads(side.read_text()).get("scale", "unknown"))
+            for side in results.glob("*.provenance.json")}
+
+
+def is_paper_scale(results: Path) -> bool:
+    """Whether every result file directly in ``results`` is of the paper scale (and there is
+    one)."""
+    return result_scales(results) == {PAPER}
+
+
 def render(results: Path) -> str:
-    """paper_claims.md: a tally, one short row per claim, then each claim's detail."""
+    """paper_claims.md (paper-scale results), or a smaller scale's smoke check: a tally, one short
+    row per claim, then each claim's detail."""
     evaluated = [(c, c.evaluate(results)) for c in registry()]
     rows = [(c, v) for c, v in evaluated if not is_beyond(c)]
     beyond = [(c, v) for c, v in evaluated if is_beyond(c)]
+    paper = is_paper_scale(results)
+    scale = " and ".join(sorted(result_scales(results))) or "no"
+    title = ("# Paper claims: the paper's numbers beside ours" if paper else
+             f"# Smoke check ({scale} scale): the paper's numbers beside a short run's")
+    source = ("from the paper-scale result CSVs only (a smaller scale's verdicts are a smoke "
+              f"check, `results/<scale>/{SMOKE_OUT}`)" if paper else
+              f"from the result CSVs in `{results}/`")
     lines = [
-        "# Paper claims: the paper's numbers beside ours",
+        title,
         "",
         f"**{len(rows)} claims: {_tally(rows)}** (results in `{results}/`, {_scales(rows)} scale).",
         "",
-        "Rendered by `make claims` (`python -m repro claims`) from the result CSVs; do not edit by "
-        "hand. The verdicts:",
+        *([] if paper else [*textwrap.wrap(SMOKE_NOTE.format(scale=scale), WIDTH), ""]),
+        f"Rendered by `make claims` (`python -m repro claims`) {source}; do not edit by hand. "
+        "The verdicts:",
         "",
         *(f"- **{k}**: {m}." for k, m in LEGEND.items()),
         "",
@@ -203,7 +260,7 @@ def render(results: Path) -> str:
     for note in filter(None, notes):
         lines += ["", note.strip()]
     if beyond:
-        intro = ("Questions the paper raises and leaves open (issue 20), answered with the same "
+        intro = ("Questions the paper raises and leaves open, answered with the same "
                  "machinery; a verdict says whether the hypothesis holds. "
                  f"**{len(beyond)} questions: {_tally(beyond)}** ({_scales(beyond)} scale).")
         lines += ["", "## Beyond the paper", "", *textwrap.wrap(intro, WIDTH),
@@ -245,36 +302,34 @@ WIDTH = 100
 """Line width of the details."""
 
 
-def default_results(root: Path = Path("results")) -> Path:
-    """The folder ``claims`` reads unless told: the largest scale that has every paper claim's
-    results (outdated ones count; the questions beyond the paper need not be there), else the
-    largest scale that has results at all (paper, then quick, then smoke)."""
-    folders = [root / s for s in reversed(SCALES) if (root / s).is_dir()]
-    claims = [c for c in registry() if not is_beyond(c)]
-    complete = (f for f in folders if all(v.verdict != NOT_RUN or v.outdated
-                                          for v in (c.evaluate(f) for c in claims)))
-    return next(complete, folders[0] if folders else root / SCALES[-1])
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--results-dir", help="folder the checks read (default: results/<scale> of the "
-                   "largest scale whose results are complete)")
-    p.add_argument("--out", default="paper_claims.md", help="the rendered table")
+    p.add_argument("--results-dir", default="results/paper",
+                   help="folder the checks read (default results/paper)")
+    p.add_argument("--out", help=f"the rendered table (default {PAPER_CLAIMS} for paper-scale "
+                   f"results; for those of a smaller scale, a smoke check, "
+                   f"<results-dir>/{SMOKE_OUT}, never {PAPER_CLAIMS})")
 
 
 def run(args: argparse.Namespace) -> int:
-    require(args.results_dir is None or args.results_dir.strip() != "", "--results-dir",
+    require(args.results_dir.strip() != "", "--results-dir",
             "a folder of result files (not an empty path)", args.results_dir)
-    results = Path(args.results_dir) if args.results_dir is not None else default_results()
-    require(args.out.strip() != "", "--out", "a file name", args.out)
-    out = check_names(args.out, "--out")
+    results = Path(args.results_dir)
     # a mistyped or empty folder would otherwise render a table of "not yet run" over the claims
     require(results.is_dir() and any(results.glob("*.provenance.json")), "--results-dir",
             "an existing folder of result files (CSVs with their provenance sidecars)",
             str(results))
+    paper = is_paper_scale(results)
+    default = PAPER_CLAIMS if paper else str(results / SMOKE_OUT)
+    require(args.out is None or args.out.strip() != "", "--out", "a file name", args.out)
+    out = check_names(default if args.out is None else args.out, "--out")
+    require(paper or out.name != PAPER_CLAIMS, "--out", f"another file than {PAPER_CLAIMS} for "
+            f"results of the {' and '.join(sorted(result_scales(results)))} scale "
+            f"({PAPER_CLAIMS} is rendered from paper-scale results only)", str(out))
     require(not out.is_dir(), "--out", "a file, not a folder", str(out))
     check_writable_dir(out.parent, "--out")
     text = render(results)
     write_text(out, text)
+    if not paper:  # the smoke check's table, for the end of `make reproduce`
+        print(text.split("\n## Details")[0].rstrip())
     print(f"wrote {out}")
     return 0

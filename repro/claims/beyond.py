@@ -1,4 +1,4 @@
-"""Beyond the paper (issue 20): questions the paper raises and leaves open, checked like its claims
+"""Beyond the paper: questions the paper raises and leaves open, checked like its claims
 and rendered in a section of their own. A verdict says whether the hypothesis in the table holds.
 
 Intervals are the drivers' 95% percentile bootstrap CIs of the mean over seeds
@@ -13,7 +13,8 @@ from pathlib import Path
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, learned_by, scale_of
+from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_partial, scale_of,
+                          side_by_side)
 from repro.core.stats import ci_side
 from repro.experiments.beyond_mgae import REFERENCE
 from repro.experiments.transfer_dt import RACES, TransferDtConfig, read_races
@@ -30,10 +31,10 @@ def _num(x: float) -> str:
     return f"{x:.0f}" if abs(x) >= 100 else f"{x:.3f}"
 
 
-def check_x1(results: Path) -> Verdict:
+def check_x1(results: Path, suffix: str = "") -> Verdict:
     """M-GAE against each other estimator, per environment: PASS when M-GAE's CI lies above every
     other's, PARTIAL above some, FAIL none."""
-    path = results / "beyond_mgae_summary.csv"
+    path = results / f"beyond_mgae{suffix}_summary.csv"
     s = read_result(path)
     parts, beats, ours = [], [], []
     for env, grp in s.groupby("env", sort=False):
@@ -75,11 +76,11 @@ def _rates_at(races: pd.DataFrame, dt: float | None) -> str:
     return f" Races at {_dt(dt)}: " + "; ".join(out) + "."
 
 
-def check_x3(results: Path) -> Verdict:
+def check_x3(results: Path, suffix: str = "") -> Verdict:
     """Transfer breaks from the smallest dT whose CI lies below ED's and holds up to the largest
     dT before it whose CI overlaps ED's; PASS when the break lies within ONSET_WINDOW of the race
     onset."""
-    path = results / "transfer_dt_grid_summary.csv"
+    path = results / f"transfer_dt_grid{suffix}_summary.csv"
     s = read_result(path)
     ed = s[s.dt == 0].iloc[0]
     fs = s[s.dt > 0].sort_values("dt")
@@ -116,11 +117,11 @@ CLAIMS = [
           "batch's mean duration) and duration-discounted GAE (lambda per decision), all else "
           "equal", "M-GAE beats both alternatives in both environments",
           "PASS: M-GAE's 95% CI lies above each alternative's; PARTIAL: above some; FAIL: none",
-          "make beyond-mgae", learned_by(check_x1, "beyond_mgae_summary.csv"), where="Sec. 3.2"),
+          "make beyond-mgae", side_by_side(check_x1, LEARNER_READINGS), where="Sec. 3.2"),
     Claim("X3", "Where does transfer from FS-dT to ED break (13 dT from 0.01 to 10 s), and does it "
           "break where races begin?", "transfer breaks where races begin (X2's rate, N = 3)",
           f"PASS: the smallest dT whose CI lies below ED's is within {ONSET_WINDOW:g} decades of "
           f"the dT at which the nearest policy's races reach {RACE_ONSET:g} per decision",
-          "make beyond-transfer-dt", learned_by(check_x3, "transfer_dt_grid_summary.csv"),
+          "make beyond-transfer-dt", side_by_side(check_x3, LEARNER_READINGS),
           where="Fig. 7, Sec. 5.3"),
 ]

@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import NOT_RUN, Claim, Verdict, at_most_partial, learned_by, scale_of
+from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_partial, scale_of,
+                          side_by_side)
 from repro.claims.race import PAPER_BETA
 from repro.experiments.beyond_order import NAME as ORDER
 from repro.experiments.beyond_races import FIT, RACES, c10_beta
@@ -67,8 +68,8 @@ def _pairs(frame: pd.DataFrame) -> str:
     return ", ".join(f"{r.policy} N={r.n_agents}" for r in frame.itertuples()) or "none"
 
 
-def check_x4(results: Path) -> Verdict:
-    path = results / f"{ORDER}_effect.csv"
+def check_x4(results: Path, suffix: str = "") -> Verdict:
+    path = results / f"{ORDER}{suffix}_effect.csv"
     e = read_result(path).set_index(["semantics", "order"])
     semantics = list(dict.fromkeys(e.index.get_level_values(0)))
     degrades = [s for s in semantics if e.loc[(s, "released"), "degrades"]]
@@ -104,5 +105,5 @@ CLAIMS = [
           "C9: 1.937 vs 2.789 (the order is not discussed)",
           "where the released order degrades (95% bootstrap CI of the ADR difference below 0), "
           "the reversed order's CI lies below 0 too; PARTIAL: in some semantics",
-          "make beyond-order", learned_by(check_x4, f"{ORDER}_effect.csv")),
+          "make beyond-order", side_by_side(check_x4, LEARNER_READINGS)),
 ]

@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import Claim, Reading, Verdict, scale_of, side_by_side
+from repro.claims import (LEARNER_READINGS, Claim, IncompleteResult, Verdict, is_incomplete,
+                          scale_of, side_by_side)
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_SHARE,
@@ -118,7 +119,7 @@ def check_c5(results: Path) -> Verdict:
     episodes = {p: arrivals[arrivals.policy == p] for p in pols}
     for p, a in episodes.items():
         if a.empty:  # read as "results incomplete", not as a verdict
-            raise KeyError(f"no {p} rows in {path.name}")
+            raise IncompleteResult(f"no {p} rows in {path.name}")
     t_uni = {p: time_to_uniform(a, cfg.headway) for p, a in episodes.items()}
     t_reg = {p: time_to_regularity(a, cfg.headway) for p, a in episodes.items()}
     var = {p: float(load_variance_per_record(loads[loads.policy == p]).mean()) for p in pols}
@@ -147,20 +148,18 @@ def check_c5(results: Path) -> Verdict:
                    scale_of(path))
 
 
-READINGS = (Reading("authors' learner", ""), Reading("suite's learner", "_suite"))
-"""C1-C3 are decided on the released runner's learner, the suite's beside it."""
-
+# C1-C3 are decided on the released runner's learner, the suite's beside it
 CLAIMS = [
     Claim("C1", "PS-TRPO + M-GAE (MLP) beats Optimized Thresholds beats No Holding",
           "MLP > thresholds > no holding",
           "ordering holds with bootstrap CIs over seeds", "make fig-bus-lambda",
-          side_by_side(check_c1, READINGS), where="Figs. 2, 3"),
+          side_by_side(check_c1, LEARNER_READINGS), where="Figs. 2, 3"),
     Claim("C2", "lambda matters little next to the MLP-thresholds gap", "spread over lambda small",
           "spread over lambda < gap MLP - thresholds",
-          "make fig-bus-lambda", side_by_side(check_c2, READINGS), where="Fig. 2"),
+          "make fig-bus-lambda", side_by_side(check_c2, LEARNER_READINGS), where="Fig. 2"),
     Claim("C3", "smaller batches converge worse",
           "return after E epochs rises with batch size",
-          "monotone in batch size", "make fig-bus-batch", side_by_side(check_c3, READINGS),
+          "monotone in batch size", "make fig-bus-batch", side_by_side(check_c3, LEARNER_READINGS),
           where="Fig. 3"),
     Claim("C4", "No Holding bunches the fleet: a full leader, empty followers",
           "leader loads 50, 64, 60, 75, ... and followers 0 (records 40-50)", "exact",
@@ -173,21 +172,21 @@ CLAIMS = [
 
 CORRECTED_DIR = "corrected"
 """Subfolder of the results with the bus results of the corrected semantics (``--corrected``):
-the sweeps' CSVs as they were before issue 23 made the released semantics the default, and the
-figure CSVs redrawn from them with --corrected (its MLP runs were not kept, so no MLP panel)."""
+the sweeps' CSVs made with B1-B5 off, and the figure CSVs redrawn from them with --corrected
+(their MLP runs are not kept, so there is no MLP panel)."""
 
 
 def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic's notes)
     """C1-C5 on the corrected semantics beside the released ones, and the load panels' distances
     to the paper's."""
-    lines = ["## Bus: released semantics (default) and corrected (`--corrected`, before issue 23)",
-             "", "Since issue 23 both bus engines follow the authors' released simulator "
+    lines = ["## Bus: released semantics (default) and corrected (`--corrected`)",
+             "", "Both bus engines follow the authors' released simulator "
              "(BusBunching/busbunchingenv.py) path for path, because it draws the paper's "
              "pictures: with it the authors' thresholds reproduce the paper's thresholds load "
              "panel at all 55 points, which the paper's prose (docs/semantics.md section "
              "4.9) does not. Each "
              "departure from the prose is a switch, B1-B5 (README, 'Deviations from the "
-             "paper'); `--corrected` turns them off and gives the earlier rollouts bit for bit.",
+             "paper'); `--corrected` turns them all off.",
              "", "| id | released: verdict, ours | corrected: verdict, ours |", "|---|---|---|"]
     for c in CLAIMS:
         rel, cor = c.evaluate(results), c.evaluate(results / CORRECTED_DIR)
@@ -201,8 +200,9 @@ def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic'
             lines += section(results)
         except FileNotFoundError:
             pass
-        # a stale or hand-edited file, as in Claim.evaluate
-        except (KeyError, AttributeError, IndexError, ValueError) as err:
+        except Exception as err:  # a stale or hand-edited file, as in Claim.evaluate
+            if not is_incomplete(err):
+                raise
             lines += ["", f"({section.__doc__.split(':')[0]}: results incomplete, "
                       f"{type(err).__name__})"]
     return "\n".join(lines)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import Claim, Verdict, at_most_partial, scale_of
+from repro.claims import Claim, Verdict, at_most_partial, is_incomplete, scale_of
 from repro.experiments.c9_inputs import NAME as INPUTS
 from repro.experiments.learner_ablation import NAME as ABLATION
 from repro.experiments.transfer import PAPER, distance_in_se
@@ -140,8 +140,9 @@ def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic'
             lines += table(results)
         except FileNotFoundError:  # a CSV without its sidecar: not yet run
             pass
-        # a stale or hand-edited file, as in Claim.evaluate
-        except (KeyError, AttributeError, IndexError, ValueError) as err:
+        except Exception as err:  # a stale or hand-edited file, as in Claim.evaluate
+            if not is_incomplete(err):
+                raise
             lines += ["", f"({table.__doc__.split(':')[0]}: results incomplete, "
                       f"{type(err).__name__})"]
     return "\n".join(lines)

@@ -34,9 +34,8 @@ C9_PAIR = ("FS-1 (T_health=2.9999)", "FS-1")
 
 RELEASED_SINCE = "2026-11-25T03:16:00Z"
 """When the wildfire engines began to follow the released simulator's same-instant semantics
-(Q3-Q6, its order; issue 18). A wildfire result finished before then was made on the earlier
-semantics: it does not answer a claim about today's engines, so it reads "not yet run", with what
-it showed."""
+(Q3-Q6, its order). A wildfire result finished before then was made on the earlier semantics: it
+does not answer a claim about today's engines, so it reads "not yet run", with what it showed."""
 
 
 def made_before_released_semantics(path: Path) -> bool:
@@ -54,7 +53,7 @@ def on_current_semantics(check: Callable[[Path, str], Verdict],
         if not made_before_released_semantics(results / stem.format(suffix)):
             return v
         return Verdict(f"earlier semantics: {v.ours}", NOT_RUN,
-                       f"Not yet rerun since the engines follow the released simulator (issue 18); "
+                       f"Not yet rerun since the engines follow the released simulator; "
                        f"on the earlier semantics it read {v.verdict}: {v.detail}", v.scale,
                        outdated=True)
     return checked
@@ -242,8 +241,8 @@ def _corrected_line(results: Path, judge, means: bool, suffix: str) -> str:
     verdict, caveat = at_most_partial(verdict, int(s.n_policies.min()))
     shown = f"{_means(s)}; " if means else ""
     if made_before_released_semantics(path):
-        return (f" Corrected semantics: not yet rerun since issue 18 (Q3-Q6 and the released order "
-                f"were added); before, with Q1, Q2 off, it read {verdict}: {shown}{why}.{caveat}")
+        return (f" Corrected semantics: not yet rerun since Q3-Q6 and the released order were "
+                f"added; before, with Q1, Q2 off, it read {verdict}: {shown}{why}.{caveat}")
     return (f" Corrected semantics (Q1-Q6 off; {scale_of(path)} scale): {verdict}: {shown}{why}."
             f"{caveat}{_cut_line(results / f'transfer_corrected{suffix}.csv') if means else ''}")
 

@@ -25,7 +25,7 @@ Who uses what, and why:
   ``repro/envs/bus/engine.py``). At most 2 N (12) events are pending and a new event has the
   largest insertion number, so it is placed by shifting the few events that come later, and
   neither priority nor sequence need be stored; the next event is the array's last entry. With
-  this heap instead (tried for issue 25, six alternating runs of ``bench-bus`` each) the engine
+  this heap instead (six alternating runs of ``bench-bus`` each) the engine
   made 3-4% fewer decisions per CPU second with the learner's policy, in ``rollout`` and the step
   API, and 3% more with No Holding: training's case decides.
 """

@@ -2,7 +2,7 @@
 
 Every compiled kernel of the suite is cached (``njit(cache=True)``), and sweeps compile in several
 worker processes at once. numba's cache file allocates the data file of a new signature from the
-index it has just read, then writes index and data (numba issue 4807): two processes that compile
+index it has just read, then writes index and data (numba issue #4807): two processes that compile
 two signatures of one function at the same time both take the same data file, and the index ends
 up naming one signature's machine code for the other. The next process that loads it crashes
 (a wildfire race study, `beyond-races`, segfaulted so after a `make reproduce` whose sweeps had

@@ -32,6 +32,8 @@ from repro.learn.config import DEFAULT_LEARNER, LEARNERS, train_config
 from repro.learn.m_gae import m_gae_paths
 from repro.learn.network import TanhMLP, log_softmax
 from repro.learn.policy import DTYPE, Sampler, blas_on_one_thread
+from repro.learn.process import configure_process
+from repro.learn.run_folder import config_dict
 from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, normalize,
                               surrogate_and_kl, surrogate_gradient, trpo_step)
 
@@ -153,6 +155,7 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    configure_process()  # as in training
     cfg = for_scale(BenchConfig, args.scale, episodes=args.episodes, epochs=args.epochs,
                     repeats=args.repeats)
     pkg = env_package(args.env)
@@ -172,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
     table["update_share"] = table.seconds_update / (table.seconds_sim + table.seconds_update)
     pieces.insert(0, "env", args.env)
     prov = provenance({"bench": to_dict(cfg), "train": to_dict(train_cfg),
-                       "env": trainer.config_dict(env_cfg)},
+                       "env": config_dict(env_cfg)},
                       command="bench-learn", scale=args.scale, seed=args.seed, wall_seconds=wall)
     write_result(results / "bench_learn.csv", table, prov)
     write_result(results / "bench_learn_pieces.csv", pieces, prov)

@@ -1,4 +1,4 @@
-"""Claim X1, beyond the paper: does M-GAE matter? (issue 20; docs/semantics.md section 6.9)
+"""Claim X1, beyond the paper: does M-GAE matter? (docs/semantics.md section 6.9)
 
 PS-TRPO is trained with each advantage estimator of ``repro.learn.m_gae.ESTIMATORS``, everything
 else equal: M-GAE (the paper's), decision-step GAE (every macro-action one step, one discount
@@ -47,6 +47,8 @@ from repro.experiments import bus_sweeps, transfer
 from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
+from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
+                                learner_stem)
 from repro.learn.m_gae import ESTIMATORS
 
 REFERENCE = "m-gae"
@@ -60,6 +62,9 @@ class MgaeStudyConfig(Validated):
     """What X1 compares. The sizes are the bus lambda sweep's and the transfer study's at the same
     scale, so that the M-GAE runs are theirs."""
 
+    learner: str = DEFAULT_LEARNER
+    """The named learner of every run (``repro.learn.config.LEARNERS``), with the sizes the two
+    studies give it."""
     estimators: tuple[str, ...] = tuple(ESTIMATORS)
     """Advantage estimators trained (``repro.learn.m_gae.ESTIMATORS``); M-GAE first, the others
     are compared with it."""
@@ -74,16 +79,25 @@ class MgaeStudyConfig(Validated):
         require(len(self.estimators) >= 2 and self.estimators[0] == REFERENCE
                 and set(self.estimators) <= set(ESTIMATORS), "estimators",
                 f"{REFERENCE} and one or more of " + ", ".join(ESTIMATORS), self.estimators)
+        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
+                self.learner)
         require(self.seeds is None or self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
         require(self.n_boot >= 1, "n_boot", "an integer >= 1", self.n_boot)
 
     def bus(self, scale: str) -> bus_sweeps.BusSweepConfig:
         """The bus lambda sweep at ``scale``."""
-        return for_scale(bus_sweeps.BusSweepConfig, scale, seeds=self.seeds)
+        return bus_sweeps.sweep_config(scale, self.learner, seeds=self.seeds)
 
     def wildfire(self, scale: str) -> transfer.TransferConfig:
         """The transfer study at ``scale``, ED only."""
-        return for_scale(transfer.TransferConfig, scale, seeds=self.seeds, only=("ED",))
+        return for_scale(transfer.TransferConfig, scale, seeds=self.seeds, only=("ED",),
+                         learner=self.learner)
+
+    @property
+    def stem(self) -> str:
+        """File stem of the results and the figure: beyond_mgae, then _suite for the suite's
+        learner."""
+        return learner_stem("beyond_mgae", self.learner)
 
 
 def with_estimator(job: TrainJob, estimator: str) -> TrainJob:
@@ -190,33 +204,38 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
     save_figure(fig, stem)
 
 
+def title(cfg: MgaeStudyConfig, scale: str) -> str:
+    """The figure's title: the learner and both studies' sizes at ``scale``."""
+    bus, wildfire = cfg.bus(scale), cfg.wildfire(scale)
+    return (f"X1: advantage estimators, everything else equal, {learner_label(cfg.learner)}; "
+            f"{scale} scale: bus {bus.seeds} x {bus.epochs} epochs x {bus.lambda_batch} "
+            f"{bus.unit.removeprefix('batch_')}, wildfire {wildfire.seeds} x {wildfire.epochs} x "
+            f"{transfer.batch_label(wildfire)} (ED)")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, "policies per estimator and environment (paper: 5)")
+    add_learner_option(p, "beyond_mgae_suite*")
     add_replot(p)
 
 
-def figure_title(bus: dict, wildfire: dict, scale: str) -> str:
-    """The title of the study's figure: its two sweeps' sizes (as their configs' dicts)."""
-    return (f"X1: advantage estimators, everything else equal; {scale} scale: bus "
-            f"{bus['seeds']} x {bus['epochs']} epochs x {bus['lambda_batch']} episodes, wildfire "
-            f"{wildfire['seeds']} x {wildfire['epochs']} x {wildfire['batch_episodes']} (ED)")
-
-
-def replot(args: argparse.Namespace) -> int:
-    """``--replot``: the figure from the CSVs and the sizes their sidecar records."""
-    runs, summary = read_for_replot(args, "beyond_mgae.csv", "beyond_mgae_summary.csv")
-    config = read_provenance(Path(args.results_dir) / "beyond_mgae.csv")
-    stem = check_writable_dir(args.figures_dir, "--figures-dir") / "beyond_mgae"
-    plot(runs, summary, stem, figure_title(config["config"]["bus"], config["config"]["wildfire"],
-                                           config["scale"]))
+def replot(cfg: MgaeStudyConfig, args: argparse.Namespace) -> int:
+    """``--replot``: the figure of ``cfg``'s learner from its CSVs, titled with the settings their
+    sidecar records."""
+    runs, summary = read_for_replot(args, f"{cfg.stem}.csv", f"{cfg.stem}_summary.csv")
+    prov = read_provenance(Path(args.results_dir) / f"{cfg.stem}.csv")
+    recorded = MgaeStudyConfig(**{k: transfer.as_tuples(v)
+                                  for k, v in prov["config"]["study"].items()})
+    stem = check_writable_dir(args.figures_dir, "--figures-dir") / cfg.stem
+    plot(runs, summary, stem, title(recorded, prov["scale"]))
     print(f"wrote {stem}.png/.pdf")
     return 0
 
 
 def run(args: argparse.Namespace) -> int:
+    cfg = for_scale(MgaeStudyConfig, args.scale, seeds=args.seeds, learner=args.learner)
     if args.replot:
-        return replot(args)
-    cfg = for_scale(MgaeStudyConfig, args.scale, seeds=args.seeds)
+        return replot(cfg, args)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     runs = pd.concat([bus_runs(cfg, args), wildfire_runs(cfg, args)], ignore_index=True)
@@ -226,9 +245,8 @@ def run(args: argparse.Namespace) -> int:
                            wildfire=dataclasses.asdict(wildfire)),
                       command="beyond-mgae", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0)
-    write_result(results / "beyond_mgae.csv", runs, prov)
-    write_result(results / "beyond_mgae_summary.csv", summary, prov)
-    plot(runs, summary, figures / "beyond_mgae",
-         figure_title(dataclasses.asdict(bus), dataclasses.asdict(wildfire), args.scale))
+    write_result(results / f"{cfg.stem}.csv", runs, prov)
+    write_result(results / f"{cfg.stem}_summary.csv", summary, prov)
+    plot(runs, summary, figures / cfg.stem, title(cfg, args.scale))
     print(summary.to_string(index=False))
     return 0

@@ -38,6 +38,7 @@ from repro.core.io import check_writable_dir, provenance, read_provenance, save_
 from repro.core.stats import bootstrap_ci
 from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import check_jobs, check_study_arguments
+from repro.learn.config import learner_label, learner_stem
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
                                         make_jobs, recorded_config, runs_folder, study_config,
                                         summarise, train_and_test)
@@ -110,31 +111,34 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem)
 
 
+def title(base: TransferConfig, scale: str) -> str:
+    """The figure's title: the study's sizes at ``scale`` and its learner."""
+    return (f"C9's pair under both same-instant orders; {scale} scale: {base.seeds} policies x "
+            f"{base.epochs} epochs x {batch_label(base)}, {learner_label(base.learner)}")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_size_arguments(p)
+    add_size_arguments(p, "order_reversal_suite*")
     add_replot(p)
 
 
-def figure_title(base: TransferConfig, scale: str) -> str:
-    return (f"C9's pair under both same-instant orders; {scale} scale: {base.seeds} policies x "
-            f"{base.epochs} epochs x {batch_label(base)}, {base.learner}'s learner")
-
-
-def replot(args: argparse.Namespace) -> int:
-    """``--replot``: the figure from the CSVs and the settings their sidecar records."""
-    per_policy, summary = read_for_replot(args, f"{NAME}.csv", f"{NAME}_summary.csv")
-    prov = read_provenance(Path(args.results_dir) / f"{NAME}.csv")
-    stem = check_writable_dir(args.figures_dir, "--figures-dir") / NAME
-    plot(per_policy, summary, stem, figure_title(recorded_config(prov), prov["scale"]))
-    print(f"wrote {stem}.png/.pdf")
+def replot(base: TransferConfig, args: argparse.Namespace) -> int:
+    """``--replot``: the figure of ``base``'s learner from its CSVs, titled with the settings
+    their sidecar records."""
+    stem = learner_stem(NAME, base.learner)
+    per_policy, summary = read_for_replot(args, f"{stem}.csv", f"{stem}_summary.csv")
+    prov = read_provenance(Path(args.results_dir) / f"{stem}.csv")
+    out = check_writable_dir(args.figures_dir, "--figures-dir") / stem
+    plot(per_policy, summary, out, title(recorded_config(prov), prov["scale"]))
+    print(f"wrote {out}.png/.pdf")
     return 0
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.replot:
-        return replot(args)
     # the transfer study's sizes at every scale, so that the released-order runs are its own
     base = study_config(args)
+    if args.replot:
+        return replot(base, args)
     results, figures = check_study_arguments(args)
     plan = [(semantics, order, cfg, runs_folder(args.runs_dir, cfg, args.scale))
             for semantics, order, cfg in studies(base)]
@@ -151,13 +155,14 @@ def run(args: argparse.Namespace) -> int:
     per_policy, summary = pd.concat(per_policy, ignore_index=True), pd.concat(summary,
                                                                              ignore_index=True)
     effect = effects(per_policy, base.variant_pair(), base.n_boot, args.seed)
+    stem = learner_stem(NAME, base.learner)
     config = dict(dataclasses.asdict(base), studies=[cfg.name for _, _, cfg, _ in plan])
     prov = provenance(config, command="beyond-order", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dirs=[str(runs) for *_, runs in plan]))
-    write_result(results / f"{NAME}.csv", per_policy, prov)
-    write_result(results / f"{NAME}_summary.csv", summary, prov)
-    write_result(results / f"{NAME}_effect.csv", effect, prov)
-    plot(per_policy, summary, figures / NAME, figure_title(base, args.scale))
+    write_result(results / f"{stem}.csv", per_policy, prov)
+    write_result(results / f"{stem}_summary.csv", summary, prov)
+    write_result(results / f"{stem}_effect.csv", effect, prov)
+    plot(per_policy, summary, figures / stem, title(base, args.scale))
     print(effect.to_string(index=False))
     return 0

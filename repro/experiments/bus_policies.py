@@ -45,14 +45,14 @@ class GreedyPolicy:
 
 POLICIES = ("nohold", "authors", "thresholds", "mlp")
 """Policy names the bus drivers accept, in panel order: No Holding, the authors' thresholds, ours
-(``make table-thresholds``), the trained MLP."""
+(``make bus-thresholds``), the trained MLP."""
 
 THRESHOLDS_CSV = "bus_thresholds.csv"
 LAMBDA_SUMMARY_CSV = "bus_lambda_summary.csv"
 
 
 def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.ndarray:
-    """Our T1, T2, T3 (s) from results/bus_thresholds.csv, written by `make table-thresholds`;
+    """Our T1, T2, T3 (s) from results/bus_thresholds.csv, written by `make bus-thresholds`;
     without it (or with a CSV its sidecar does not describe), a UsageError naming ``param``, the
     option that could have supplied them."""
     path = Path(results_dir) / THRESHOLDS_CSV
@@ -60,9 +60,9 @@ def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.
         table = read_result(path)
     except FileNotFoundError:
         if param == "--thresholds":
-            raise UsageError(param, f"given, or {path} written first by `make table-thresholds`"
+            raise UsageError(param, f"given, or {path} written first by `make bus-thresholds`"
                              ) from None
-        raise UsageError(param, f"a folder holding {THRESHOLDS_CSV} (`make table-thresholds` "
+        raise UsageError(param, f"a folder holding {THRESHOLDS_CSV} (`make bus-thresholds` "
                          "writes it)", str(results_dir)) from None
     except ValueError:
         table = None
@@ -71,7 +71,7 @@ def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.
         return check_thresholds(np.array([row.T1, row.T2, row.T3], float))[0]
     except (ValueError, KeyError, IndexError, AttributeError, pd.errors.UndefinedVariableError):
         raise UsageError(param, f"a folder whose {THRESHOLDS_CSV} is the table "
-                         "`make table-thresholds` writes (run it again)",
+                         "`make bus-thresholds` writes (run it again)",
                          str(results_dir)) from None
 
 

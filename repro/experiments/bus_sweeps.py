@@ -43,7 +43,8 @@ from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.experiments.bus_policies import read_thresholds
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
-from repro.learn.config import LEARNERS, learner_suffix, train_config
+from repro.learn.config import (LEARNERS, add_learner_option, learner_label, learner_stem,
+                                train_config)
 
 SWEEPS = ("lambda", "batch")
 
@@ -112,7 +113,7 @@ class BusSweepConfig(Validated):
 
     def stem(self, sweep: str) -> str:
         """File stem of a sweep's results: bus_<sweep>, then _suite for the suite's learner."""
-        return "_".join((f"bus_{sweep}", *learner_suffix(self.learner)))
+        return learner_stem(f"bus_{sweep}", self.learner)
 
 
 def sweep_config(scale: str, learner: str | None = None, **overrides: Any) -> BusSweepConfig:
@@ -211,8 +212,8 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     ax.axhline(baselines["nohold"], color="k", ls=":", lw=1, label="No Holding")
     fixed = (f"batch {cfg.lambda_batch} {cfg.unit.split('_')[1]}/epoch" if sweep == "lambda"
              else f"$\\lambda$ = {cfg.batch_lambda:g}")
-    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {cfg.learner}'s learner ({fixed}; {cfg.seeds} "
-                 "seeds, 95% CI)", fontsize=9)
+    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {learner_label(cfg.learner)} ({fixed}; "
+                 f"{cfg.seeds} seeds, 95% CI)", fontsize=9)
     ax.set_xlabel("Epoch")
     ax.set_ylabel("Average return per episode")
     ax.grid(True, alpha=0.3)
@@ -222,8 +223,7 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, "runs per setting")
-    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
-                   + " (default authors; suite writes bus_<sweep>_suite*)")
+    add_learner_option(p, "bus_<sweep>_suite*")
     p.add_argument("--epochs", type=int, help="policy updates per run")
     p.add_argument("--final-epochs", type=int, help="epochs averaged into a run's final return")
     add_switch_arguments(p)
@@ -236,7 +236,7 @@ def run_named(sweep: str, args: argparse.Namespace) -> int:
     bus = config_from_args(args)
     root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")
     t0 = time.perf_counter()
-    baselines = baseline_returns(results, bus)  # needs table-thresholds: fails before training
+    baselines = baseline_returns(results, bus)  # needs bus-thresholds: fails before training
     job_list = jobs(cfg, sweep, args.seed, bus)
     run_sweep(job_list, root, n_jobs=args.n_jobs, scheduler=args.scheduler)
     table = curves(cfg, job_list, root)

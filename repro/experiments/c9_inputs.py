@@ -32,6 +32,7 @@ from repro.core.stats import bootstrap_ci
 from repro.envs.wildfire import FIGURE_VERSION, make_env
 from repro.envs.wildfire.params import FIRES, HEALTH, OBS_PER_FIRE, SOJOURN
 from repro.experiments.sweep import check_study_arguments, run_sweep
+from repro.learn.config import learner_stem
 from repro.experiments.transfer import (add_size_arguments, make_jobs, runs_folder, study_config,
                                         test_env_seed)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -93,7 +94,7 @@ def score(env_cfg, checkpoint, clamps: tuple, episodes: int, env_seed: int,
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_size_arguments(p)
+    add_size_arguments(p, "c9_inputs_suite*")
     p.add_argument("--sim-version", help="the released simulator's version of the transfer study "
                                          "(default 2017-04-22, the one the figure was drawn with)")
 
@@ -127,10 +128,11 @@ def run(args: argparse.Namespace) -> int:
                             adr_ed=float(g.adr_ed.mean()), change=point, ci_low=lo, ci_high=hi,
                             changed_share=float(g.changed_share.mean())))
     summary = pd.DataFrame(summary)
+    stem = learner_stem(NAME, cfg.learner)
     prov = provenance(dataclasses.asdict(cfg), command="c9-inputs", scale=args.scale,
                       seed=args.seed, wall_seconds=time.perf_counter() - t0,
                       extra=dict(study=cfg.name))
-    write_result(results / f"{NAME}.csv", table, prov)
-    write_result(results / f"{NAME}_summary.csv", summary, prov)
+    write_result(results / f"{stem}.csv", table, prov)
+    write_result(results / f"{stem}_summary.csv", summary, prov)
     print(summary.to_string(index=False))
     return 0

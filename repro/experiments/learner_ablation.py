@@ -34,6 +34,7 @@ from repro.envs.wildfire import FIGURE_VERSION, RELEASED_VERSION
 from repro.experiments.beyond_order import effects
 from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import check_jobs, check_study_arguments
+from repro.learn.config import learner_stem
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
                                         make_jobs, recorded_config, runs_folder, study_config,
                                         summarise, train_and_test)
@@ -93,32 +94,35 @@ def plot(summary: pd.DataFrame, stem: Path, title: str) -> None:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_size_arguments(p)
+    add_size_arguments(p, "learner_ablation_suite*")
     p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
                    help="training simulator of every row, repeatable (default: "
                         + ", ".join(DEFAULT_SIMULATORS) + ")")
     add_replot(p)
 
 
-def figure_title(base: TransferConfig, scale: str) -> str:
+def title(base: TransferConfig, scale: str) -> str:
+    """The figure's title: the study's sizes at ``scale``."""
     return (f"One learner setting at a time from the authors' (simulator of {FIGURE_VERSION}); "
             f"{scale} scale: {base.seeds} policies x {base.epochs} epochs x {batch_label(base)}")
 
 
-def replot(args: argparse.Namespace) -> int:
-    """``--replot``: the figure from the summary CSV and the settings its sidecar records."""
-    summary, = read_for_replot(args, f"{NAME}_summary.csv")
-    prov = read_provenance(Path(args.results_dir) / f"{NAME}_summary.csv")
-    stem = check_writable_dir(args.figures_dir, "--figures-dir") / NAME
-    plot(summary, stem, figure_title(recorded_config(prov), prov["scale"]))
-    print(f"wrote {stem}.png/.pdf")
+def replot(base: TransferConfig, args: argparse.Namespace) -> int:
+    """``--replot``: the figure of ``base``'s learner from its summary CSV, titled with the
+    settings its sidecar records."""
+    stem = learner_stem(NAME, base.learner)
+    summary, = read_for_replot(args, f"{stem}_summary.csv")
+    prov = read_provenance(Path(args.results_dir) / f"{stem}_summary.csv")
+    out = check_writable_dir(args.figures_dir, "--figures-dir") / stem
+    plot(summary, out, title(recorded_config(prov), prov["scale"]))
+    print(f"wrote {out}.png/.pdf")
     return 0
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.replot:
-        return replot(args)
     base = study_config(args, only=tuple(args.simulator) or DEFAULT_SIMULATORS)
+    if args.replot:
+        return replot(base, args)
     results, figures = check_study_arguments(args)
     plan = [(name, cfg, runs_folder(args.runs_dir, cfg, args.scale))
             for name, cfg in studies(base)]
@@ -140,14 +144,15 @@ def run(args: argparse.Namespace) -> int:
                                             ("last 40 policies", "adr_ed_kept"))]
                    if set(pair) <= set(base.only) else [], ignore_index=True)
     config = dict(dataclasses.asdict(base), rows=[cfg.name for _, cfg, _ in plan])
+    stem = learner_stem(NAME, base.learner)
     prov = provenance(config, command="learner-ablation", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dirs=[str(runs) for *_, runs in plan]))
-    write_result(results / f"{NAME}.csv", per_policy, prov)
-    write_result(results / f"{NAME}_summary.csv", summary, prov)
+    write_result(results / f"{stem}.csv", per_policy, prov)
+    write_result(results / f"{stem}_summary.csv", summary, prov)
     if len(c9):
-        write_result(results / f"{NAME}_c9.csv", c9, prov)
-    plot(summary, figures / NAME, figure_title(base, args.scale))
+        write_result(results / f"{stem}_c9.csv", c9, prov)
+    plot(summary, figures / stem, title(base, args.scale))
     print(summary[["setting", "simulator", "mean", "sem", "mean_kept", "paper_mean",
                    "z_paper"]].to_string(index=False))
     if len(c9):

@@ -33,8 +33,11 @@ WITH_PATH = {"checkpoint": "required", "mlp": "optional"}
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", default="wildfire", help="wildfire or bus")
     p.add_argument("--policy", nargs="+", metavar="NAME [PATH]", default=None,
-                   help="the policy (see the module docstring); default random (wildfire), "
-                        "nohold (bus)")
+                   help="the policy: NAME, or NAME PATH. wildfire: random (default), nearest, "
+                        "flowchart, or checkpoint PATH (a training run's checkpoint.pt, on that "
+                        "run's environment settings); bus: nohold (default), authors, "
+                        "thresholds, mlp [RUN] (thresholds and mlp read --results-dir, as "
+                        "bus-eval does), or checkpoint PATH")
     p.add_argument("--out", required=True, help="the GIF to write (.gif)")
     p.add_argument("--seed", type=int, default=0, help="the episode (wildfire) and the policy's "
                                                        "random source")

@@ -37,11 +37,12 @@ from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
 from repro.experiments.options import add_common, results_folder
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PROVENANCE,
-                                    epochs_done,
-                                    is_finished, locked_by, writer_lock)
+                                    check_run_folder, epochs_done, is_finished, locked_by,
+                                    writer_lock)
 from repro.envs import env_package
+from repro.learn.process import configure_process
 from repro.learn.sizes import check_training_size, training_bytes
-from repro.learn.trainer import Trainer, check_run_folder
+from repro.learn.trainer import Trainer
 
 
 @dataclass(frozen=True)
@@ -74,6 +75,7 @@ def run_job(job: TrainJob, root: Path) -> str:
     """Train (or resume) one job in its folder under ``root``; runs in a joblib worker process."""
     os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
     die_with_parent()
+    configure_process()
     env = env_package(job.train.env).make_env(job.env_config)
     Trainer(job.train, env, run_dir(root, job), env_config=job.env_config,
             param="--runs-dir").train()
@@ -84,6 +86,7 @@ def run_shipped_job(job: TrainJob, files: dict[str, bytes]) -> dict[str, bytes]:
     """Train (or resume) one job on a Dask worker, on nothing but what it was sent: its run
     folder's ``files``. Returns the folder's files after training."""
     os.environ.setdefault("REPRO_QUIET", "1")
+    configure_process()
     with tempfile.TemporaryDirectory(prefix="repro-run-") as tmp:
         folder = Path(tmp) / job.name
         folder.mkdir()

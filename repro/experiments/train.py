@@ -1,4 +1,10 @@
-"""``train``: one PS-TRPO + M-GAE run into a run folder; the same command resumes it."""
+"""``train``: one PS-TRPO + M-GAE run into a run folder; the same command resumes it.
+
+``--tensorboard DIR`` also logs each epoch's progress row (the columns of progress.csv but
+``epoch``, which is the step) as TensorBoard scalars in DIR, with the optional ``tensorboard``
+package (``pip install tensorboard``, the ``tensorboard`` extra). It does not change the run, so
+it is an option of this command, not a training setting.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +12,7 @@ import argparse
 from typing import Any
 
 from repro.core.config import SCALES
+from repro.core.errors import UsageError
 from repro.core.io import check_writable_dir
 from repro.core.rollout import BatchEnv
 from repro.envs import BUILT_IN, env_package
@@ -13,7 +20,10 @@ from repro.learn.baseline import BASELINES
 from repro.learn.config import (TrainConfig, add_learner_arguments, learner_overrides,
                                 train_config)
 from repro.learn.m_gae import ESTIMATORS
+from repro.learn.process import configure_process
 from repro.learn.trainer import Trainer
+
+TENSORBOARD_INSTALL = "pip install tensorboard"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -30,6 +40,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    + " (m-gae, the paper's)")
     p.add_argument("--max-kl", type=float, help="TRPO max step (0.01)")
     p.add_argument("--baseline", help="value baseline: " + ", ".join(BASELINES) + " (linear)")
+    p.add_argument("--tensorboard", metavar="DIR",
+                   help="also log each epoch's progress row as TensorBoard scalars in DIR "
+                        f"(needs the tensorboard package: {TENSORBOARD_INSTALL})")
     add_learner_arguments(p)
 
 
@@ -54,10 +67,16 @@ def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainCon
 
 
 def run(args: argparse.Namespace) -> int:
+    configure_process()
     cfg, env, env_cfg = make_from_args(args)
     out = check_writable_dir(f"runs/{cfg.env}/seed{cfg.seed}" if args.out is None else args.out,
                              "--out")
-    frame = Trainer(cfg, env, out, env_cfg).train()
+    board = None if args.tensorboard is None else TensorBoard(args.tensorboard)
+    try:
+        frame = Trainer(cfg, env, out, env_cfg).train(board)
+    finally:
+        if board is not None:
+            board.close()
     last = frame.iloc[-1]
     extra = (f" (the run already had more than --epochs {cfg.epochs}: nothing trained)"
              if len(frame) > cfg.epochs else "")
@@ -68,3 +87,31 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: {cut:.0f} of {frame.batch_episodes.sum()} training episodes ended at the "
               f"decision limit (column truncated_episodes of progress.csv; --max-decisions)")
     return 0
+
+
+class TensorBoard:
+    """Progress rows as TensorBoard scalars in a folder: one tag per column, the epoch as step.
+    The package is checked when this is made, before anything is written; the event file is made
+    with the first row, so a run refused before its first epoch leaves nothing."""
+
+    def __init__(self, folder: str):
+        self.folder = check_writable_dir(folder, "--tensorboard")
+        self.writer: Any = None
+        try:
+            from torch.utils.tensorboard import SummaryWriter
+        except ImportError:
+            raise UsageError("--tensorboard", "used with the tensorboard package installed "
+                             f"({TENSORBOARD_INSTALL})", folder) from None
+        self.summary_writer = SummaryWriter
+
+    def __call__(self, row: dict[str, Any]) -> None:
+        if self.writer is None:
+            self.writer = self.summary_writer(str(self.folder))
+        for column, value in row.items():
+            if column != "epoch":
+                self.writer.add_scalar(column, value, global_step=row["epoch"])
+        self.writer.flush()
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()

@@ -46,7 +46,7 @@ from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
 from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
-                                check_study_learner, learner_suffix, setting_tag)
+                                check_study_learner, learner_label, learner_suffix, setting_tag)
 from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
@@ -348,12 +348,12 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem)
 
 
-def add_size_arguments(p: argparse.ArgumentParser) -> None:
+def add_size_arguments(p: argparse.ArgumentParser, writes: str) -> None:
     """The transfer study's sizes and its sweep's options (``beyond-order`` trains transfer
-    studies too)."""
+    studies too); ``writes``: the results another learner writes."""
     add_study_arguments(p, "policies per training simulator (paper: 5)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 300)")
-    add_study_learner_arguments(p)
+    add_study_learner_arguments(p, writes)
     p.add_argument("--test-episodes", type=int, help="ED test episodes per policy")
 
 
@@ -367,7 +367,7 @@ def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_size_arguments(p)
+    add_size_arguments(p, "transfer*_suite*")
     p.add_argument("--corrected", action="store_true",
                    help="quirks Q1-Q6 off (paper's prose); writes transfer_corrected*")
     p.add_argument("--no-quirk", action="append", default=[], metavar="Q",
@@ -416,7 +416,7 @@ def figure_title(cfg: TransferConfig, scale: str) -> str:
                  else "released semantics (Q1-Q6 on)")
     semantics += "" if cfg.fire_out_first else ", UAV before fire at one instant"
     return (f"Transfer to ED, {semantics}; {scale} scale: {cfg.seeds} policies x {cfg.epochs} "
-            f"epochs x {batch_label(cfg)}, {cfg.learner}'s learner, simulator of "
+            f"epochs x {batch_label(cfg)}, {learner_label(cfg.learner)}, simulator of "
             f"{cfg.sim_version}")
 
 

@@ -1,5 +1,5 @@
-"""Claim X3, beyond the paper: transfer to ED against dT, with the race rate beside it (issue 20;
-docs/semantics.md section 6.11).
+"""Claim X3, beyond the paper: transfer to ED against dT, with the race rate beside it
+(docs/semantics.md section 6.11).
 
 The transfer study (``repro.experiments.transfer``, C8) on a fine grid: policies trained on ED and
 on FS-dT for dT = 10^(-2 + 0.25 k) s, k = 0..12, are tested on ED. The grid contains the study's
@@ -33,6 +33,8 @@ from repro.core.errors import require
 from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.experiments import beyond_races, transfer
 from repro.experiments.sweep import add_study_arguments, check_study_arguments
+from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
+                                learner_stem)
 
 RACES = f"{beyond_races.RACES}.csv"
 """Claim X2's result (``beyond-races``): at least the columns policy, n_agents, dt,
@@ -51,6 +53,8 @@ class TransferDtConfig(Validated):
     (exact binary fractions, so the study's five dT are the very same numbers)."""
     seeds: int | None = None
     """Policies per training simulator; None: the transfer study's (paper scale: 5)."""
+    learner: str = DEFAULT_LEARNER
+    """The named learner of every policy (``repro.learn.config.LEARNERS``)."""
     race_agents: int = 3
     """The rows of races.csv drawn beside the ADR: those of N UAVs, the study's."""
 
@@ -60,6 +64,8 @@ class TransferDtConfig(Validated):
         require(len(self.log10_dts) >= 1 and len(set(self.log10_dts)) == len(self.log10_dts),
                 "log10_dts", "one or more distinct exponents", self.log10_dts)
         require(self.seeds is None or self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
+        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
+                self.learner)
         require(self.race_agents >= 2, "race_agents", "an integer >= 2", self.race_agents)
 
     def study(self, scale: str) -> transfer.TransferConfig:
@@ -70,7 +76,13 @@ class TransferDtConfig(Validated):
                *(x for x in self.log10_dts if x not in own))
         labels = ("ED", *(transfer.fs_label(10.0 ** x) for x in dts))
         return for_scale(transfer.TransferConfig, scale, seeds=self.seeds, log10_dts=dts,
-                         only=labels)
+                         only=labels, learner=self.learner)
+
+    @property
+    def stem(self) -> str:
+        """File stem of the results and the figure: transfer_dt_grid, then _suite for the suite's
+        learner."""
+        return learner_stem("transfer_dt_grid", self.learner)
 
 
 def read_races(results: Path, n_agents: int) -> pd.DataFrame | None:
@@ -127,12 +139,21 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, races: pd.DataFrame | 
     save_figure(fig, stem)
 
 
+def title(cfg: TransferDtConfig, scale: str) -> str:
+    """The figure's title: the learner and the study's sizes at ``scale``."""
+    study = cfg.study(scale)
+    return (f"X3: transfer to ED against the training step, {learner_label(cfg.learner)}; {scale} "
+            f"scale: {study.seeds} policies x {study.epochs} epochs x "
+            f"{transfer.batch_label(study)} per simulator")
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, "policies per training simulator (paper: 5)")
+    add_learner_option(p, "transfer_dt_grid_suite*")
 
 
 def run(args: argparse.Namespace) -> int:
-    cfg = for_scale(TransferDtConfig, args.scale, seeds=args.seeds)
+    cfg = for_scale(TransferDtConfig, args.scale, seeds=args.seeds, learner=args.learner)
     study = cfg.study(args.scale)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
@@ -144,12 +165,10 @@ def run(args: argparse.Namespace) -> int:
     prov = provenance(dict(grid=dataclasses.asdict(cfg), study=dataclasses.asdict(study)),
                       command="beyond-transfer-dt", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0, extra=extra)
-    write_result(results / "transfer_dt_grid.csv", per_policy, prov)
-    write_result(results / "transfer_dt_grid_summary.csv", summary, prov)
+    write_result(results / f"{cfg.stem}.csv", per_policy, prov)
+    write_result(results / f"{cfg.stem}_summary.csv", summary, prov)
     plot(per_policy, summary, read_races(results, cfg.race_agents), cfg.race_agents,
-         figures / "transfer_dt_grid",
-         f"X3: transfer to ED against the training step; {args.scale} scale: {study.seeds} "
-         f"policies x {study.epochs} epochs x {study.batch_episodes} episodes per simulator")
+         figures / cfg.stem, title(cfg, args.scale))
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high"]]
           .to_string(index=False))
     return 0

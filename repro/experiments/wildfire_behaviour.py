@@ -242,7 +242,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_sweep_arguments(p)
     p.add_argument("--seeds", type=int, help="policies trained (paper: 1)")
     p.add_argument("--epochs", type=int, help="training epochs per policy (paper: 3000)")
-    add_study_learner_arguments(p)
+    add_study_learner_arguments(p, "wildfire_behaviour_suite*")
     p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
                    help="the released simulator's version (default 2017-05-16; 2017-04-22 "
                         "writes *_20170422)")

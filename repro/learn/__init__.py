@@ -6,6 +6,7 @@ from repro.learn.m_gae import m_gae, m_gae_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn.config import TrainConfig, train_config
+from repro.learn.process import configure_process
 from repro.learn.trained_policy import policy_from_checkpoint
 from repro.learn.trainer import Trainer
 from repro.learn.trpo import (TRPOStats, conjugate_gradient, fisher_vector_product, line_search,
@@ -13,5 +14,5 @@ from repro.learn.trpo import (TRPOStats, conjugate_gradient, fisher_vector_produ
 
 __all__ = ["m_gae", "m_gae_paths", "TanhMLP", "CategoricalPolicy", "ObsNormalizer", "Sampler",
            "LinearFeatureBaseline", "MLPBaseline", "TrainConfig", "Trainer", "train_config",
-           "policy_from_checkpoint", "TRPOStats", "conjugate_gradient", "fisher_vector_product",
-           "line_search", "trpo_step"]
+           "configure_process", "policy_from_checkpoint", "TRPOStats", "conjugate_gradient",
+           "fisher_vector_product", "line_search", "trpo_step"]

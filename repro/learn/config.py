@@ -154,6 +154,17 @@ def learner_suffix(learner: str) -> tuple[str, ...]:
     return () if learner == DEFAULT_LEARNER else (learner,)
 
 
+def learner_label(learner: str) -> str:
+    """A named learner in prose: "the authors' learner", "the suite's learner"."""
+    owner = f"{learner}'" if learner.endswith("s") else f"{learner}'s"
+    return f"the {owner} learner"
+
+
+def learner_stem(stem: str, learner: str) -> str:
+    """A study's result file stem for ``learner``: ``stem``, then ``_suite`` for the suite's."""
+    return "_".join((stem, *learner_suffix(learner)))
+
+
 def learner_name(cfg: TrainConfig) -> str:
     """The named learner whose settings ``cfg`` has (its batch's unit included), else "custom"."""
     for name, preset in LEARNERS.items():
@@ -214,10 +225,17 @@ def setting_tag(field: str, value: Any) -> str:
     return field.replace("_", "") + text
 
 
-def add_study_learner_arguments(p: Any) -> None:
-    """A study's ``--learner`` and its batch size in either unit (the learner uses its own)."""
+def add_learner_option(p: Any, writes: str) -> None:
+    """A study's ``--learner``; ``writes`` names the results another learner than the default
+    writes (e.g. ``"beyond_mgae_suite*"``)."""
     p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
-                   + " (default authors: the released runner)")
+                   + f" (default {DEFAULT_LEARNER}: the released runner; suite writes {writes})")
+
+
+def add_study_learner_arguments(p: Any, writes: str) -> None:
+    """A study's ``--learner`` (:func:`add_learner_option`) and its batch size in either unit (the
+    learner uses its own)."""
+    add_learner_option(p, writes)
     p.add_argument("--batch-decisions", type=int,
                    help="training decisions per epoch, with a learner that counts them "
                         "(paper: 12000)")

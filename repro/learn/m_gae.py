@@ -68,8 +68,8 @@ ESTIMATORS = {
 @numba.njit(cache=True)
 def _gae_kernel(rewards, times, values, path_start, last_values, gamma, lam, trace_factor):
     # every estimator of ESTIMATORS: discount exp(-gamma tau_k), trace exp(-gamma lam tau_k) c; the
-    # trace is multiplied by c after the exponential, so that M-GAE's c = 1 leaves its bits as they
-    # were before the alternatives existed
+    # trace is multiplied by c after the exponential, so that M-GAE's c = 1 changes no bit of
+    # exp(-gamma lam tau_k)
     n = rewards.shape[0]
     adv = np.empty(n)
     ret = np.empty(n)

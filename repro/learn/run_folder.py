@@ -3,7 +3,9 @@
 A run folder holds ``config.json`` (the settings that determine the run), ``progress.csv`` (one row
 per finished epoch), ``checkpoint.pt`` (everything needed to go on), ``policies/epochNNNN.pt`` (the
 policy after each of the run's last :data:`KEPT_POLICIES` epochs, a checkpoint holding what acting
-needs) and, while a process trains in it, ``run.lock``.
+needs) and, while a process trains in it, ``run.lock``. A trainer starts or resumes its run with
+:func:`start`, hands each epoch to :func:`record_epoch` and ends with :func:`finish`; it writes
+nothing itself.
 
 - **Safe to load.** A checkpoint holds only tensors, numbers and strings (the run's config and the
   sampler's generator state as JSON) and is read with ``torch.load(weights_only=True)``, which
@@ -26,6 +28,7 @@ needs) and, while a process trains in it, ``run.lock``.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 from contextlib import AbstractContextManager
@@ -36,9 +39,11 @@ import numpy as np
 import pandas as pd
 import torch
 
+from repro.core.config import saved_defaults, to_dict
 from repro.core.errors import UsageError, require
-from repro.core.io import append_csv, write_bytes, write_csv, write_json, write_text
+from repro.core.io import append_csv, provenance, write_bytes, write_csv, write_json, write_text
 from repro.core.locks import folder_lock, is_locked
+from repro.learn.config import TrainConfig
 
 CONFIG = "config.json"
 PROGRESS = "progress.csv"
@@ -189,6 +194,31 @@ def _tensors_problem(what: str, tensors: Any, shapes: dict[str, tuple[int, ...]]
 
 # --- the run's identity --------------------------------------------------------------------------
 
+def config_dict(cfg: Any) -> Any:
+    """A dataclass config as a dict (other configs unchanged), for config.json and sidecars."""
+    return to_dict(cfg) if dataclasses.is_dataclass(cfg) else cfg
+
+
+def run_config(cfg: TrainConfig, env_config: Any, env_name: str) -> dict[str, Any]:
+    """What a run folder's config.json holds: the settings that determine the run."""
+    return {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env_name}
+
+
+def saved_run_defaults(env_config: Any, env_name: str) -> dict[str, Any]:
+    """What a run folder's config.json held for a setting before the setting existed (None for
+    environment configs that are not dataclasses)."""
+    env = saved_defaults(type(env_config)) if dataclasses.is_dataclass(env_config) else None
+    return {"train": saved_defaults(TrainConfig), "env": env, "env_name": env_name}
+
+
+def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str,
+                     param: str = "--out") -> None:
+    """Refuse (UsageError naming ``param`` and the first differing setting) a folder ``out`` that
+    is neither new nor a run with these settings; only ``epochs`` may differ."""
+    check_same_run(Path(out), run_config(cfg, env_config, env_name),
+                   saved_run_defaults(env_config, env_name), param)
+
+
 def read_config(folder: Path, param: str = "--out") -> dict[str, Any] | None:
     """The run's ``config.json`` (None if it has none); an unreadable one is a UsageError."""
     path = folder / CONFIG
@@ -315,6 +345,53 @@ def restore(folder: Path, epochs: int, config: dict[str, Any],
         table = table.reindex(columns=columns)
         write_csv(path, table)
     return table.to_dict("records")
+
+
+def start(folder: Path, config: dict[str, Any], defaults: dict[str, Any], columns: list[str],
+          param: str = "--out", *, obs_dim: int | None = None,
+          n_actions: int | None = None) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
+    """Start or resume the run ``config`` in ``folder``: check the folder (changing nothing if
+    it is refused, :func:`resume_state`), then bring it to the state of an uninterrupted run after
+    its checkpoint's epochs (:func:`restore`). Returns the checkpoint's state (None for a new
+    run) and the progress rows of those epochs. Only ``epochs`` may differ from the folder's run
+    (to extend or finish it); its config.json keeps the larger number."""
+    state = resume_state(folder, config, defaults, param, obs_dim=obs_dim, n_actions=n_actions)
+    epochs = 0 if state is None else int(state["epoch"])
+    if state is not None:
+        saved = state["run_config"]["train"].get("epochs", 0)
+        config = {**config, "train": {**config["train"],
+                                      "epochs": max(saved, config["train"]["epochs"])}}
+    return state, restore(folder, epochs, config, columns)
+
+
+def record_epoch(folder: Path, row: dict[str, Any], columns: list[str], state: dict[str, Any],
+                 epochs: int) -> None:
+    """Record the epoch that brought the run to ``state`` (of ``epochs`` in all): its row in
+    progress.csv, its policy in ``policies/`` if it is one of the last :data:`KEPT_POLICIES`,
+    then the checkpoint. The row goes first, so that progress.csv never holds fewer rows than the
+    checkpoint has epochs (a resumed run cuts off any more)."""
+    append_row(folder, row, columns)
+    if state["epoch"] > epochs - KEPT_POLICIES:
+        save_checkpoint(kept_policy_path(folder, state["epoch"] - 1), acting_state(state))
+    save_checkpoint(folder / CHECKPOINT, state)
+
+
+def acting_state(state: dict[str, Any]) -> dict[str, Any]:
+    """What acting needs of a run's state (:func:`~repro.learn.trained_policy.policy_from_state`):
+    the policy and normaliser, and the run's config but its epoch count (which a run extended later
+    changes), so that a kept policy has the bytes of an uninterrupted run's."""
+    train = {k: v for k, v in state["run_config"]["train"].items() if k != "epochs"}
+    return {**{k: state[k] for k in ACTING_KEYS},
+            "run_config": {**state["run_config"], "train": train}}
+
+
+def finish(folder: Path, config: dict[str, Any], seed: int, wall_seconds: float,
+           epochs_before: int, epochs_after: int) -> None:
+    """Write ``progress.provenance.json``, last: what this call trained (from ``epochs_before``
+    to ``epochs_after``), from which commit, on what."""
+    write_json(folder / PROVENANCE, provenance(
+        config, command="train", scale=None, seed=seed, wall_seconds=wall_seconds,
+        extra={"epochs_before": epochs_before, "epochs_after": epochs_after}))
 
 
 def append_row(folder: Path, row: dict[str, Any], columns: list[str]) -> None:

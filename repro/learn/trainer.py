@@ -5,16 +5,14 @@ them, or, counted in decisions, as the released runner's parallel workers collec
 :mod:`repro.learn.batch`), compute M-GAE
 advantages (or those of ``TrainConfig.advantage``) with the current baseline, take one TRPO step,
 update the observation normaliser, then fit the baseline to the batch's discounted returns (in the
-new normalisation, which it will be used with). After every epoch a row is appended to the run
-folder's ``progress.csv`` and a checkpoint is written atomically; running the same command again
-resumes from the checkpoint and ends with exactly the parameters and progress table of an
-uninterrupted run. The policies after each of the last :data:`KEPT_POLICIES` epochs are kept in the
-folder's ``policies/`` too, for the released runner's evaluation
-(:func:`repro.experiments.transfer.score_policy`).
+new normalisation, which it will be used with). Given a run folder, the trainer hands each epoch's
+row and state to :mod:`repro.learn.run_folder`, which records them so that running the same
+command again resumes exactly.
 
-Threads: torch and numpy's BLAS run on one thread (:func:`~repro.learn.policy.blas_on_one_thread`
-says why). Memory: malloc keeps freed blocks (:func:`~repro.core.memory.keep_freed_memory` says
-why).
+Threads: numpy's BLAS runs on one thread during the epochs
+(:func:`~repro.learn.policy.blas_on_one_thread` says why); torch's threads and malloc are
+process-wide settings, which the process's entry point makes once
+(:func:`repro.learn.process.configure_process`).
 
 Determinism: torch is seeded from the run seed; the policy's sampling draws come from one numpy
 Generator owned by the trainer (its state is checkpointed); epoch e's environment seed is derived
@@ -23,20 +21,16 @@ from (seed, e). Timing columns are the only run-to-run differences in the output
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
 import torch
 
-from repro.core.config import saved_defaults, to_dict
 from repro.core.errors import require
-from repro.core.io import provenance, write_json
-from repro.core.memory import keep_freed_memory
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
 from repro.learn import batch
@@ -46,10 +40,8 @@ from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
                                 blas_on_one_thread)
+from repro.learn import run_folder
 from repro.learn.sizes import check_training_size
-from repro.learn.run_folder import (CHECKPOINT, KEPT_POLICIES, PROVENANCE, append_row,
-                                    check_same_run, kept_policy_path, restore, resume_state,
-                                    save_checkpoint, writer_lock)
 from repro.learn.trpo import normalize, trpo_step
 
 # Independent child streams of the run seed.
@@ -66,7 +58,10 @@ def epoch_seed(seed: int, epoch: int) -> np.random.SeedSequence:
 
 
 class Trainer:
-    """Owns the policy, baseline, normaliser and sampling generator of one run."""
+    """Owns the policy, baseline, normaliser and sampling generator of one run, and its epoch.
+
+    It changes no process-wide state: call :func:`repro.learn.process.configure_process` once
+    before training, as the command line does."""
 
     def __init__(self, cfg: TrainConfig, env: BatchEnv, out: str | Path | None = None,
                  env_config: Any = None, param: str = "--out"):
@@ -76,10 +71,8 @@ class Trainer:
         self.param = param
         """The option that named ``out`` (a sweep's is --runs-dir): refusals name it."""
         self.env_config = env_config
-        self.run_config = run_config(cfg, env_config, env.name)
+        self.run_config = run_folder.run_config(cfg, env_config, env.name)
         check_training_size(cfg, env)  # before the networks are built
-        torch.set_num_threads(1)
-        keep_freed_memory()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
         self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden, cfg.init)
         self.baseline = make_baseline(cfg.baseline, env.obs_dim, cfg.baseline_hidden,
@@ -144,23 +137,30 @@ class Trainer:
         n_rows = max(1, int(cfg.fvp_subsample * n_decisions))
         return torch.as_tensor(np.sort(rng.choice(n_decisions, n_rows, replace=False)))
 
-    def train(self) -> pd.DataFrame:
+    def train(self, on_epoch: Callable[[dict[str, Any]], None] | None = None) -> pd.DataFrame:
         """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table. A run folder
-        also gets ``progress.provenance.json``: what this call ran, from which commit, on what."""
+        also gets ``progress.provenance.json``: what this call ran, from which commit, on what.
+        ``on_epoch`` is handed each epoch's progress row once the epoch is recorded (``train
+        --tensorboard`` logs it); it sees the epochs this call trains, not those resumed from."""
         if self.out is None:
-            self._epochs()
+            self._epochs(on_epoch)
             return self.progress()
         t_start = time.perf_counter()
-        with writer_lock(self.out, self.param):
-            first_epoch = self._start_or_resume()
-            self._epochs()
-            write_json(self.out / PROVENANCE, provenance(
-                self.run_config, command="train", scale=None, seed=self.cfg.seed,
-                wall_seconds=time.perf_counter() - t_start,
-                extra={"epochs_before": first_epoch, "epochs_after": self.epoch}))
+        with run_folder.writer_lock(self.out, self.param):
+            state, self.rows = run_folder.start(
+                self.out, self.run_config, run_folder.saved_run_defaults(self.env_config,
+                                                                         self.env.name),
+                PROGRESS_COLUMNS, self.param, obs_dim=self.env.obs_dim,
+                n_actions=self.env.n_actions)
+            if state is not None:
+                self.load_state_dict(state)
+            first_epoch = self.epoch
+            self._epochs(on_epoch)
+            run_folder.finish(self.out, self.run_config, self.cfg.seed,
+                              time.perf_counter() - t_start, first_epoch, self.epoch)
         return self.progress()
 
-    def _epochs(self) -> None:
+    def _epochs(self, on_epoch: Callable[[dict[str, Any]], None] | None) -> None:
         with blas_on_one_thread():
             for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
                               total=self.cfg.epochs - self.epoch):
@@ -169,13 +169,10 @@ class Trainer:
                 row["seconds"] = time.perf_counter() - t0
                 self.rows.append(row)
                 if self.out is not None:
-                    # the row goes first, so progress.csv never holds fewer rows than the checkpoint
-                    # has epochs (a resumed run cuts off any more)
-                    append_row(self.out, row, PROGRESS_COLUMNS)
-                    if self.epoch > self.cfg.epochs - KEPT_POLICIES:
-                        save_checkpoint(kept_policy_path(self.out, self.epoch - 1),
-                                        self.policy_state())
-                    save_checkpoint(self.out / CHECKPOINT, self.state_dict())
+                    run_folder.record_epoch(self.out, row, PROGRESS_COLUMNS, self.state_dict(),
+                                            self.cfg.epochs)
+                if on_epoch is not None:
+                    on_epoch(row)
 
     def progress(self) -> pd.DataFrame:
         return pd.DataFrame(self.rows, columns=PROGRESS_COLUMNS)
@@ -193,15 +190,6 @@ class Trainer:
             "run_config": self.run_config,
         }
 
-    def policy_state(self) -> dict[str, Any]:
-        """What acting needs (:func:`~repro.learn.trained_policy.policy_from_state`): the policy
-        and normaliser after this epoch, and the run's config but its epoch count (which a run
-        extended later changes), so that a kept policy has the bytes of an uninterrupted run's."""
-        train = {k: v for k, v in self.run_config["train"].items() if k != "epochs"}
-        return {"epoch": self.epoch, "policy": self.policy.state_dict(),
-                "normalizer": self.normalizer.state_dict(),
-                "run_config": {**self.run_config, "train": train}}
-
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.epoch = int(state["epoch"])
         self.policy.load_state_dict(state["policy"])
@@ -209,31 +197,6 @@ class Trainer:
         self.normalizer.load_state_dict(state["normalizer"])
         self.rng.bit_generator.state = state["sampler_rng"]
         torch.set_rng_state(state["torch_rng"])
-
-    def _start_or_resume(self) -> int:
-        """Check the folder (changing nothing if it is refused), then bring it to the state of an
-        uninterrupted run after its checkpoint's epochs and load the checkpoint; returns those
-        epochs. Only ``epochs`` may differ from the folder's run (to extend or finish it); its
-        config.json keeps the larger number."""
-        assert self.out is not None
-        defaults = saved_run_defaults(self.env_config, self.env.name)
-        state = resume_state(self.out, self.run_config, defaults, self.param,
-                             obs_dim=self.env.obs_dim, n_actions=self.env.n_actions)
-        epochs = 0 if state is None else int(state["epoch"])
-        config = self.run_config
-        if state is not None:
-            saved = state["run_config"]["train"].get("epochs", 0)
-            config = {**config, "train": {**config["train"], "epochs": max(saved, self.cfg.epochs)}}
-        self.rows = restore(self.out, epochs, config, PROGRESS_COLUMNS)
-        if state is not None:
-            self.load_state_dict(state)
-        return epochs
-
-
-def _saved_env_defaults(env_config: Any) -> Any:
-    """The settings a run recorded before they existed held (None for configs that are not
-    dataclasses)."""
-    return saved_defaults(type(env_config)) if dataclasses.is_dataclass(env_config) else None
 
 
 PROGRESS_COLUMNS = [
@@ -251,29 +214,3 @@ standardisation in its new moments and the baseline's fit; ``seconds_update`` th
 together; ``seconds`` the epoch (without writing its row and checkpoint). ``bench-learn`` times
 the pieces one by one."""
 TIMING_COLUMNS = [c for c in PROGRESS_COLUMNS if c.startswith("seconds")]
-
-
-def config_dict(cfg: Any) -> Any:
-    """A dataclass config as a dict (other configs unchanged), for config.json and sidecars."""
-    return to_dict(cfg) if dataclasses.is_dataclass(cfg) else cfg
-
-
-def run_config(cfg: TrainConfig, env_config: Any, env_name: str) -> dict[str, Any]:
-    """What a run folder's config.json holds: the settings that determine the run."""
-    return {"train": to_dict(cfg), "env": config_dict(env_config), "env_name": env_name}
-
-
-def saved_run_defaults(env_config: Any, env_name: str) -> dict[str, Any]:
-    """What a run folder's config.json held for a setting before the setting existed."""
-    return {"train": saved_defaults(TrainConfig), "env": _saved_env_defaults(env_config),
-            "env_name": env_name}
-
-
-def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str,
-                     param: str = "--out") -> None:
-    """Refuse (UsageError naming ``param`` and the first differing setting) a folder ``out`` that
-    is neither new nor a run with these settings; only ``epochs`` may differ."""
-    check_same_run(Path(out), run_config(cfg, env_config, env_name),
-                   saved_run_defaults(env_config, env_name), param)
-
-

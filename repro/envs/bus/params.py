@@ -100,7 +100,7 @@ class BusConfig(Validated):
                     getattr(self, name))
 
     BEFORE_ADDED: ClassVar[dict[str, bool]] = dict.fromkeys(SWITCHES, False)
-    """Runs recorded before B1-B5 existed (issue 23) ran the corrected semantics."""
+    """Runs recorded before B1-B5 existed ran the corrected semantics."""
 
     @classmethod
     def corrected(cls, **fields) -> BusConfig:

@@ -50,7 +50,8 @@ def add_env_arguments(parser: argparse.ArgumentParser) -> None:
                             default=getattr(WildfireConfig, field), help=f"{q.upper()}: {help_}")
     parser.add_argument("--same-instant-order", default=WildfireConfig.same_instant_order,
                         help="order of events at one instant: released (the released code's "
-                             "process structure) or scheduling (before issue 18)")
+                             "process structure) or scheduling (each process waits on its own "
+                             "timeouts; the episode ends at once)")
     parser.add_argument("--fire-out-first", action=argparse.BooleanOptionalAction,
                         default=WildfireConfig.fire_out_first,
                         help="at one instant a fire goes out before a UAV whose macro-action "

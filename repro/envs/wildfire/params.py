@@ -139,20 +139,20 @@ class WildfireConfig(Validated):
     """In FS a fire's health can run out before its rounded extinguish event; a party change in
     between re-plans it with a negative delay, which is rounded to the grid like any other delay
     (docs/semantics.md section 2.3, released code): the fire goes out at once if a grid point lies
-    between the run-out and now. False (before issue 18): the negative delay counts as 0, so the
-    fire goes out at the next grid point."""
+    between the run-out and now. False: the negative delay counts as 0, so the fire goes out at
+    the next grid point."""
     cut_flight_continues: bool = True
     """A flight cut by its fire going out goes on along its segment until the UAV's next action
     starts, one decision latency later (released code: the position is computed from the
     action's start, and only the next action sets a new start). The UAV observes where it is at
     the cut; the 1.5e-7 m it flies during the latency can move the next flight's rounded FS
-    arrival by a grid step. False (before issue 18): it stops where it is at the cut."""
+    arrival by a grid step. False: it stops where it is at the cut."""
     ranking_resolution: float = 1e-9
     """Fires are ranked by distance rounded to multiples of this (m), ties to the lower fire index:
     a UAV at a fire sees its two cluster-mates, and its 5th and 6th closest fires (other
     clusters), at equal distances up to round-off, and this ranks them by index, whatever the
     round-off. A deliberate deviation: the released code ranks
-    them by floating-point noise. 0: exact distances (before issue 18; the noise decides)."""
+    them by floating-point noise. 0: exact distances (the noise decides)."""
     quirk_q6_short_flight_stays: bool = True
     """Q6: a flight shorter than ``at_fire_tol`` takes its travel time but leaves the UAV where it
     was (released implementation: its position is the action's start while that is within 1e-3 m
@@ -164,8 +164,8 @@ class WildfireConfig(Validated):
     AnyOf condition; a fire burns in a sub-process that party changes interrupt; the episode ends
     through the conditions "all fires out" or T_max; a fire interrupts the UAVs interested in it in
     the order they joined its interest party). "scheduling": each process waits on its own timeouts
-    and the episode ends at once (the suite's order before issue 18). Not a quirk: the corrected
-    semantics keep "released"."""
+    and the episode ends at once (the order of runs recorded before this setting existed). Not a
+    quirk: the corrected semantics keep "released"."""
     fire_out_first: bool = True
     """Released order: at one instant, a fire's extinguishing comes before the observation of a UAV
     whose macro-action ends then (its extinguish timeout reaches it one event later, a
@@ -194,9 +194,8 @@ class WildfireConfig(Validated):
         quirk_q5_discount_from_action_start=False, quirk_q6_short_flight_stays=False,
         fs_round_negative_delays=False, cut_flight_continues=False, ranking_resolution=0.0,
         same_instant_order="scheduling", max_decisions=None)
-    """What runs recorded before these settings existed (issue 18) ran: the behaviour before the
-    released simulator's, so that such a run is not resumed as one of the released semantics; and
-    no decision limit."""
+    """What runs recorded before these settings existed ran: not the released simulator's
+    semantics (so that such a run is not resumed as one of them), and no decision limit."""
 
     @classmethod
     def corrected(cls, **fields) -> WildfireConfig:

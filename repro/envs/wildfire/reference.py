@@ -28,9 +28,9 @@ URGENT before NORMAL, then scheduling order; starting a process and interrupting
 
 E.g. a fire that goes out at the instant a UAV's hold ends is out before that UAV observes, and
 its r_ext belongs to the hold that just ended (``fire_out_first``; False: the fire waits two more
-zero-delay timeouts, so that the UAV observes first). "scheduling" is the suite's order before
-issue 18: the processes wait on their own timeouts, interrupts go in agent-index order, and the
-episode ends at once.
+zero-delay timeouts, so that the UAV observes first). "scheduling" is the order of runs recorded
+before the setting existed: the processes wait on their own timeouts, interrupts go in agent-index
+order, and the episode ends at once.
 
 Choices the paper leaves open, made once here and mirrored by the fast engine (docs/semantics.md
 sections 3.3-3.7, 3.11):
