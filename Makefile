@@ -16,8 +16,8 @@ STAMP  := $(VENV)/.installed
 # paper's names of three (table-race, table-thresholds, fig-scaling) are aliases.
 .PHONY: help setup reproduce test lint claims race bus-thresholds bus-eval fig-bus-lambda \
 	fig-bus-batch fig-bus-arrivals fig-bus-load wildfire-heuristics bench-bus bench-wildfire \
-	wildfire-eval bench-learn scaling fig-transfer wildfire-behaviour render train beyond-races \
-	beyond-mgae beyond-order beyond-transfer-dt learner-ablation c9-inputs clean \
+	wildfire-eval bench-learn plot-runs scaling fig-transfer wildfire-behaviour render train \
+	beyond-races beyond-mgae beyond-order beyond-transfer-dt learner-ablation c9-inputs clean \
 	table-race table-thresholds fig-scaling
 .DEFAULT_GOAL := help
 
@@ -108,6 +108,9 @@ render: $(STAMP) ## GIF of one episode (ARGS="--env wildfire --policy flowchart 
 
 bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS="--env wildfire")
 	$(REPRO) bench-learn --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+plot-runs: $(STAMP) ## training curves of run folders with seed intervals (ARGS="runs/wildfire/seed0 runs/wildfire/seed1 --out runs.png")
+	$(REPRO) plot-runs $(ARGS)
 
 scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and figure (C11; alias fig-scaling)
 	$(REPRO) scaling --scale $(SCALE) --seed $(SEED) $(ARGS)

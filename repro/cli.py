@@ -58,6 +58,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "render": ("repro.experiments.render", "an animation (GIF) of one episode of a policy"),
     "bench-learn": ("repro.experiments.bench_learn",
                     "seconds per training epoch: simulation vs update"),
+    "plot-runs": ("repro.experiments.plot_runs",
+                  "training curves of run folders, runs grouped by setting, seed intervals"),
 }
 """command -> (module, one-line description)."""
 

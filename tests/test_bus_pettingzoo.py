@@ -14,16 +14,20 @@ def test_api():
     api_test(BusAECEnv(), num_cycles=400)
 
 
-def test_no_holding_return_matches_engine():
+def test_no_holding_rewards_match_the_engine():
+    """Each bus's AEC rewards are its macro-actions' (discounted to their starts): summed along
+    its path with the discount to t = 0 they are the rollout's discounted path return."""
     env = BusAECEnv()
     env.reset()
     total = {a: 0.0 for a in env.possible_agents}
     for agent in env.agent_iter():
-        _, reward, term, trunc, _ = env.last()
-        total[agent] += reward
+        _, reward, term, trunc, info = env.last()
+        # the reward's macro-action started at time - duration
+        total[agent] += np.exp(-env.cfg.gamma * (info["time"] - info["duration"])) * reward
         env.step(None if term or trunc else 0)
-    expected = make_env(BusConfig()).rollout(no_holding, 1).episode_return[0]
-    np.testing.assert_allclose(list(total.values()), expected, rtol=1e-12)
+    ro = make_env(BusConfig()).rollout(no_holding, 1)
+    np.testing.assert_allclose(list(total.values()), ro.discounted_path_returns(env.cfg.gamma),
+                               rtol=1e-12)
 
 
 def test_observations_lie_in_the_observation_space():

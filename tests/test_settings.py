@@ -161,10 +161,11 @@ def test_every_option_of_every_command_has_help(name):
     module.add_arguments(parser)
     if hasattr(module, "extend_arguments"):
         module.extend_arguments(parser, ["--env", "wildfire"])
-    missing = [a.option_strings for a in parser._actions if not a.help]
+    missing = [a.option_strings or a.dest for a in parser._actions if not a.help]
     assert missing == []
     shown = parser.format_help()  # argparse fills in the help texts here (a bare % fails)
-    assert all(a.option_strings[0] in shown for a in parser._actions)
+    assert all((a.option_strings[0] if a.option_strings else a.metavar or a.dest) in shown
+               for a in parser._actions)
 
 
 def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:

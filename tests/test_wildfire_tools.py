@@ -220,7 +220,7 @@ def test_pettingzoo_rewards_match_the_reference(engine):
     for k, agent in enumerate(e.possible_agents):
         rows = slice(ref.path_start[k], ref.path_start[k + 1])
         assert ref.path_agent[k] == k
-        for key, expected in (("obs", ref.obs), ("rewards", ref.rewards),
+        for key, expected in (("obs", ref.obs.astype(np.float32)), ("rewards", ref.rewards),
                               ("durations", ref.durations)):
             np.testing.assert_allclose(np.array(paths[agent][key]), expected[rows], rtol=0,
                                        atol=1e-12, err_msg=f"{agent} {key}")

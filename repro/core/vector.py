@@ -53,6 +53,10 @@ class Transitions:
     done: np.ndarray
     """(T,) bool: the episode ended during this macro-action (the agent's last of the episode);
     the env's next decisions are the next episode's."""
+    truncated: np.ndarray
+    """(T,) bool: ``done``, and the episode was cut at the environment's bound on its length (the
+    wildfire's decision limit, :attr:`repro.core.rollout.Rollout.truncated`), not ended by its own
+    dynamics or its horizon."""
 
     def __len__(self) -> int:
         return len(self.env)
@@ -83,9 +87,9 @@ class VectorEnv(ABC):
         """Answer every row of the last batch (one integer action each); the next batch, and the
         macro-actions that ended."""
         require(len(self.episode) == self.n_envs, "step", "called after reset()", "before")
-        env, agent, index, reward, duration, done = self._act(np.asarray(actions))
+        env, agent, index, reward, duration, done, truncated = self._act(np.asarray(actions))
         ended = Transitions(env=env, episode=self.episode[env], agent=agent, index=index,
-                            reward=reward, duration=duration, done=done)
+                            reward=reward, duration=duration, done=done, truncated=truncated)
         slots = self._finished()
         if len(slots):
             self._restart(slots)
@@ -104,7 +108,8 @@ class VectorEnv(ABC):
     @abstractmethod
     def _act(self, actions: np.ndarray) -> tuple[np.ndarray, ...]:
         """Answer the pending decisions and run until blocked; the macro-actions now reportable
-        (see :class:`Transitions`) as (env, agent, index, reward, duration, done) columns."""
+        (see :class:`Transitions`) as (env, agent, index, reward, duration, done, truncated)
+        columns."""
 
     @abstractmethod
     def _finished(self) -> np.ndarray:

@@ -39,10 +39,12 @@ import pandas as pd
 
 from repro.core.config import Validated, for_scale, given_fields
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import (check_writable_dir, provenance, read_provenance, save_figure,
+                           write_result)
 from repro.core.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.envs.bus import BusConfig
 from repro.experiments import bus_sweeps, transfer
+from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
 from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
@@ -180,6 +182,8 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
 
     envs = list(dict.fromkeys(summary.env))
     labels = {"bus": "final return (mean of the last epochs)", "wildfire": "ADR on ED"}
+    labels = {env: f"{label}\nmean over runs, error bars: 95% bootstrap CI"
+              for env, label in labels.items()}
     fig, axes = plt.subplots(1, len(envs), figsize=(4.2 * len(envs), 4), squeeze=False)
     for ax, env in zip(axes[0], envs):
         s = summary[summary.env == env].reset_index(drop=True)
@@ -212,11 +216,27 @@ def title(cfg: MgaeStudyConfig, scale: str) -> str:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, MgaeStudyConfig)
     add_learner_option(p, "beyond_mgae_suite*")
+    add_replot(p)
+
+
+def replot(cfg: MgaeStudyConfig, args: argparse.Namespace) -> int:
+    """``--replot``: the figure of ``cfg``'s learner from its CSVs, titled with the settings their
+    sidecar records."""
+    runs, summary = read_for_replot(args, f"{cfg.stem}.csv", f"{cfg.stem}_summary.csv")
+    prov = read_provenance(Path(args.results_dir) / f"{cfg.stem}.csv")
+    recorded = MgaeStudyConfig(**{k: transfer.as_tuples(v)
+                                  for k, v in prov["config"]["study"].items()})
+    stem = check_writable_dir(args.figures_dir, "--figures-dir") / cfg.stem
+    plot(runs, summary, stem, title(recorded, prov["scale"]))
+    print(f"wrote {stem}.png/.pdf")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(MgaeStudyConfig, args.scale, learner=args.learner,
                     **given_fields(args, MgaeStudyConfig, ("seeds",)))
+    if args.replot:
+        return replot(cfg, args)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     runs = pd.concat([bus_runs(cfg, args), wildfire_runs(cfg, args)], ignore_index=True)

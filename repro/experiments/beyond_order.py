@@ -35,13 +35,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from repro.core.io import provenance, save_figure, write_result
+from repro.core.io import check_writable_dir, provenance, read_provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci
+from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import check_jobs, check_study_arguments
 from repro.learn.config import learner_label, learner_stem
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
-                                        make_jobs, runs_folder, study_config, summarise,
-                                        train_and_test)
+                                        make_jobs, recorded_config, runs_folder, study_config,
+                                        summarise, train_and_test)
 
 NAME = "order_reversal"
 """Stem of the result files and the figure."""
@@ -103,7 +104,8 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
                                                       [row.ci_high - row["mean"]]],
                         fmt="os"[k], color=color, capsize=3, label=label if x == 0 else None)
     ax.set_xticks(range(len(groups)), [f"{s}\n{o} order" for s, o in groups], fontsize=8)
-    ax.set_ylabel("ADR on ED (T_health = 3.0)")
+    ax.set_ylabel("ADR on ED (T_health = 3.0)\nmean over policies, error bars: 95% bootstrap "
+                  "CI", fontsize=8)
     ax.set_title(title, fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
@@ -118,11 +120,26 @@ def title(base: TransferConfig, scale: str) -> str:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_size_arguments(p, "order_reversal_suite*")
+    add_replot(p)
+
+
+def replot(base: TransferConfig, args: argparse.Namespace) -> int:
+    """``--replot``: the figure of ``base``'s learner from its CSVs, titled with the settings
+    their sidecar records."""
+    stem = learner_stem(NAME, base.learner)
+    per_policy, summary = read_for_replot(args, f"{stem}.csv", f"{stem}_summary.csv")
+    prov = read_provenance(Path(args.results_dir) / f"{stem}.csv")
+    out = check_writable_dir(args.figures_dir, "--figures-dir") / stem
+    plot(per_policy, summary, out, title(recorded_config(prov), prov["scale"]))
+    print(f"wrote {out}.png/.pdf")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
     # the transfer study's sizes at every scale, so that the released-order runs are its own
     base = study_config(args)
+    if args.replot:
+        return replot(base, args)
     results, figures = check_study_arguments(args)
     plan = [(semantics, order, cfg, runs_folder(args.runs_dir, cfg, args.scale))
             for semantics, order, cfg in studies(base)]

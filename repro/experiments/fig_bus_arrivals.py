@@ -4,7 +4,8 @@ bbarrival_times): a 6 h episode, buses 1-5 as the paper drew them (``--all-buses
 Writes results/bus_arrivals.csv (every served stop visit of one 6 h episode per policy, all
 buses) and figures/bus_arrivals. Panels: No Holding, the authors' thresholds, ours, the trained
 MLP, which is the lambda sweep's best run (highest final return; ``--mlp-run`` names another),
-acting greedily. A new policy is one more name in ``POLICIES`` / ``make_policy``.
+acting greedily. A new policy is one more name in ``POLICIES`` / ``make_policy``. The figure is
+one column wide, the panels two by two; ``--replot`` draws it again from the CSV.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Callable
 
 import pandas as pd
 
-from repro.experiments.options import add_common, results_folder
+from repro.experiments.options import add_common, add_replot, read_for_replot, results_folder
 from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.envs.bus import add_switch_arguments, config_from_args
@@ -41,6 +42,7 @@ def add_policy_arguments(p: argparse.ArgumentParser) -> None:
                    "(default: the lambda sweep's best run, from results/bus_lambda_summary.csv)")
     p.add_argument("--all-buses", action="store_true",
                    help="draw all six buses (the paper drew buses 1-5)")
+    add_replot(p)
     add_switch_arguments(p)
 
 
@@ -64,24 +66,52 @@ def collect(args: argparse.Namespace) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)[cols]
 
 
-def plot(arrivals: pd.DataFrame, stem, all_buses: bool = False) -> None:
+COLUMN_WIDTH = 3.5
+"""Inches: one column of a two-column paper, the width the bus figures are drawn at."""
+
+
+def policy_grid(names: list[str], what: str, all_buses: bool):
+    """A figure of one column's width with a panel per policy, two by two, and a title that says
+    which buses are drawn (the paper drew buses 1-5; ``--all-buses`` adds Bus 6): the figure,
+    and the axes in the panels' order (the unused ones hidden)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    rows = -(-len(names) // 2)
+    cols = min(2, len(names))
+    fig, axes = plt.subplots(rows, cols, figsize=(COLUMN_WIDTH, 0.6 + 1.75 * rows), sharex=True,
+                             sharey=True, squeeze=False)
+    buses = (f"all six buses (the paper drew buses 1-{PAPER_BUSES})" if all_buses else
+             f"buses 1-{PAPER_BUSES}, as the paper drew them (Bus 6 not drawn)")
+    fig.suptitle(f"{what}, one 6 h episode per policy;\n{buses}", fontsize=6.5)
+    flat = list(axes.flat)
+    for ax in flat[len(names):]:
+        ax.set_visible(False)
+    for ax, name in zip(flat, names):
+        ax.set_title(TITLES.get(name, name), fontsize=7, pad=2)
+        ax.tick_params(labelsize=6, length=2, pad=1)
+        ax.grid(True, alpha=0.3)
+    return fig, flat[:len(names)]
+
+
+def plot(arrivals: pd.DataFrame, stem, all_buses: bool = False) -> None:
     names = list(dict.fromkeys(arrivals.policy))
-    fig, axes = plt.subplots(1, len(names), figsize=(5 * len(names), 3.6), sharey=True,
-                             squeeze=False)
-    for ax, name in zip(axes[0], names):
+    fig, axes = policy_grid(names, "Arrival times at the ten stops", all_buses)
+    for ax, name in zip(axes, names):
         sel = arrivals[(arrivals.policy == name) & (all_buses | (arrivals.bus <= PAPER_BUSES))]
         for bus, grp in sel.groupby("bus"):
-            ax.plot(grp.time_min, grp.stop, "o", ms=2.5, label=f"Bus {bus}")
-        ax.set_title(TITLES.get(name, name))
-        ax.set_xlabel("Time [min]")
-        ax.grid(True, alpha=0.3)
-    axes[0][0].set_ylabel("Stop")
-    axes[0][-1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+            ax.plot(grp.time_min, grp.stop, "o", ms=1.3, mew=0, label=f"Bus {bus}")
+        ax.set_yticks(range(1, 11))
+        ax.set_ylim(0.5, 13.2)  # room for the legend above Stop 10
+    for ax in axes[-2:]:
+        ax.set_xlabel("Time [min]", fontsize=6.5, labelpad=1)
+    for ax in axes[::2]:
+        ax.set_ylabel("Stop", fontsize=6.5, labelpad=1)
+    axes[0].legend(fontsize=5, loc="upper center", ncol=3, markerscale=2.5,
+                   handletextpad=0.05, columnspacing=0.6, borderpad=0.3, labelspacing=0.2,
+                   framealpha=0.9)
     save_figure(fig, stem)
 
 
@@ -93,20 +123,27 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
                       table_of: Callable[[pd.DataFrame], pd.DataFrame],
                       plot_table: Callable[[pd.DataFrame, Path, bool], None]) -> int:
     """Shared body of the per-policy bus figures: simulate each policy's episode, derive the
-    figure's table from the arrival records, write it with provenance, and draw it."""
+    figure's table from the arrival records, write it with provenance, and draw it; with
+    ``--replot``, draw the table written before (the panels of ``--policies``)."""
     for name in args.policies:
         require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
     if args.thresholds is not None:  # checked even where no panel uses them
         check_thresholds(args.thresholds)
+    stem = Path(args.figures_dir) / Path(csv_name).stem
+    if args.replot:
+        table, = read_for_replot(args, csv_name)
+        check_writable_dir(args.figures_dir, "--figures-dir")
+        plot_table(table[table.policy.isin(args.policies)], stem, args.all_buses)
+        print(f"wrote {stem}.png/.pdf")
+        return 0
     results = results_folder(args)
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
     table = table_of(collect(args))
     prov = provenance(config_from_args(args), command=command, scale=args.scale, seed=None,
                       wall_seconds=time.perf_counter() - t0,
                       extra={"policies": args.policies, "mlp_run": mlp_source(args)})
     write_result(results / csv_name, table, prov)
-    stem = figures / Path(csv_name).stem
     plot_table(table, stem, args.all_buses)
     print(f"wrote {results / csv_name} and {stem}.png/.pdf")
     return 0

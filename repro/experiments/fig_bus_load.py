@@ -10,7 +10,8 @@ authors' thresholds (fixed policies, so the corridor alone decides), the L1 dist
 the paper's panel with each of B1-B5 turned off alone (``off``: none, a switch, or all); and,
 with the MLP panel taken from the lambda sweep, results/bus_load_mlp_runs.csv: every trained run
 of that sweep (lambda, seed, final return), acting greedily, with its L1 distance per point to the
-paper's MLP panel.
+paper's MLP panel. The figure is one column wide, the panels two by two; ``--replot`` draws it
+again from results/bus_load.csv (and writes nothing else).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from repro.envs.bus.params import SWITCHES
 from repro.experiments.bus_policies import LAMBDA_SUMMARY_CSV, GreedyPolicy, make_policy
 from repro.experiments.bus_eval import picture_arrivals
 from repro.envs.bus.paper_data import PAPER_RECORDS, PAPER_STOPS, paper_loads
-from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, TITLES, add_policy_arguments,
+from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, add_policy_arguments, policy_grid,
                                                 run_policy_figure)
 
 LOAD_CSV = "bus_load.csv"
@@ -61,29 +62,26 @@ def loads(arrivals: pd.DataFrame) -> pd.DataFrame:
 
 
 def plot(table: pd.DataFrame, stem, all_buses: bool = False) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     names = list(dict.fromkeys(table.policy))
-    fig, axes = plt.subplots(1, len(names), figsize=(4.5 * len(names), 3.6), sharey=True,
-                             squeeze=False)
-    for ax, name in zip(axes[0], names):
+    fig, axes = policy_grid(names, "Load at arrival, records 40-50 (Stop 10 of cycle 4, "
+                            "cycle 5)", all_buses)
+    for ax, name in zip(axes, names):
         sel = table[table.policy == name]
         for bus, grp in sel[sel.source == "ours"].groupby("bus"):
             if all_buses or bus <= PAPER_BUSES:
-                ax.plot(grp.record, grp.load, ".-", ms=4, lw=0.8, label=f"Bus {bus}")
+                ax.plot(grp.record, grp.load, ".-", ms=2, lw=0.6, label=f"Bus {bus}")
         paper = sel[sel.source == "paper"]
-        ax.plot(paper.record, paper.load, "o", mfc="none", mec="k", ms=7, lw=0,
-                label="paper (buses 1-5)")
-        ax.axhline(BusConfig().l_max, color="k", lw=0.8, ls="--")
-        ax.set_title(TITLES.get(name, name))
-        ax.set_xlabel("Stop (records 40-50: Stop 10 of cycle 4, cycle 5)")
+        ax.plot(paper.record, paper.load, "o", mfc="none", mec="k", ms=3.5, mew=0.5, lw=0,
+                label="paper")
+        ax.axhline(BusConfig().l_max, color="k", lw=0.6, ls="--")
+        ax.set_ylim(-3, 1.3 * BusConfig().l_max)  # room for the legend above the capacity
         ax.set_xticks(PAPER_RECORDS, [str(k) for k in PAPER_STOPS])
-        ax.grid(True, alpha=0.3)
-    axes[0][0].set_ylabel("Load at arrival [pax]")
-    axes[0][-1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    for ax in axes[-2:]:
+        ax.set_xlabel("Stop", fontsize=6.5, labelpad=1)
+    for ax in axes[::2]:
+        ax.set_ylabel("Load at arrival [pax]", fontsize=6.5, labelpad=1)
+    axes[0].legend(fontsize=5, loc="upper center", ncol=3, handlelength=1.2, handletextpad=0.3,
+                   columnspacing=0.6, borderpad=0.3, labelspacing=0.2, framealpha=0.9)
     save_figure(fig, stem)
 
 
@@ -106,6 +104,8 @@ def mlp_run_distances(cfg: BusConfig, results: Path) -> pd.DataFrame:
 def run(args: argparse.Namespace) -> int:
     rc = run_policy_figure(args, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
                            plot_table=plot)
+    if args.replot:
+        return rc
     fixed = [p for p in args.policies if p in FIXED]
     if fixed:
         t0 = time.perf_counter()

@@ -29,14 +29,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from repro.core.io import provenance, save_figure, write_result
+from repro.core.io import check_writable_dir, provenance, read_provenance, save_figure, write_result
 from repro.envs.wildfire import FIGURE_VERSION, RELEASED_VERSION
 from repro.experiments.beyond_order import effects
+from repro.experiments.options import add_replot, read_for_replot
 from repro.experiments.sweep import check_jobs, check_study_arguments
 from repro.learn.config import learner_stem
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
-                                        make_jobs, runs_folder, study_config, summarise,
-                                        train_and_test)
+                                        make_jobs, recorded_config, runs_folder, study_config,
+                                        summarise, train_and_test)
 
 NAME = "learner_ablation"
 """Stem of the result files and the figure."""
@@ -84,7 +85,8 @@ def plot(summary: pd.DataFrame, stem: Path, title: str) -> None:
                     label=sim)
         ax.axhline(g.paper_mean.iloc[0], color=f"C{k}", ls="--", lw=0.8, alpha=0.7)
     ax.set_xticks(range(len(settings)), settings, rotation=20, ha="right", fontsize=7)
-    ax.set_ylabel("ADR on ED (T_health = 3.0)")
+    ax.set_ylabel("ADR on ED (T_health = 3.0)\nmean over policies, error bars: standard error",
+                  fontsize=8)
     ax.set_title(title, fontsize=8)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, title="trained on (dashed: paper)", title_fontsize=7)
@@ -96,10 +98,31 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
                    help="training simulator of every row, repeatable (default: "
                         + ", ".join(DEFAULT_SIMULATORS) + ")")
+    add_replot(p)
+
+
+def title(base: TransferConfig, scale: str) -> str:
+    """The figure's title: the study's sizes at ``scale``."""
+    return (f"One learner setting at a time from the authors' (simulator of {FIGURE_VERSION}); "
+            f"{scale} scale: {base.seeds} policies x {base.epochs} epochs x {batch_label(base)}")
+
+
+def replot(base: TransferConfig, args: argparse.Namespace) -> int:
+    """``--replot``: the figure of ``base``'s learner from its summary CSV, titled with the
+    settings its sidecar records."""
+    stem = learner_stem(NAME, base.learner)
+    summary, = read_for_replot(args, f"{stem}_summary.csv")
+    prov = read_provenance(Path(args.results_dir) / f"{stem}_summary.csv")
+    out = check_writable_dir(args.figures_dir, "--figures-dir") / stem
+    plot(summary, out, title(recorded_config(prov), prov["scale"]))
+    print(f"wrote {out}.png/.pdf")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
     base = study_config(args, only=tuple(args.simulator) or DEFAULT_SIMULATORS)
+    if args.replot:
+        return replot(base, args)
     results, figures = check_study_arguments(args)
     plan = [(name, cfg, runs_folder(args.runs_dir, cfg, args.scale))
             for name, cfg in studies(base)]
@@ -129,10 +152,7 @@ def run(args: argparse.Namespace) -> int:
     write_result(results / f"{stem}_summary.csv", summary, prov)
     if len(c9):
         write_result(results / f"{stem}_c9.csv", c9, prov)
-    plot(summary, figures / stem,
-         f"One learner setting at a time from the authors' (simulator of {FIGURE_VERSION}); "
-         f"{args.scale} scale: {base.seeds} policies x {base.epochs} epochs x "
-         f"{batch_label(base)}")
+    plot(summary, figures / stem, title(base, args.scale))
     print(summary[["setting", "simulator", "mean", "sem", "mean_kept", "paper_mean",
                    "z_paper"]].to_string(index=False))
     if len(c9):

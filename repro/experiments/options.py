@@ -48,3 +48,26 @@ def results_folder(args: argparse.Namespace) -> Path:
     ``--overwrite`` (:func:`repro.core.io.open_results`)."""
     return open_results(args.results_dir, "--results-dir", scale=args.scale,
                         overwrite=args.overwrite)
+
+
+def add_replot(parser: argparse.ArgumentParser) -> None:
+    """``--replot``: a figure drawn again from its driver's result CSVs, without rerunning."""
+    parser.add_argument("--replot", action="store_true", help="draw the figure again from the "
+                        "results in --results-dir (nothing is run or written but the figure)")
+
+
+def read_for_replot(args: argparse.Namespace, *names: str) -> list:
+    """The result tables ``names`` in ``--results-dir`` that ``--replot`` draws from; a
+    UsageError naming ``--replot`` if one is missing (or torn from its sidecar)."""
+    from repro.core.errors import UsageError
+    from repro.core.io import read_result
+
+    folder = Path(args.results_dir)
+    tables = []
+    for name in names:
+        try:
+            tables.append(read_result(folder / name))
+        except FileNotFoundError as err:
+            raise UsageError("--replot", f"the results of an earlier run in {folder}",
+                             f"{err.strerror}: {err.filename}") from None
+    return tables

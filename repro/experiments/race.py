@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from repro.experiments.options import add_common, results_folder
+from repro.experiments.options import add_common, add_replot, read_for_replot, results_folder
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import UsageError, require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
@@ -247,32 +247,42 @@ def run_study(cfg: RaceConfig, seed: int) -> dict[str, pd.DataFrame]:
 
 
 def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
+    """Left: the largest safe dT against N per distribution, with our beta and the paper's
+    (Table nvdt), each with its standard error; right: the exact curve's local exponent."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from repro.claims.race import PAPER_BETA
+
     pts, fits, exact = tables["race_dt_vs_n"], tables["table_race"], tables["race_exact"]
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(7.0, 3.2))
     for (name, grp), color in zip(pts.groupby("distribution", sort=False), ("C0", "C1", "C2")):
         fit = fits[fits.distribution == name].iloc[0]
         ex = exact[exact.distribution == name]
-        ax.loglog(grp.n, grp.dt_mc, "o", color=color, ms=4,
-                  label=f"{name} ({fit.parameters}): $\\beta$ = {fit.beta:.3f} ({fit.beta_se:.3f})")
+        paper = (f"; paper {PAPER_BETA[name][0]:.3f} ({PAPER_BETA[name][1]:.3f})"
+                 if name in PAPER_BETA else "; not in the paper")
+        ax.loglog(grp.n, grp.dt_mc, "o", color=color, ms=3,
+                  label=f"{name} ({fit.parameters}): $\\beta$ = {fit.beta:.3f} "
+                        f"({fit.beta_se:.3f}){paper}")
         n_line = np.linspace(grp.n.min(), grp.n.max(), 50)
         ax.loglog(n_line, fit.alpha * n_line ** -fit.beta, "-", color=color, lw=1)
         ax.loglog(ex.n, ex.dt_exact, ":", color=color, lw=1.5)
-        ax2.semilogx(ex.n, ex.local_beta, "-o", color=color, ms=3, label=name)
-    ax.set_xlabel("Number of agents $N$")
-    ax.set_ylabel(r"Largest $\Delta T$ with $P(\mathrm{race}) < \delta$")
-    ax.set_title("Monte Carlo (points), OLS fit (lines), exact (dotted)", fontsize=9)
-    ax.legend(fontsize=7)
+        ax2.semilogx(ex.n, ex.local_beta, "-o", color=color, ms=2.5, label=name)
+    ax.set_xlabel("Number of agents $N$", fontsize=8)
+    ax.set_ylabel(r"Largest $\Delta T$ with $P(\mathrm{race}) < \delta$", fontsize=8)
+    ax.set_title("Monte Carlo (points), OLS fit (lines), exact (dotted);\n"
+                 "$\\beta$: ours; the paper's (its table nvdt); (standard error)", fontsize=8)
+    ax.legend(fontsize=5.5, loc="lower left")
     ax.grid(True, which="both", alpha=0.3)
     ax2.axhline(2.0, color="k", lw=0.8, ls="--")
-    ax2.set_xlabel("Number of agents $N$")
-    ax2.set_ylabel(r"local exponent $-d\log\Delta T / d\log N$ (exact)")
-    ax2.legend(fontsize=7)
+    ax2.set_xlabel("Number of agents $N$", fontsize=8)
+    ax2.set_ylabel(r"local exponent $-d\log\Delta T / d\log N$ (exact)", fontsize=8)
+    ax2.legend(fontsize=6)
     ax2.grid(True, which="both", alpha=0.3)
+    for a in (ax, ax2):
+        a.tick_params(labelsize=7)
     save_figure(fig, stem)
 
 
@@ -280,9 +290,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
     add_config_arguments(p, RaceConfig)
     p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
+    add_replot(p)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.replot:
+        names = ("race_dt_vs_n", "table_race", "race_exact")
+        read = read_for_replot(args, *(f"{name}.csv" for name in names))
+        figures = check_writable_dir(args.figures_dir, "--figures-dir")
+        plot(dict(zip(names, read)), figures / "race_dt_vs_n")
+        print(f"wrote {figures / 'race_dt_vs_n'}.png/.pdf")
+        return 0
     cfg = for_scale(RaceConfig, args.scale, **given_fields(args, RaceConfig))
     results = results_folder(args)
     figures = check_writable_dir(args.figures_dir, "--figures-dir")

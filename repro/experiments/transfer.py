@@ -40,14 +40,15 @@ import pandas as pd
 
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import (check_writable_dir, provenance, read_provenance, save_figure,
+                           write_result)
 from repro.core.rollout import children
 from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
 from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
                                 check_study_learner, learner_label, learner_suffix, setting_tag)
-from repro.experiments.options import add_common
+from repro.experiments.options import add_common, add_replot, read_for_replot
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -335,12 +336,13 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
                     ms=4)
         th = frame.t_health.iloc[0] if len(frame) else 0
         ax.errorbar(x - 0.06, frame["mean"], yerr=frame["sem"], fmt=marker, color=color,
-                    capsize=3, label=f"{name}, T_health = {th:g}")
+                    capsize=3, label=f"{name}, T_health = {th:g} (dots: each policy)")
         ax.errorbar(x + 0.06, frame.paper_mean, yerr=frame.paper_sem, fmt=marker, mfc="none",
                     color=color, alpha=0.7, capsize=3, label=f"paper, T_health = {th:g}")
     ax.set_xticks(range(len(main)), main.simulator)
     ax.set_xlabel("training simulator")
-    ax.set_ylabel("ADR on ED (T_health = 3.0)")
+    ax.set_ylabel("ADR on ED (T_health = 3.0)\nmean over policies, error bars: standard error",
+                  fontsize=9)
     ax.set_title(title, fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
@@ -389,6 +391,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-fire-out-first", action="store_true",
                    help="a UAV whose macro-action ends as a fire goes out observes first (the "
                         "released order reversed, X4); writes *_no_fire_out_first")
+    add_replot(p)
 
 
 def runs_folder(runs_dir: str | Path, cfg: TransferConfig, scale: str) -> Path:
@@ -426,8 +429,45 @@ def config_from_args(args: argparse.Namespace) -> TransferConfig:
                         sim_version=args.sim_version)
 
 
+def figure_title(cfg: TransferConfig, scale: str) -> str:
+    """What the figure of a transfer study says of its runs."""
+    semantics = ("quirks Q1-Q6 corrected" if cfg.corrected else
+                 f"released semantics, {', '.join(cfg.quirks_off).upper()} off" if cfg.quirks_off
+                 else "released semantics (Q1-Q6 on)")
+    semantics += "" if cfg.fire_out_first else ", UAV before fire at one instant"
+    return (f"Transfer to ED, {semantics}; {scale} scale: {cfg.seeds} policies x {cfg.epochs} "
+            f"epochs x {batch_label(cfg)}, {learner_label(cfg.learner)}, simulator of "
+            f"{cfg.sim_version}")
+
+
+def replot(cfg: TransferConfig, args: argparse.Namespace) -> int:
+    """``--replot``: the figure of the study ``cfg`` names, from its CSVs and the settings its
+    sidecar records."""
+    per_policy, summary = read_for_replot(args, f"{cfg.name}.csv", f"{cfg.name}_summary.csv")
+    prov = read_provenance(Path(args.results_dir) / f"{cfg.name}.csv")
+    recorded = recorded_config(prov)
+    stem = check_writable_dir(args.figures_dir, "--figures-dir") / cfg.name
+    plot(per_policy, summary, stem, figure_title(recorded, prov["scale"]))
+    print(f"wrote {stem}.png/.pdf")
+    return 0
+
+
+def recorded_config(prov: dict[str, Any]) -> TransferConfig:
+    """The transfer study's config that a result's sidecar records (a study built on it records
+    more keys beside its fields)."""
+    fields = {f.name for f in dataclasses.fields(TransferConfig)}
+    return TransferConfig(**{k: as_tuples(v) for k, v in prov["config"].items() if k in fields})
+
+
+def as_tuples(value: Any) -> Any:
+    """A JSON value with its lists as tuples (a config's sequences are tuples)."""
+    return tuple(as_tuples(v) for v in value) if isinstance(value, list) else value
+
+
 def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
+    if args.replot:
+        return replot(cfg, args)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
     per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
@@ -436,14 +476,7 @@ def run(args: argparse.Namespace) -> int:
                       seed=args.seed, wall_seconds=time.perf_counter() - t0, extra=extra)
     write_result(results / f"{cfg.name}.csv", per_policy, prov)
     write_result(results / f"{cfg.name}_summary.csv", summary, prov)
-    semantics = ("quirks Q1-Q6 corrected" if cfg.corrected else
-                 f"released semantics, {', '.join(cfg.quirks_off).upper()} off" if cfg.quirks_off
-                 else "released semantics (Q1-Q6 on)")
-    semantics += "" if cfg.fire_out_first else ", UAV before fire at one instant"
-    plot(per_policy, summary, figures / cfg.name,
-         f"Transfer to ED, {semantics}; {args.scale} scale: {cfg.seeds} policies x "
-         f"{cfg.epochs} epochs x {batch_label(cfg)}, {learner_label(cfg.learner)}, simulator of "
-         f"{cfg.sim_version}")
+    plot(per_policy, summary, figures / cfg.name, figure_title(cfg, args.scale))
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high",
                    "paper_mean"]].to_string(index=False))
     return 0

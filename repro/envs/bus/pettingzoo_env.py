@@ -1,15 +1,28 @@
-"""A PettingZoo AEC view of one bus episode, driven by the fast engine.
+"""PettingZoo views of one bus episode, driven by the fast engine: a ``ParallelEnv`` (the buses
+waiting at one instant act together) and an AEC env (they act one by one, in arrival order).
 
-Agents ``bus_0`` .. ``bus_5`` act in the engine's round order (the buses waiting at one instant, in
-arrival order). After each round of actions the engine runs until the next decisions; every agent's
-reward for that stretch is the undiscounted sum of the arrival rewards -nu_k (h - H)^2 it accrued
-(each arrival rewards every agent); the rewards of arrivals before the first action (at reset) are
-paid with those of the first round, since AEC rewards follow steps. At the horizon all agents are
-truncated.
+Both follow the convention of :mod:`repro.core.parallel_env`, which the wildfire's views share:
 
-``env()`` is the environment in PettingZoo's usual wrappers, ``raw_env()`` the bare one (both take
-``cfg`` and ``render_mode``: "rgb_array", a picture as an array, or "human", in a window; see
-:mod:`repro.envs.bus.render`).
+- a bus's reward is its macro-action's: the arrival rewards -nu_k (h - H)^2 accrued from its
+  decision to its next one (each arrival rewards every bus), each discounted by
+  exp(-gamma (t - T_k)) to the macro-action's start T_k, as M-GAE consumes them (the rewards of
+  arrivals before a bus's first decision go to its first macro-action, discounted to t = 0);
+- ``infos[bus]`` holds that macro-action's ``duration`` (s) and ``time``, the clock at its end (the
+  bus's new decision, or the horizon): 0 and 0 at a bus's first decision;
+- the episode ends at the horizon: every bus is terminated (the bus has no decision limit, so
+  nothing is truncated);
+- observations [stop, headway h (s), load, time since the bus's last decision (s)] are float32,
+  within :func:`observation_box`.
+
+In the ParallelEnv a bus joins ``agents`` at its first decision (its first arrival at Stop 1), and
+a step's dicts hold the buses deciding now and, at the horizon, every bus (see
+:mod:`repro.core.parallel_env`). In the AEC env the selected bus's ``last()`` reward is its
+macro-action's that ended with this decision (and, at the horizon, the one the horizon cut).
+
+``parallel_env()`` is the ParallelEnv, ``env()`` the AEC environment in PettingZoo's usual
+wrappers, ``raw_env()`` the bare one (all take ``cfg`` and ``render_mode``: "rgb_array", a picture
+as an array, or "human", in a window; see :mod:`repro.envs.bus.render`). The environment is
+deterministic: ``seed`` is accepted and unused.
 """
 
 from __future__ import annotations
@@ -21,9 +34,20 @@ from pettingzoo.utils import wrappers
 
 from repro.core.canvas import RENDER_MODES, Canvas, Renders
 from repro.core.errors import require
-from repro.envs.bus.engine import OBS_DIM, BusBatch
+from repro.core.parallel_env import EventParallelEnv
+from repro.envs.bus.engine import BusBatch
 from repro.envs.bus.params import BusConfig
 from repro.envs.bus.render import draw, frame_of_state
+from repro.envs.bus.vector import BusVectorEnv
+
+
+def observation_box(cfg: BusConfig) -> spaces.Box:
+    """Bounds of an observation: the stop (0..K-1), the headway (s; within the horizon, and -1
+    where quirk B2 reports an unknown one), the load (0..l_max), the time since the bus's last
+    decision (within the horizon)."""
+    high = np.array([cfg.n_stops - 1, cfg.horizon, cfg.l_max, cfg.horizon])
+    low = np.array([0.0, -1.0 if cfg.b2_headway else 0.0, 0.0, 0.0])
+    return spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
 
 
 class BusAECEnv(Renders, AECEnv):
@@ -38,12 +62,8 @@ class BusAECEnv(Renders, AECEnv):
         self.render_mode = render_mode
         self._canvas: Canvas | None = None
         self.possible_agents = [f"bus_{i}" for i in range(self.cfg.n_buses)]
-        # a headway and the time since the bus's last action are within the episode
-        high = np.array([self.cfg.n_stops - 1, self.cfg.horizon, self.cfg.l_max, self.cfg.horizon])
-        # B2 reports an unknown headway as -1
-        low = np.array([0.0, -1.0 if self.cfg.b2_headway else 0.0, 0.0, 0.0])
-        self.observation_spaces = {a: spaces.Box(low, high, dtype=np.float64)
-                                   for a in self.possible_agents}
+        box = observation_box(self.cfg)
+        self.observation_spaces = {a: box for a in self.possible_agents}
         self.action_spaces = {a: spaces.Discrete(self.cfg.n_actions) for a in self.possible_agents}
 
     def observation_space(self, agent: str) -> spaces.Box:
@@ -59,28 +79,40 @@ class BusAECEnv(Renders, AECEnv):
         self._cumulative_rewards = {a: 0.0 for a in self.agents}
         self.terminations = {a: False for a in self.agents}
         self.truncations = {a: False for a in self.agents}
-        self.infos = {a: {} for a in self.agents}
-        self._obs = {a: np.zeros(OBS_DIM) for a in self.agents}
+        self.infos = {a: {"duration": 0.0, "time": 0.0} for a in self.agents}
+        box = observation_box(self.cfg)
+        self._obs = {a: np.zeros(box.shape, box.dtype) for a in self.agents}
+        self._clock = np.zeros(len(self.agents))  # each bus's T_k: its macro-actions' durations
         self._batch = BusBatch(self.cfg, 1)
         self._actions: list[int] = []
-        self._carry = 0.0
         self._step_engine()
-        self._carry = sum(self.rewards.values()) / len(self.agents)
-        self.rewards = {a: 0.0 for a in self.agents}
-        self._cumulative_rewards = {a: 0.0 for a in self.agents}
 
     def _step_engine(self) -> None:
-        before = float(self._batch.ep_return[0])
-        decisions = self._batch.advance(np.array(self._actions, np.int64))
-        gained = float(self._batch.ep_return[0]) - before + self._carry
-        self._actions, self._carry = [], 0.0
-        self._queue = [self.possible_agents[b] for b in decisions.agent]
+        """Give the round's actions, run to the next decisions; reward the macro-actions that
+        ended (those of the buses deciding again, or every bus's at the horizon)."""
+        b = self._batch
+        decisions = b.advance(np.array(self._actions, np.int64))
+        self._actions = []
+        if b.done[0]:
+            n_dec = b.n_decisions[0]
+            agent = np.flatnonzero(n_dec > 0)
+            index = n_dec[agent] - 1
+        else:
+            again = decisions.index > 0
+            agent, index = decisions.agent[again], decisions.index[again] - 1
+        reward, duration = b.macro_actions(np.zeros_like(agent), agent, index)
+        self.rewards = {a: 0.0 for a in self.agents}
+        for i, r, dt in zip(agent, reward, duration):
+            self._clock[i] += dt
+            a = self.possible_agents[i]
+            self.rewards[a] = float(r)
+            self.infos[a] = {"duration": float(dt), "time": float(self._clock[i])}
+        self._queue = [self.possible_agents[i] for i in decisions.agent]
         for name, o in zip(self._queue, decisions.obs):
-            self._obs[name] = o.copy()
-        self.rewards = {a: gained for a in self.agents}
+            self._obs[name] = o.astype(np.float32)
         self._accumulate_rewards()
         if not self._queue:
-            self.truncations = {a: True for a in self.agents}
+            self.terminations = {a: True for a in self.agents}
             self.agent_selection = self.agents[0]
         else:
             self.agent_selection = self._queue[0]
@@ -110,6 +142,29 @@ class BusAECEnv(Renders, AECEnv):
         if self._canvas is not None:
             self._canvas.close()
             self._canvas = None
+
+
+class BusParallelEnv(EventParallelEnv):
+    """The buses deciding at one instant act together (see the module docstring)."""
+
+    metadata = {"name": "bus_v0", "render_modes": list(RENDER_MODES), "render_fps": 4}
+
+    def __init__(self, cfg: BusConfig | None = None, render_mode: str | None = None):
+        require(render_mode is None or render_mode in RENDER_MODES, "render_mode",
+                f"None or one of {', '.join(RENDER_MODES)}", render_mode)
+        self.cfg = cfg or BusConfig()
+        super().__init__(lambda seed: BusVectorEnv(self.cfg, 1), "bus", observation_box(self.cfg),
+                         self.cfg.n_buses, self.cfg.n_actions, render_mode)
+
+    def _draw(self, figure) -> None:
+        """The corridor now: the buses where they are, with their loads."""
+        draw(figure, frame_of_state(self.cfg, self._vec.batch.state(0)), self.cfg)
+
+
+def parallel_env(cfg: BusConfig | None = None,
+                 render_mode: str | None = None) -> BusParallelEnv:
+    """The ParallelEnv."""
+    return BusParallelEnv(cfg, render_mode)
 
 
 def raw_env(cfg: BusConfig | None = None, render_mode: str | None = None) -> BusAECEnv:

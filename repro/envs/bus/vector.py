@@ -4,7 +4,7 @@ It steps one :class:`~repro.envs.bus.engine.BusBatch`, the engine's rounds. A bu
 ends when it observes again (its next decision) or at the horizon, and a bus has a decision only
 once its previous one was answered, so every ended macro-action is reportable at once. The
 environment is deterministic: every episode of the stream is the same, and ``seed`` is unused, as
-in ``rollout``.
+in ``rollout``. Its episodes end at the horizon, never truncated.
 """
 
 from __future__ import annotations
@@ -44,7 +44,12 @@ class BusVectorEnv(VectorEnv):
         index = np.concatenate([new.index[again] - 1, n_dec[last_ep, last_agent] - 1])
         reward, duration = b.macro_actions(env, agent, index)
         done = np.arange(len(env)) >= again.sum()
-        return env, agent, index, reward, duration, done
+        return env, agent, index, reward, duration, done, np.zeros(len(env), bool)
+
+    @property
+    def batch(self) -> BusBatch:
+        """The engine's batch being stepped (its episodes' states, for pictures)."""
+        return self._batch
 
     def _finished(self) -> np.ndarray:
         return np.flatnonzero(self._batch.done)

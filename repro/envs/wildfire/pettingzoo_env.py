@@ -1,20 +1,33 @@
-"""A PettingZoo AEC view of the SimPy wildfire model: the UAV whose decision comes next acts.
+"""PettingZoo views of a wildfire episode: an AEC env on the SimPy model or the fast engine (the
+UAV whose decision comes next acts) and a ``ParallelEnv`` on the fast engine (the UAVs whose
+decisions are pending at once act together: those that observed within one decision latency).
 
-After each ``step`` the model runs until the next UAV observes; that UAV is selected, its reward
-is its just-finished macro-action's reward (discounted to the action's start, docs/semantics.md
-section 2.2) and its info
-holds the macro-action's ``duration`` and the simulation ``time``. When the episode ends every
-UAV's running macro-action is cut and rewarded; the episode is terminated if all fires are out,
-truncated at T_max.
+Both follow the convention of :mod:`repro.core.parallel_env`, which the bus's views share:
 
-``env()`` is the environment in PettingZoo's usual wrappers, ``raw_env()`` the bare one (both take
-``cfg``, ``render_mode``: "rgb_array", a picture as an array, or "human", in a window, see
-:mod:`repro.envs.wildfire.render`; and ``engine``). With ``engine="fast"`` the episode runs on the
-fast engine's rounds (:class:`repro.envs.wildfire.engine.WildfireBatch`), whose decisions are
-handed out one by one, with the same observations, rewards and durations as the SimPy model's
-(the default, ``"reference"``); once numba has compiled it (or loaded its cache: the first
-episode), it steps about twice as fast (the AEC's own bookkeeping then dominates). ``observe`` of
-an agent not selected may then show a decision of the round that it has not been handed yet.
+- a UAV's reward is its macro-action's: the rewards accrued from its decision to its next
+  observation (or the episode's end), each discounted by exp(-gamma (t - T_k)) to the
+  macro-action's start T_k (docs/semantics.md section 2.2), as M-GAE consumes them;
+- ``infos[uav]`` holds that macro-action's ``duration`` (s) and ``time``, the clock at its end
+  (the UAV's new decision, or the episode's end): 0 and 0 at a UAV's first decision;
+- the episode is terminated when all fires are out or at T_max, and truncated when it is cut at
+  the decision limit (``max_decisions``); either way every UAV's running macro-action is cut and
+  rewarded;
+- observations are float32, within :func:`observation_box`.
+
+In the AEC env, after each ``step`` the model runs until the next UAV observes; that UAV is
+selected, and its ``last()`` reward and info are those of its just-finished macro-action. In the
+ParallelEnv a step's dicts hold the UAVs deciding now and, once the episode ends, every UAV (see
+:mod:`repro.core.parallel_env`, also for a UAV with two decisions pending at once).
+
+``parallel_env()`` is the ParallelEnv, ``env()`` the AEC environment in PettingZoo's usual
+wrappers, ``raw_env()`` the bare one (all take ``cfg`` and ``render_mode``: "rgb_array", a picture
+as an array, or "human", in a window, see :mod:`repro.envs.wildfire.render`; the AEC ones take
+``engine``). With ``engine="fast"`` the AEC episode runs on the fast engine's rounds
+(:class:`repro.envs.wildfire.engine.WildfireBatch`), whose decisions are handed out one by one,
+with the same observations, rewards and durations as the SimPy model's (the default,
+``"reference"``); once numba has compiled it (or loaded its cache: the first episode), it steps
+about twice as fast (the AEC's own bookkeeping then dominates). ``observe`` of an agent not
+selected may then show a decision of the round that it has not been handed yet.
 """
 
 from __future__ import annotations
@@ -26,12 +39,14 @@ from pettingzoo.utils import wrappers
 
 from repro.core.canvas import RENDER_MODES, Canvas, Renders
 from repro.core.errors import require
+from repro.core.parallel_env import EventParallelEnv
 from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv
 from repro.envs.wildfire.params import (DIST, HEALTH, INTEREST, LEVEL, OWN_X, OWN_Y, SOJOURN,
                                         STATUS, EpisodeDraws, WildfireConfig, draw_episodes,
                                         fire_blocks, fire_positions)
 from repro.envs.wildfire.reference import WildfireModel
 from repro.envs.wildfire.render import Frame, draw, frame_of_model, frame_of_state
+from repro.envs.wildfire.vector import WildfireVectorEnv
 
 ENGINES = ("reference", "fast")
 """What runs the AEC environment's episode."""
@@ -53,7 +68,7 @@ class _ReferenceEpisode:
         self.model.act(i, action)
 
     def observation(self, i: int) -> np.ndarray:
-        return np.array(self.model.rec[self.model.current[i]]["obs"], dtype=np.float64)
+        return np.array(self.model.rec[self.model.current[i]]["obs"], dtype=np.float32)
 
     def previous(self, i: int) -> tuple[float, float] | None:
         """The reward and duration of the macro-action before UAV i's decision now, if any."""
@@ -66,11 +81,9 @@ class _ReferenceEpisode:
         rec = self.model.rec[self.model.current[i]]
         return rec["reward"], rec["duration"]
 
-    def time(self) -> float:
-        return self.model.t_end if self.model.done else self.model.env.now
-
-    def all_out(self) -> bool:
-        return not any(self.model.alive)
+    def truncated(self) -> bool:
+        """The episode was cut at the decision limit."""
+        return self.model.truncated
 
     def frame(self) -> Frame:
         return frame_of_model(self.model)
@@ -102,7 +115,7 @@ class _FastEpisode:
         self.answers.append(action)
 
     def observation(self, i: int) -> np.ndarray:
-        return self.batch.log[self.batch.states[0]["running_row"][i]]["obs"].copy()
+        return self.batch.log[self.batch.states[0]["running_row"][i]]["obs"].astype(np.float32)
 
     def previous(self, i: int) -> tuple[float, float] | None:
         row = self.batch.log[self.previous_row] if self.previous_row >= 0 else None
@@ -112,12 +125,8 @@ class _FastEpisode:
         row = self.batch.log[self.batch.states[0]["running_row"][i]]
         return float(row["rew"]), float(row["dur"])
 
-    def time(self) -> float:
-        s = self.batch.states[0]
-        return float(s["t_end"] if s["done"] else s["now"])
-
-    def all_out(self) -> bool:
-        return int(self.batch.states[0]["n_alive"]) == 0
+    def truncated(self) -> bool:
+        return bool(self.batch.states[0]["truncated"])
 
     def frame(self) -> Frame:
         return frame_of_state(self.env, self.batch.states[0])
@@ -161,6 +170,7 @@ class WildfireAECEnv(Renders, AECEnv):
         self.terminations = {a: False for a in self.agents}
         self.truncations = {a: False for a in self.agents}
         self.infos = {a: {"duration": 0.0, "time": 0.0} for a in self.agents}
+        self._clock = np.zeros(len(self.agents))  # each UAV's T_k: its macro-actions' durations
         self._run()
 
     def _draw(self, figure) -> None:
@@ -190,21 +200,25 @@ class WildfireAECEnv(Renders, AECEnv):
         i = ep.next_agent()
         self.rewards = {a: 0.0 for a in self.agents}
         if i is None:
-            all_out = ep.all_out()
+            truncated = ep.truncated()
             for j, a in enumerate(self.possible_agents):
-                self.rewards[a], duration = ep.last(j)
-                self.infos[a] = {"duration": duration, "time": ep.time()}
-                self.terminations[a] = all_out
-                self.truncations[a] = not all_out
+                self._reward(j, *ep.last(j))
+                self.terminations[a] = not truncated
+                self.truncations[a] = truncated
             self.agent_selection = self.agents[0]
         else:
-            a = self.possible_agents[i]
             previous = ep.previous(i)
             if previous is not None:
-                self.rewards[a], duration = previous
-                self.infos[a] = {"duration": duration, "time": ep.time()}
-            self.agent_selection = a
+                self._reward(i, *previous)
+            self.agent_selection = self.possible_agents[i]
         self._accumulate_rewards()
+
+    def _reward(self, i: int, reward: float, duration: float) -> None:
+        """UAV i's macro-action ended: its reward, duration and end time."""
+        a = self.possible_agents[i]
+        self._clock[i] += duration
+        self.rewards[a] = float(reward)
+        self.infos[a] = {"duration": float(duration), "time": float(self._clock[i])}
 
 
 def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
@@ -212,8 +226,15 @@ def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
     between starts and fires, so they stay in the square that holds both); per observed fire its
     distance (at most the square's diagonal), level (always 1; bounds 0..1, as a Box with equal
     bounds draws PettingZoo's warning), interest party size (0..N), status (0 or 1) and remaining
-    health (0..T_health; with quirk Q3 it drains on, at most N UAVs until T_max); the sojourn time
-    (0..T_max)."""
+    health; the sojourn time (0..T_max). Float32, as the observations the PettingZoo views hand
+    out.
+
+    The health is 0..T_health without quirk Q3. With Q3 it is unclamped, and a fire that is out
+    keeps draining at the rate of the party it had (at most N UAVs) until T_max; a fire drains
+    at most N per second from t = 0, so T_health - N T_max bounds it, and the bound is tight: N
+    UAVs that start at a fire and attack it at once reach it but for a decision latency (-791.7
+    at the paper's three UAVs and T_max = 264.9 s; random holding reached -475 over 2,000
+    episodes, the nearest-fire heuristic -253)."""
     side = max(1.0, float(np.abs(fire_positions(cfg)).max()))
     lowest_health = cfg.t_health - cfg.n_agents * cfg.t_max if cfg.quirk_q3_unclamped_health else 0
     low, high = np.zeros(cfg.obs_dim), np.zeros(cfg.obs_dim)
@@ -225,7 +246,34 @@ def observation_box(cfg: WildfireConfig) -> gymnasium.spaces.Box:
                         (STATUS, 1), (HEALTH, cfg.t_health)):
         high_fires[..., column] = top
     high[SOJOURN] = cfg.t_max
-    return gymnasium.spaces.Box(low, high, dtype=np.float64)
+    return gymnasium.spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
+
+
+class WildfireParallelEnv(EventParallelEnv):
+    """The UAVs whose decisions are pending at once act together, on the fast engine (see the
+    module docstring). ``reset(seed)`` starts the seed's stream of episodes, as the AEC env's."""
+
+    metadata = {"name": "wildfire_v0", "render_modes": list(RENDER_MODES), "render_fps": 4}
+
+    def __init__(self, cfg: WildfireConfig | None = None, render_mode: str | None = None):
+        cfg = cfg or WildfireConfig()
+        cfg.validate()
+        require(render_mode is None or render_mode in RENDER_MODES, "render_mode",
+                f"None or one of {', '.join(RENDER_MODES)}", render_mode)
+        self.cfg = cfg
+        super().__init__(lambda seed: WildfireVectorEnv(cfg, 1, seed), "uav", observation_box(cfg),
+                         cfg.n_agents, cfg.n_actions, render_mode)
+
+    def _draw(self, figure) -> None:
+        """The state now: fires with their health and status, UAVs with their targets."""
+        batch = self._vec.batch
+        draw(figure, frame_of_state(batch.env, batch.states[0]), self.cfg)
+
+
+def parallel_env(cfg: WildfireConfig | None = None,
+                 render_mode: str | None = None) -> WildfireParallelEnv:
+    """The ParallelEnv."""
+    return WildfireParallelEnv(cfg, render_mode)
 
 
 def raw_env(cfg: WildfireConfig | None = None, render_mode: str | None = None,

@@ -52,8 +52,14 @@ class WildfireVectorEnv(VectorEnv):
         last = b.states["running_row"][ep, agent] == rows  # the UAV's running (or final) decision
         ended = over | ~last
         self._open = rows[~ended]
-        rec = rec[ended]
-        return rec["ep"], rec["agent"], rec["idx"], rec["rew"], rec["dur"], (over & last)[ended]
+        rec, done = rec[ended], (over & last)[ended]
+        return (rec["ep"], rec["agent"], rec["idx"], rec["rew"], rec["dur"], done,
+                done & b.states["truncated"][rec["ep"]])
+
+    @property
+    def batch(self) -> WildfireBatch:
+        """The engine's batch being stepped (its episodes' states, for pictures)."""
+        return self._batch
 
     def _finished(self) -> np.ndarray:
         b = self._batch
