@@ -12,6 +12,35 @@ SimPy schedules them, or run at once when they would be the next event anyway. A
 process no longer waits for (its wait was interrupted, or its fire re-planned) is stale and
 skipped, as SimPy skips a triggered event without callbacks.
 
+Processes. ``_run`` hands each event to the process it resumes, as SimPy does: ``_uav_event``
+(the reference's ``_uav`` and ``_macro_action``), ``_fire_event`` (``_fire`` and ``_burn``) and
+``_end_event`` (``_clock``, or the released order's end condition). Each ``yield`` of the model, and
+the event kinds it is here ("released": only in the released order; hops are zero-delay):
+
+=====================================================  =============================================
+SimPy model (``reference.py``)                         event kinds here
+=====================================================  =============================================
+``_uav``: ``yield from self._timeout(latency)``        LATENCY
+``_uav``: ``env.process(self._macro_action(i))``       ACT_START (released; URGENT hop)
+``_macro_action``: ``yield from self._timeout(...)``   ACTION
+``_uav``: ``yield env.any_of([action, self.over])``    ACT_END (the action sub-process ended or
+                                                       failed), then ANY_OF (released; NORMAL hops)
+``_uav``: ``except simpy.Interrupt``                   INT_UAV (URGENT; scheduling order, or in the
+                                                       latency without Q4)
+``_interrupt``: ``action_procs[i].interrupt()``        INT_ACT (released; URGENT)
+``_burn``: ``yield from self._timeout(health/party)``  EXTINGUISH
+``_burn``: ``yield self.env.event()`` (no party)       none: ``fire_wait`` is -1
+``_party_change``: ``burning.interrupt()``             INT_FIRE (URGENT)
+``_fire``: ``yield self.burn_procs[j]``                BURN_END (ended) or BURN_FAIL (failed;
+                                                       released; NORMAL hops)
+``_fire``: ``env.process(self._burn(j))`` again        BURN_START (released; URGENT hop)
+``_fire``: ``yield self.env.timeout(0)``, twice        OUT_WAIT1, OUT_WAIT2 (without fire_out_first)
+``_clock``: ``yield env.timeout(t_max)`` (released:    CLOCK
+the ``clock`` timeout)
+``env.all_of(fire_out) | clock`` triggering            END_HOP (released; ``who`` more hops: the
+                                                       last ``fire_out``, the all_of, the "or")
+=====================================================  =============================================
+
 ``_advance`` records the policy's last actions, then runs every live episode until it is blocked
 (its next event is the end of a decision latency whose action the policy has not given yet) or
 over. Python then hands all pending observations of the batch to the policy in ONE call and
@@ -60,15 +89,12 @@ from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OB
                                         OWN_Y, RACE_TOLERANCE, STATUS, EpisodeDraws,
                                         WildfireConfig, draw_episodes, fire_positions, rank_key)
 
-(LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK, ACT_START, INT_ACT, ACT_END, ANY_OF,
- BURN_FAIL, BURN_START, BURN_END, END_HOP, OUT_WAIT1, OUT_WAIT2) = range(16)
-"""Event kinds: decision latency over, macro-action over, fire out, UAV process interrupted (its
-fire went out: in scheduling order, or in the latency without Q4), fire interrupted (its party
-changed), T_max reached. The released order's hops, SimPy's intermediate events there: the action
-sub-process starts (URGENT), is interrupted (URGENT), ends or fails, then the AnyOf the UAV waits
-on triggers; the burn sub-process fails (interrupted), restarts (URGENT), ends (its fire is out);
-the episode's end condition (END_HOP: ``who`` more hops to go); without ``fire_out_first``, the
-two zero-delay timeouts a fire waits after its burn sub-process ended."""
+(LATENCY, ACT_START, ACTION, INT_ACT, ACT_END, ANY_OF, INT_UAV,
+ EXTINGUISH, INT_FIRE, BURN_FAIL, BURN_START, BURN_END, OUT_WAIT1, OUT_WAIT2,
+ CLOCK, END_HOP) = range(16)
+"""Event kinds, numbered by the process they resume (the module docstring's table): a UAV's
+(LATENCY to INT_UAV), a fire's (EXTINGUISH to OUT_WAIT2), the episode's end (CLOCK, END_HOP).
+The number only tells the kind: an event's place in the queue is its (time, priority, sequence)."""
 OK, GROW_LOG, HEAP_FULL, BAD_ACTION = range(4)
 """Status codes of ``_advance``."""
 def heap_capacity(cfg: WildfireConfig) -> int:
@@ -597,6 +623,60 @@ def _macro_action_over(state, log, params, e, row, i, cut):
     return row + 1
 
 
+@jit
+def _latency_over(state, params, holds, e, i):
+    """UAV i's decision latency is over: it acts, in the released order through its action
+    sub-process, whose start is one URGENT hop."""
+    state.in_lat[i] = False
+    if not params.released_order:
+        _act(state, params, holds, e, i)
+    else:
+        state.acting[i] = True
+        if _next_anyway(state, URGENT):
+            state.events += 1
+            _act(state, params, holds, e, i)
+        else:
+            _push(state, 0.0, URGENT, ACT_START, i)
+
+
+@jit
+def _action_ends(state, log, params, e, row, i, cut):
+    """Released order: UAV i's action sub-process ends (``cut``: fails, interrupted, and its
+    timeout is stale); returns the next free row."""
+    state.acting[i] = False
+    state.cut[i] = cut
+    if cut:
+        state.uav_wait[i] = -1
+    return _to_uav(state, log, params, e, row, i, 2)
+
+
+@jit
+def _burnt_out(state, log, params, j):
+    """Fire j's extinguish timeout expires: it goes out, or in the released order its burn
+    sub-process ends, which reaches the fire one NORMAL hop later."""
+    if not params.released_order:
+        _extinguish(state, params, j)
+        if state.n_alive == 0:
+            _end(state, log, params)
+    else:
+        state.burning[j] = False
+        if _next_anyway(state, NORMAL):
+            state.events += 1
+            _burn_ended(state, log, params, j)
+        else:
+            _push(state, 0.0, NORMAL, BURN_END, j)
+
+
+@jit
+def _count_races(state, seq, kind, who):
+    """Races: the exact time of the event just popped (:func:`_exact_time`), and, if it is a
+    timeout whose process still waits for it, its expiry (:func:`_note_expiry`)."""
+    _exact_time(state, kind, who)
+    if (kind == CLOCK or ((kind == LATENCY or kind == ACTION) and seq == state.uav_wait[who])
+            or (kind == EXTINGUISH and seq == state.fire_wait[who])):
+        _note_expiry(state)
+
+
 # --- kernels -------------------------------------------------------------------------------------
 
 @jit
@@ -680,111 +760,8 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
     n_live = 0
     for q in range(live[0]):
         e = live[1 + q]
-        state = states[e]
-        while not state.done:
-            seq, kind, who = key_fields(_next_key(state))
-            if kind == LATENCY and seq == state.uav_wait[who] and state.act[who] < 0:
-                break  # the policy has not decided yet
-            if row >= len(log):
-                status = GROW_LOG
-                break
-            room = params.n_agents + 3  # what one event may push, at most
-            if (state.heap_size + room > state.heap_key.shape[0]
-                    or state.urgent_size + room > state.urgent_queue.shape[0]
-                    or state.normal_size + room > state.normal_queue.shape[0]):
-                status = HEAP_FULL
-                break
-            t, key = _pop(state)
-            seq, kind, who = key_fields(key)
-            state.now = t
-            state.events += 1
-            if params.count_races:
-                _exact_time(state, kind, who)
-            if kind == LATENCY:
-                if seq == state.uav_wait[who]:
-                    if params.count_races:
-                        _note_expiry(state)
-                    state.in_lat[who] = False
-                    if not params.released_order:
-                        _act(state, params, holds, e, who)
-                    else:  # the action sub-process starts
-                        state.acting[who] = True
-                        if _next_anyway(state, URGENT):
-                            state.events += 1
-                            _act(state, params, holds, e, who)
-                        else:
-                            _push(state, 0.0, URGENT, ACT_START, who)
-            elif kind == ACT_START:
-                _act(state, params, holds, e, who)
-            elif kind == ACTION:
-                if seq == state.uav_wait[who]:
-                    if params.count_races:
-                        _note_expiry(state)
-                    if params.released_order:  # the sub-process ends
-                        state.acting[who] = False
-                        state.cut[who] = False
-                        row = _to_uav(state, log, params, e, row, who, 2)
-                    else:
-                        row = _macro_action_over(state, log, params, e, row, who, False)
-            elif kind == INT_UAV:
-                row = _macro_action_over(state, log, params, e, row, who, True)
-            elif kind == INT_ACT:
-                if state.acting[who]:  # the sub-process fails
-                    state.acting[who] = False
-                    state.cut[who] = True
-                    state.uav_wait[who] = -1
-                    row = _to_uav(state, log, params, e, row, who, 2)
-            elif kind == ACT_END:
-                row = _to_uav(state, log, params, e, row, who, 1)
-            elif kind == ANY_OF:
-                row = _macro_action_over(state, log, params, e, row, who, state.cut[who])
-            elif kind == EXTINGUISH:
-                if seq == state.fire_wait[who]:
-                    if params.count_races:
-                        _note_expiry(state)
-                    if not params.released_order:
-                        _extinguish(state, params, who)
-                        if state.n_alive == 0:
-                            _end(state, log, params)
-                    else:  # the burn sub-process ends
-                        state.burning[who] = False
-                        if _next_anyway(state, NORMAL):
-                            state.events += 1
-                            _burn_ended(state, log, params, who)
-                        else:
-                            _push(state, 0.0, NORMAL, BURN_END, who)
-            elif kind == BURN_END:
-                _burn_ended(state, log, params, who)
-            elif kind == OUT_WAIT1:
-                _push(state, 0.0, NORMAL, OUT_WAIT2, who)
-            elif kind == OUT_WAIT2:
-                _fire_out(state, log, params, who)
-            elif kind == INT_FIRE:
-                if params.released_order:
-                    if state.burning[who]:  # the burn sub-process fails
-                        state.burning[who] = False
-                        state.fire_wait[who] = -1
-                        _burn_restarts(state, params, who, 2)
-                elif state.alive[who]:
-                    _replan(state, params, who)
-            elif kind == BURN_FAIL:  # the fire restarts its burn sub-process
-                _burn_restarts(state, params, who, 1)
-            elif kind == BURN_START:
-                state.burning[who] = True
-                _replan(state, params, who)
-            elif kind == END_HOP:
-                if who > 0:
-                    _push(state, 0.0, NORMAL, END_HOP, who - 1)
-                else:
-                    _end(state, log, params)
-            else:  # CLOCK
-                if params.count_races:
-                    _note_expiry(state)
-                if params.released_order:  # then the condition "all out or T_max"
-                    _push(state, 0.0, NORMAL, END_HOP, 0)
-                else:
-                    _end(state, log, params)
-        if not state.done:
+        status, row = _run(states[e], log, params, holds, e, row)
+        if not states[e].done:
             live[1 + n_live] = e
             n_live += 1
         if status != OK:  # keep the episodes not visited
@@ -795,6 +772,105 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
     live[0] = n_live
     used[0] = row
     return status, first + len(actions)
+
+
+@jit
+def _run(state, log, params, holds, e, row):
+    """Process episode e's events until it is blocked or over (OK), or its next event might not
+    fit (GROW_LOG: the log is full; HEAP_FULL: a queue might overflow). Each event goes to the
+    process it resumes (kinds are numbered by process). Returns the status and the next free row."""
+    while not state.done:
+        seq, kind, who = key_fields(_next_key(state))
+        if kind == LATENCY and seq == state.uav_wait[who] and state.act[who] < 0:
+            return OK, row  # the policy has not decided yet
+        if row >= len(log):
+            return GROW_LOG, row
+        room = params.n_agents + 3  # what one event may push, at most
+        if (state.heap_size + room > state.heap_key.shape[0]
+                or state.urgent_size + room > state.urgent_queue.shape[0]
+                or state.normal_size + room > state.normal_queue.shape[0]):
+            return HEAP_FULL, row
+        t, key = _pop(state)
+        seq, kind, who = key_fields(key)
+        state.now = t
+        state.events += 1
+        if params.count_races:
+            _count_races(state, seq, kind, who)
+        if kind < EXTINGUISH:
+            row = _uav_event(state, log, params, holds, e, row, seq, kind, who)
+        elif kind < CLOCK:
+            _fire_event(state, log, params, seq, kind, who)
+        else:
+            _end_event(state, log, params, kind, who)
+    return OK, row
+
+
+@jit
+def _uav_event(state, log, params, holds, e, row, seq, kind, who):
+    """An event of UAV ``who``'s process (the reference's ``_uav`` and ``_macro_action``); a
+    timeout it no longer waits for is stale. Returns the next free row."""
+    if kind == LATENCY:
+        if seq == state.uav_wait[who]:
+            _latency_over(state, params, holds, e, who)
+    elif kind == ACT_START:
+        _act(state, params, holds, e, who)
+    elif kind == ACTION:
+        if seq == state.uav_wait[who]:
+            if params.released_order:
+                row = _action_ends(state, log, params, e, row, who, False)
+            else:
+                row = _macro_action_over(state, log, params, e, row, who, False)
+    elif kind == INT_ACT:
+        if state.acting[who]:
+            row = _action_ends(state, log, params, e, row, who, True)
+    elif kind == ACT_END:
+        row = _to_uav(state, log, params, e, row, who, 1)
+    elif kind == ANY_OF:
+        row = _macro_action_over(state, log, params, e, row, who, state.cut[who])
+    else:  # INT_UAV
+        row = _macro_action_over(state, log, params, e, row, who, True)
+    return row
+
+
+@jit
+def _fire_event(state, log, params, seq, kind, who):
+    """An event of fire ``who``'s process (the reference's ``_fire`` and ``_burn``); an extinguish
+    timeout it no longer waits for is stale."""
+    if kind == EXTINGUISH:
+        if seq == state.fire_wait[who]:
+            _burnt_out(state, log, params, who)
+    elif kind == INT_FIRE:
+        if params.released_order:
+            if state.burning[who]:  # the burn sub-process fails
+                state.burning[who] = False
+                state.fire_wait[who] = -1
+                _burn_restarts(state, params, who, 2)
+        elif state.alive[who]:
+            _replan(state, params, who)
+    elif kind == BURN_FAIL:  # the fire restarts its burn sub-process
+        _burn_restarts(state, params, who, 1)
+    elif kind == BURN_START:
+        state.burning[who] = True
+        _replan(state, params, who)
+    elif kind == BURN_END:
+        _burn_ended(state, log, params, who)
+    elif kind == OUT_WAIT1:
+        _push(state, 0.0, NORMAL, OUT_WAIT2, who)
+    else:  # OUT_WAIT2
+        _fire_out(state, log, params, who)
+
+
+@jit
+def _end_event(state, log, params, kind, who):
+    """T_max's clock (the reference's ``_clock``, or its timeout in the released order, where the
+    condition "all out or T_max" triggers one hop later), or a hop of the released order's end
+    condition (END_HOP: ``who`` more to go)."""
+    if kind == END_HOP and who > 0:
+        _push(state, 0.0, NORMAL, END_HOP, who - 1)
+    elif kind == CLOCK and params.released_order:
+        _push(state, 0.0, NORMAL, END_HOP, 0)
+    else:
+        _end(state, log, params)
 
 
 @jit
