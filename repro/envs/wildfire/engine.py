@@ -44,12 +44,10 @@ the ``clock`` timeout)
 ``_advance`` records the policy's last actions, then runs every live episode until it is blocked
 (its next event is the end of a decision latency whose action the policy has not given yet) or
 over. Python then hands all pending observations of the batch to the policy in ONE call and
-repeats. Decisions are appended to a flat log and placed into contiguous paths at the end.
-A policy that offers a compiled form (:class:`repro.core.policy_kernel.CompiledPolicy`, as the
-learner's sampler does) is applied to rounds of a few decisions inside the kernel
-(``_act_and_advance``), with the same actions as its call: learned policies make episodes of
-hundreds of thousands of decisions, whose rounds near the end hold one row or a few, and one such
-600-episode rollout, profiled, spent 95% of its time in the round trips to Python.
+repeats, also for the rounds of a decision or a few near a rollout's end: under the cap of 1,000
+decisions per UAV and episode they are few, and acting on them inside the kernel saved 0-20% of
+a rollout of a trained policy (CHANGELOG, 2026-11-26). Decisions are appended to a flat log and
+placed into contiguous paths at the end.
 
 Speed. A rollout of the training batch (600 episodes, about 14,000 decisions and 32,000 events)
 takes about 50 rounds, so the per-event cost dominates. An episode's state is one numpy record (a
@@ -83,7 +81,6 @@ from repro.core.event_queue import (NORMAL, URGENT, event_key, heap_pop, heap_pu
                                     key_fields)
 from repro.core.fixed_step import fs_delay
 from repro.core.paths import path_layout, path_order
-from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
                                         OWN_Y, RACE_TOLERANCE, STATUS, EpisodeDraws,
@@ -874,24 +871,6 @@ def _end_event(state, log, params, kind, who):
 
 
 @jit
-def _act_and_advance(states, live, log, used, params_array, holds, first, weights, biases, mean,
-                     scale, rng):
-    """Act on the pending round of at most MAX_ROWS decisions as the policy's call would (its
-    last five arguments: a CompiledPolicy) and :func:`_advance`; repeat while the next round is as
-    small. Long episodes end in many rounds of a row or a few, each a return to Python otherwise.
-    Returns as :func:`_advance` does. The actions made here are in range: the network has one
-    output per action."""
-    own = np.empty(MAX_ROWS, np.int64)
-    while True:
-        n = used[0] - first
-        for k in range(n):
-            own[k] = act_row(log[first + k].obs, weights, biases, mean, scale, rng.random())
-        status, first = _advance(states, live, log, used, params_array, holds, own[:n], first)
-        if status != OK or not 0 < used[0] - first <= MAX_ROWS:
-            return status, first
-
-
-@jit
 def _gather(rows, order, obs, actions, rewards, durations, times):
     """The log's rows in path order (``order``, :func:`repro.core.paths.path_order`) into the
     rollout's columns (compiled: numpy's gathers of the records' fields take half as long again)."""
@@ -945,14 +924,6 @@ class WildfireBatch:
         """Give every pending decision its action, and run every live episode until blocked."""
         answer = check_actions(actions, self.n_pending, self.env.n_actions, check_range=False)
         self._settle(self._advance(answer), answer)  # the range is checked in _advance
-
-    def act_compiled(self, compiled: tuple) -> None:
-        """Act as a compiled policy's call would, inside the kernel, on this small round and the
-        next ones as small (see ``_act_and_advance``)."""
-        env = self.env
-        status, self.first = _act_and_advance(self.states, self.live, self.log, self.used,
-                                              env.params, self.holds, self.first, *compiled)
-        self._settle(status, _NO_ACTIONS)
 
     def _advance(self, given: np.ndarray) -> int:
         status, self.first = _advance(self.states, self.live, self.log, self.used, self.env.params,
@@ -1044,14 +1015,8 @@ class WildfireEnv:
 
     def simulate(self, policy: Policy, draws: EpisodeDraws) -> Rollout:
         """Run the episodes of ``draws`` (tests script start positions and hold durations): one
-        policy call per round; the kernel itself acts on small rounds for a compiled policy."""
+        policy call per round."""
         batch = WildfireBatch(self, draws)
-        compiled = getattr(policy, "compiled", None)
-        if compiled is not None and compiled.n_actions != self.n_actions:
-            compiled = None  # the policy's call will meet the range check, and report it
-        while (n := batch.n_pending) > 0:
-            if compiled is not None and n <= MAX_ROWS:
-                batch.act_compiled(compiled)
-            else:
-                batch.act(policy(batch.pending()))
+        while batch.n_pending > 0:
+            batch.act(policy(batch.pending()))
         return batch.to_rollout()
