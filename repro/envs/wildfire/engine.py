@@ -45,8 +45,8 @@ the ``clock`` timeout)
 (its next event is the end of a decision latency whose action the policy has not given yet) or
 over. Python then hands all pending observations of the batch to the policy in ONE call and
 repeats, also for the rounds of a decision or a few near a rollout's end: under the cap of 1,000
-decisions per UAV and episode they are few, and acting on them inside the kernel saved 0-20% of
-a rollout of a trained policy (CHANGELOG, 2026-11-26). Decisions are appended to a flat log and
+decisions per UAV and episode they are few (acting on them inside the kernel would save 0-20% of
+a rollout of a trained policy, CHANGELOG 2026-11-26). Decisions are appended to a flat log and
 placed into contiguous paths at the end.
 
 Speed. A rollout of the training batch (600 episodes, about 14,000 decisions and 32,000 events)
@@ -110,6 +110,9 @@ def queue_capacity(cfg: WildfireConfig) -> int:
 # ``params`` the parameters' record, ``record`` a log row; ``e`` indexes episodes, ``i`` UAVs and
 # ``j`` fires.
 jit = njit(cache=True)
+dispatch = njit(cache=True, inline="always")
+"""The event loop's dispatcher and handlers: inlined into the loop, as one body (each call of a
+compiled function that takes an array costs reference-count updates, once per event here)."""
 
 rank_key_nb = jit(rank_key)
 
@@ -620,7 +623,7 @@ def _macro_action_over(state, log, params, e, row, i, cut):
     return row + 1
 
 
-@jit
+@dispatch
 def _latency_over(state, params, holds, e, i):
     """UAV i's decision latency is over: it acts, in the released order through its action
     sub-process, whose start is one URGENT hop."""
@@ -636,7 +639,7 @@ def _latency_over(state, params, holds, e, i):
             _push(state, 0.0, URGENT, ACT_START, i)
 
 
-@jit
+@dispatch
 def _action_ends(state, log, params, e, row, i, cut):
     """Released order: UAV i's action sub-process ends (``cut``: fails, interrupted, and its
     timeout is stale); returns the next free row."""
@@ -647,7 +650,7 @@ def _action_ends(state, log, params, e, row, i, cut):
     return _to_uav(state, log, params, e, row, i, 2)
 
 
-@jit
+@dispatch
 def _burnt_out(state, log, params, j):
     """Fire j's extinguish timeout expires: it goes out, or in the released order its burn
     sub-process ends, which reaches the fire one NORMAL hop later."""
@@ -664,7 +667,7 @@ def _burnt_out(state, log, params, j):
             _push(state, 0.0, NORMAL, BURN_END, j)
 
 
-@jit
+@dispatch
 def _count_races(state, seq, kind, who):
     """Races: the exact time of the event just popped (:func:`_exact_time`), and, if it is a
     timeout whose process still waits for it, its expiry (:func:`_note_expiry`)."""
@@ -771,7 +774,7 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
     return status, first + len(actions)
 
 
-@jit
+@dispatch
 def _run(state, log, params, holds, e, row):
     """Process episode e's events until it is blocked or over (OK), or its next event might not
     fit (GROW_LOG: the log is full; HEAP_FULL: a queue might overflow). Each event goes to the
@@ -802,7 +805,7 @@ def _run(state, log, params, holds, e, row):
     return OK, row
 
 
-@jit
+@dispatch
 def _uav_event(state, log, params, holds, e, row, seq, kind, who):
     """An event of UAV ``who``'s process (the reference's ``_uav`` and ``_macro_action``); a
     timeout it no longer waits for is stale. Returns the next free row."""
@@ -829,7 +832,7 @@ def _uav_event(state, log, params, holds, e, row, seq, kind, who):
     return row
 
 
-@jit
+@dispatch
 def _fire_event(state, log, params, seq, kind, who):
     """An event of fire ``who``'s process (the reference's ``_fire`` and ``_burn``); an extinguish
     timeout it no longer waits for is stale."""
@@ -857,7 +860,7 @@ def _fire_event(state, log, params, seq, kind, who):
         _fire_out(state, log, params, who)
 
 
-@jit
+@dispatch
 def _end_event(state, log, params, kind, who):
     """T_max's clock (the reference's ``_clock``, or its timeout in the released order, where the
     condition "all out or T_max" triggers one hop later), or a hop of the released order's end
