@@ -511,7 +511,7 @@ def _extinguish(state, params, j):
 
 
 @jit
-def _fire_out(state, log, params, j):
+def _fire_out(state, params, j):
     """Released order: fire j's burn sub-process ended, the fire goes out; after the last one the
     conditions "fire out", "all out", "all out or T_max" trigger in turn."""
     _extinguish(state, params, j)
@@ -520,12 +520,12 @@ def _fire_out(state, log, params, j):
 
 
 @jit
-def _burn_ended(state, log, params, j):
+def _burn_ended(state, params, j):
     """Released order: the end of fire j's burn sub-process reaches the fire, which goes out now
     (``fire_out_first``), or waits two zero-delay timeouts first (OUT_WAIT1, OUT_WAIT2), so that
     a UAV whose macro-action ends at this instant observes before (two hops after its timeout)."""
     if params.fire_out_first:
-        _fire_out(state, log, params, j)
+        _fire_out(state, params, j)
     else:
         _push(state, 0.0, NORMAL, OUT_WAIT1, j)
 
@@ -568,10 +568,16 @@ def _note_expiry(state):
 
 
 @jit
-def _end(state, log, params):
-    """The episode ends now: every UAV's running decision closes."""
+def _end(state):
+    """The episode ends now (the event loop then closes every UAV's running decision,
+    :func:`_close_running`)."""
     state.done = True
     state.t_end = state.now
+
+
+@jit
+def _close_running(state, log, params):
+    """The episode has ended: every UAV's running decision closes."""
     for i in range(params.n_agents):
         _close(state, log[state.running_row[i]], i)
 
@@ -617,7 +623,7 @@ def _macro_action_over(state, log, params, e, row, i, cut):
     _close(state, log[state.running_row[i]], i)
     if state.n_dec[i] == params.max_decisions:  # 0 (no limit) never: n_dec >= 1 here
         state.truncated = True
-        _end(state, log, params)
+        _end(state)
         return row
     _observe(state, params, log[row], row, e, i)
     return row + 1
@@ -651,18 +657,18 @@ def _action_ends(state, log, params, e, row, i, cut):
 
 
 @dispatch
-def _burnt_out(state, log, params, j):
+def _burnt_out(state, params, j):
     """Fire j's extinguish timeout expires: it goes out, or in the released order its burn
     sub-process ends, which reaches the fire one NORMAL hop later."""
     if not params.released_order:
         _extinguish(state, params, j)
         if state.n_alive == 0:
-            _end(state, log, params)
+            _end(state)
     else:
         state.burning[j] = False
         if _next_anyway(state, NORMAL):
             state.events += 1
-            _burn_ended(state, log, params, j)
+            _burn_ended(state, params, j)
         else:
             _push(state, 0.0, NORMAL, BURN_END, j)
 
@@ -799,9 +805,10 @@ def _run(state, log, params, holds, e, row):
         if kind < EXTINGUISH:
             row = _uav_event(state, log, params, holds, e, row, seq, kind, who)
         elif kind < CLOCK:
-            _fire_event(state, log, params, seq, kind, who)
+            _fire_event(state, params, seq, kind, who)
         else:
-            _end_event(state, log, params, kind, who)
+            _end_event(state, params, kind, who)
+    _close_running(state, log, params)
     return OK, row
 
 
@@ -833,12 +840,12 @@ def _uav_event(state, log, params, holds, e, row, seq, kind, who):
 
 
 @dispatch
-def _fire_event(state, log, params, seq, kind, who):
+def _fire_event(state, params, seq, kind, who):
     """An event of fire ``who``'s process (the reference's ``_fire`` and ``_burn``); an extinguish
     timeout it no longer waits for is stale."""
     if kind == EXTINGUISH:
         if seq == state.fire_wait[who]:
-            _burnt_out(state, log, params, who)
+            _burnt_out(state, params, who)
     elif kind == INT_FIRE:
         if params.released_order:
             if state.burning[who]:  # the burn sub-process fails
@@ -853,15 +860,15 @@ def _fire_event(state, log, params, seq, kind, who):
         state.burning[who] = True
         _replan(state, params, who)
     elif kind == BURN_END:
-        _burn_ended(state, log, params, who)
+        _burn_ended(state, params, who)
     elif kind == OUT_WAIT1:
         _push(state, 0.0, NORMAL, OUT_WAIT2, who)
     else:  # OUT_WAIT2
-        _fire_out(state, log, params, who)
+        _fire_out(state, params, who)
 
 
 @dispatch
-def _end_event(state, log, params, kind, who):
+def _end_event(state, params, kind, who):
     """T_max's clock (the reference's ``_clock``, or its timeout in the released order, where the
     condition "all out or T_max" triggers one hop later), or a hop of the released order's end
     condition (END_HOP: ``who`` more to go)."""
@@ -870,7 +877,7 @@ def _end_event(state, log, params, kind, who):
     elif kind == CLOCK and params.released_order:
         _push(state, 0.0, NORMAL, END_HOP, 0)
     else:
-        _end(state, log, params)
+        _end(state)
 
 
 @jit
