@@ -12,9 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from repro.core.errors import UsageError
-from repro.core.rollout import BadActions
+from repro.core.rollout import BadActions, run_to_end
 from repro.envs.bus import BusConfig, make_env, make_reference_env
-from repro.envs.bus.engine import run_to_end
 from repro.envs.bus.metrics import (arrival_table, record_loads, time_to_regularity,
                                     time_to_uniform)
 from repro.envs.bus.params import SWITCHES

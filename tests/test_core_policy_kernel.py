@@ -54,7 +54,7 @@ def test_logits_row_is_the_network():
     for hidden in [(32, 32), (16,), (8, 8, 8)]:
         policy, sampler = _policy(7, 5, hidden, seed=len(hidden))
         obs = np.random.default_rng(1).normal(2.0, 5.0, size=(200, 7))
-        c = sampler.compiled
+        c = sampler
         rows = np.stack([logits_row(o, c.weights, c.biases, c.mean, c.scale) for o in obs])
         # the reference: the torch module in float64 on the normalised observations
         with torch.no_grad():

@@ -45,3 +45,17 @@ def test_the_check_sees_an_upward_import(tmp_path):
     bad.write_text("def f():\n    from repro.experiments.race import RaceConfig\n")
     assert imports(bad) == ["repro.experiments.race"]
     assert layer("repro.experiments.race") > layer("repro.envs.renewal.engine")
+
+
+def test_each_simpy_reference_stands_apart_from_its_fast_engine():
+    """A SimPy reference is the oracle its engine is checked against: of its own package it imports
+    only the parameters (``params.py``), never the engine's code."""
+    references = sorted(ROOT.glob("envs/*/reference.py"))
+    assert references  # the glob finds the models
+    borrowed = []
+    for path in references:
+        package = f"repro.envs.{path.parent.name}"
+        for target in imports(path):
+            if target.startswith(package) and target != f"{package}.params":
+                borrowed.append(f"{package}.reference imports {target}")
+    assert borrowed == []

@@ -292,16 +292,6 @@ def test_simpy_interrupt_precedes_timeouts_at_same_instant():
     assert order == ["interrupter", "target interrupted", "sleeper"]
 
 
-class CallOnly:
-    """A sampler without its compiled form: the engine calls it for every round."""
-
-    def __init__(self, sampler):
-        self.sampler = sampler
-
-    def __call__(self, batch: DecisionBatch) -> np.ndarray:
-        return self.sampler(batch)
-
-
 def _sampler(cfg: WildfireConfig, seed: int, n_actions: int | None = None):
     import torch
 
@@ -314,38 +304,8 @@ def _sampler(cfg: WildfireConfig, seed: int, n_actions: int | None = None):
     return Sampler(policy, ObsNormalizer(cfg.obs_dim), np.random.default_rng(seed))
 
 
-@pytest.mark.parametrize("n_episodes, dt", [(1, None), (4, None), (40, None), (40, 1.0)])
-def test_compiled_policy_acts_as_its_call(n_episodes, dt):
-    """Rounds of at most MAX_ROWS decisions are acted on inside the kernel: the rollout, and the
-    sampler's generator after it, are exactly those of calling the sampler for every round."""
-    from repro.core.policy_kernel import MAX_ROWS
-
-    cfg = WildfireConfig(dt=dt)
-    env = make_env(cfg)
-    calls = []
-
-    class Counted(CallOnly):
-        def __call__(self, batch):
-            calls.append(len(batch))
-            return super().__call__(batch)
-
-    inside, outside = _sampler(cfg, 5), _sampler(cfg, 5)
-    counted = Counted(inside)
-    counted.compiled = inside.compiled  # the engine calls it only for rounds over MAX_ROWS
-    fused = env.rollout(counted, n_episodes, 9)
-    called = env.rollout(CallOnly(outside), n_episodes, 9)
-    assert all(n > MAX_ROWS for n in calls)
-    assert (len(calls) > 0) == (n_episodes * cfg.n_agents > MAX_ROWS)
-    for name in ("obs", "actions", "rewards", "durations", "path_start", "episode_return"):
-        np.testing.assert_array_equal(getattr(fused, name), getattr(called, name))
-    np.testing.assert_array_equal(fused.info["decision_time"], called.info["decision_time"])
-    assert inside.rng.random() == outside.rng.random()
-    assert len(np.unique(fused.actions)) == cfg.n_actions
-
-
-def test_compiled_policy_with_other_actions_is_called_and_rejected():
-    """A network with more outputs than actions is not run in the kernel; its call meets the
-    range check."""
+def test_a_sampler_with_other_actions_is_rejected():
+    """A network with more outputs than actions meets the range check."""
     cfg = WildfireConfig()
     with pytest.raises(ValueError, match="integer actions in"):
         make_env(cfg).rollout(_sampler(cfg, 0, n_actions=cfg.n_actions + 3), 2, 0)

@@ -1,60 +1,29 @@
-"""The shared categorical tanh-MLP policy, evaluated one decision at a time in compiled code.
+"""The shared categorical tanh-MLP policy evaluated one decision at a time in compiled code: the
+:class:`repro.learn.policy.Sampler`'s path for small rounds.
 
-Engines hand the policy one round of decisions at a time. The :class:`repro.learn.policy.Sampler`
-evaluates a round with one BLAS product per layer, about 50 us of calls whatever the round's size.
-Learned wildfire policies make episodes of hundreds of thousands of decisions (a UAV that "flies" to
-the fire it is at makes a move of almost no duration), and towards the end of such a rollout a round
-holds one row or a few. On one 600-episode rollout of a policy trained for 330 epochs (1.8 million
-decisions in 644,000 rounds), profiled, the round trips to Python (the sampler's calls and the loop
-around them) took 95% of the CPU time, the simulation 3%.
-
-So a round of at most :data:`MAX_ROWS` rows is evaluated here instead, row by row, and an engine may
-run such rounds inside its own compiled loop, with no return to Python at all
-(:class:`CompiledPolicy`). The arithmetic is the network's, in float32: each layer's sums in input
-order, then the bias, then tanh (:func:`tanh32`, correctly rounded). BLAS blocks its sums
-differently, so the two paths can differ in the last bits of a logit. Which path a round takes
-depends only on its size, so a seeded run is still reproduced exactly.
+Engines hand the policy one round of decisions at a time. The sampler evaluates a round with one
+BLAS product per layer, about 50 us of calls whatever the round's size, so a round of at most
+:data:`MAX_ROWS` rows is evaluated here instead, row by row. The arithmetic is the network's, in
+float32: each layer's sums in input order, then the bias, then tanh (:func:`tanh32`, correctly
+rounded). BLAS blocks its sums differently, so the two paths can differ in the last bits of a
+logit. Which path a round takes depends only on its size, so a seeded run is still reproduced
+exactly. tests/test_policy_network.py checks these layers, the torch module and the derivative
+products of :mod:`repro.learn.network` against one spec of the network.
 
 numba caches a compiled kernel under its own source file's timestamp only, so kernels elsewhere
-that call these (the wildfire engine's) keep a stale copy after an edit here: ``make clean``
-removes the caches.
+that call these (the sampler's) keep a stale copy after an edit here: ``make clean`` removes the
+caches.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
-
 import numpy as np
 from numba import njit
 
 MAX_ROWS = 16
-"""Rounds of at most this many decisions are evaluated row by row. With this suite's default network
-(2 x 32 units) a row costs 2-4 us here; a round that leaves an engine's compiled loop for the
-policy's Python call costs about 75 us, most of it calls."""
-
-
-class CompiledPolicy(NamedTuple):
-    """What an engine's compiled loop needs to act as the :class:`~repro.learn.policy.Sampler` does.
-
-    ``act_row(obs, weights, biases, mean, scale, rng.random())`` there gives exactly the action the
-    sampler's own call gives for a round of at most ``MAX_ROWS`` rows (both draw one uniform per row
-    from ``rng``, in row order)."""
-
-    weights: tuple[np.ndarray, ...]
-    """Per layer, (inputs, outputs) float32, C-contiguous."""
-    biases: tuple[np.ndarray, ...]
-    """Per layer, (outputs,) float32."""
-    mean: np.ndarray
-    """(obs_dim,) float64: the normaliser's mean."""
-    scale: np.ndarray
-    """(obs_dim,) float64: 1 / the normaliser's standard deviation."""
-    rng: np.random.Generator
-    """The sampler's generator (numba draws from the same stream, sharing its state)."""
-
-    @property
-    def n_actions(self) -> int:
-        return self.weights[-1].shape[1]
+"""Rounds of at most this many decisions are evaluated row by row. With a network of 2 x 32 units
+a row costs 2-4 us here; the sampler's BLAS path costs about 50 us of calls per round."""
 
 
 @njit(cache=True)

@@ -227,3 +227,19 @@ class BatchEnv(Protocol):
                 seed: int | np.random.SeedSequence) -> Rollout:
         """Simulate ``n_episodes`` whole episodes, asking ``policy`` for every decision."""
         ...
+
+
+class RoundBatch(Protocol):
+    """A batch of episodes advanced round by round: ``advance`` answers the pending decisions
+    (none, the first time) and returns the next ones, empty once every episode has ended."""
+
+    def advance(self, actions: np.ndarray) -> DecisionBatch: ...
+
+    def to_rollout(self) -> Rollout: ...
+
+
+def run_to_end(batch: RoundBatch, policy: Policy) -> None:
+    """Run a round batch to the end: one policy call per round."""
+    decisions = batch.advance(np.zeros(0, np.int64))
+    while len(decisions):
+        decisions = batch.advance(np.asarray(policy(decisions)))

@@ -10,7 +10,7 @@ A benchmark runs an environment's fast engine and its SimPy reference under two 
 - a cheap policy of the environment, which shows what the engine costs nearly alone.
 
 The fast engine's step API (``make_vector_env``, engine ``fast-step-api``) runs the first policy
-too (the network: no compiled form, one call per step), on as many envs as the fast engine's batch
+too (the network, one call per step), on as many envs as the fast engine's batch
 has episodes, stepped until it has made as many decisions per batch as those rollouts did (ended
 episodes restart, so the batch stays full).
 
@@ -32,8 +32,7 @@ load on a shared machine slow single batches by up to 3x, even in CPU time. Coun
 totals. ``policy_cpu_seconds`` is the time inside the policy's calls, about the same
 per decision for both engines: ``speedup_vs_reference`` compares whole rollouts (decisions per CPU
 second), ``engine_speedup_vs_reference`` the time outside the policy's calls, what the engine
-itself costs (including, for the wildfire engine, rounds of a few decisions it acts on itself with
-the sampler's compiled form, as in training).
+itself costs.
 """
 
 from __future__ import annotations
@@ -95,16 +94,11 @@ def scales(env: str) -> dict[str, dict[str, int]]:
 
 
 class _Timed:
-    """A policy that adds up the CPU time of its calls. It passes on the policy's compiled form,
-    so an engine that acts on small rounds itself (the wildfire engine) does so here as in
-    training; that time is then the engine's."""
+    """A policy that adds up the CPU time of its calls."""
 
     def __init__(self, policy: Policy):
         self.policy = policy
         self.cpu = 0.0
-        compiled = getattr(policy, "compiled", None)
-        if compiled is not None:
-            self.compiled = compiled
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
         t0 = time.process_time()

@@ -74,6 +74,7 @@ def median_cpu_seconds(fns: list[Callable[[], Any]], repeats: int) -> list[float
     return np.median(times, axis=0).tolist()
 
 
+# long: the table of an epoch's pieces, whose closures share the one batch built first
 def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
     """What each piece of the run's next epoch costs (the run itself is left as it was).
 

@@ -65,7 +65,7 @@ CLAMPS: dict[str, tuple[Callable[[np.ndarray, int], None], ...]] = {
 
 class Clamped:
     """``policy`` acting on observations with ``clamps`` applied; counts the decisions whose
-    observation a clamp changed. Has no compiled form, so engines call it for every round."""
+    observation a clamp changed."""
 
     def __init__(self, policy: Policy, clamps: tuple, n_observed: int):
         self.policy, self.clamps, self.n_observed = policy, clamps, n_observed

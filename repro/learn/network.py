@@ -4,7 +4,8 @@ two Jacobian products a TRPO step is made of, for the tanh MLP of :func:`repro.l
 Why not autograd: on the paper's wildfire batch (25,000-35,000 decisions, a 2x32 network) the
 Fisher-vector products through autograd's double backward, and log_softmax along rows of a few
 entries, made the TRPO step about twice the simulation. Written out, a Fisher-vector product is
-half the work; tests check every product against autograd on the same module.
+half the work; tests check every product against autograd on the same module, and the forward
+pass layer by layer against the network's spec (tests/test_policy_network.py).
 
 Layout: inputs and hidden activations are sample-major, (N, units), as torch's ``Linear`` computes
 them; the logits are action-major, (n_actions, N), because a softmax over a few long rows is one

@@ -16,7 +16,7 @@ from threadpoolctl import threadpool_limits
 from numba import njit
 from torch import nn
 
-from repro.core.policy_kernel import MAX_ROWS, CompiledPolicy, act_row, sample_row
+from repro.core.policy_kernel import MAX_ROWS, act_row, sample_row
 from repro.core.rollout import DecisionBatch
 
 DTYPE = torch.float32
@@ -27,7 +27,9 @@ def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, out_gain: float,
     """tanh MLP with zero biases and ``init`` weights: "orthogonal" (gain sqrt 2, the output layer
     ``out_gain``: a small gain makes the initial policy nearly uniform whatever the observation
     scale) or "xavier" (Glorot-uniform, U(-a, a) with a = sqrt(6 / (fan_in + fan_out)), every
-    layer; rllab's default for its MLPs)."""
+    layer; rllab's default for its MLPs). The network's other forms, the derivative products of
+    :mod:`repro.learn.network` and the sampler's evaluations below, are checked against one spec of
+    it layer by layer (tests/test_policy_network.py)."""
     layers: list[nn.Module] = []
     sizes = [in_dim, *hidden]
     for a, b in zip(sizes[:-1], sizes[1:]):
@@ -157,8 +159,7 @@ class Sampler:
     about 1 us per decision, calls included (``policy_cpu_seconds`` in results/bench_*.csv).
 
     A round of at most :data:`~repro.core.policy_kernel.MAX_ROWS` rows skips those calls: it is
-    evaluated row by row in one compiled function, and an engine may do that itself without calling
-    back (:attr:`compiled`; see :mod:`repro.core.policy_kernel`).
+    evaluated row by row in one compiled function (:mod:`repro.core.policy_kernel`).
     """
 
     def __init__(self, policy: CategoricalPolicy, normalizer: ObsNormalizer,
@@ -166,11 +167,12 @@ class Sampler:
         linears = [m for m in policy.net if isinstance(m, nn.Linear)]
         self.layers = [(m.weight.detach().numpy().T.copy(), m.bias.detach().numpy().copy())
                        for m in linears]
-        self.compiled = CompiledPolicy(tuple(w for w, _ in self.layers),
-                                       tuple(b for _, b in self.layers), normalizer.mean.copy(),
-                                       1.0 / np.sqrt(normalizer.var + normalizer.eps), rng)
-        """The same policy for an engine's compiled loop (same arrays, same generator)."""
-        self.mean, self.scale, self.rng = self.compiled.mean, self.compiled.scale, rng
+        """Per layer, the (inputs, outputs) weights and the (outputs,) biases, float32."""
+        self.weights = tuple(w for w, _ in self.layers)
+        self.biases = tuple(b for _, b in self.layers)
+        self.mean = normalizer.mean.copy()
+        self.scale = 1.0 / np.sqrt(normalizer.var + normalizer.eps)
+        self.rng = rng
         self._buffers: list[np.ndarray] = []
 
     def _buffer(self, i: int, rows: int, cols: int, dtype: type) -> np.ndarray:
@@ -209,8 +211,7 @@ class Sampler:
         actions = np.empty(len(batch.obs), np.int64)
         u = self.rng.random(len(actions))
         if len(actions) <= MAX_ROWS:
-            c = self.compiled
-            _act_rows(batch.obs, c.weights, c.biases, c.mean, c.scale, u, actions)
+            _act_rows(batch.obs, self.weights, self.biases, self.mean, self.scale, u, actions)
         else:
             _sample_rows(self.logits(batch.obs), u, actions)
         return actions

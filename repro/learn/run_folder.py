@@ -104,6 +104,7 @@ TRAINING_KEYS = ("baseline", "sampler_rng", "torch_rng")
 """The further entries of a run's checkpoint: what training on needs."""
 
 
+# long: one check after another in the order the state is read, each returning its own line
 def state_problem(state: dict[str, Any], obs_dim: int | None = None,
                   n_actions: int | None = None, training: bool = False) -> str | None:
     """What is wrong with a loaded checkpoint or kept policy, or None: every entry there (those of

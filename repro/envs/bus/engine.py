@@ -74,20 +74,15 @@ buffer per stop.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
-from typing import Protocol
-
 import numpy as np
 from numba import njit
 
 from repro.core.config import numba_record
 from repro.core.errors import require
 from repro.core.paths import path_layout
-from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
-from repro.envs.bus.params import DECISION_LATENCY, BusConfig
-
-OBS_DIM = 4
-"""Observation: [stop index (0-based), headway h (s, or -1 under B2; min without B2), load at
-arrival (pax), time since the bus's previous action started (s)]."""
+from repro.core.rollout import (BadActions, DecisionBatch, Policy, Rollout, check_actions,
+                                run_to_end)
+from repro.envs.bus.params import DECISION_LATENCY, OBS_DIM, BusConfig
 
 INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL, HOLD, SERVED, WAITED, LATENCY = range(10)
 """Event kinds (see the table above)."""
@@ -622,29 +617,11 @@ def _arrivals(params_array, states, logs, episode, time, bus, stop, h, load, ali
     return o
 
 
-class RoundBatch(Protocol):
-    """A batch of episodes advanced round by round: :class:`BusBatch`, or the SimPy reference's
-    (``BusEnv.batch_type``)."""
-
-    def advance(self, actions: np.ndarray) -> DecisionBatch: ...
-
-    def to_rollout(self) -> Rollout: ...
-
-
-def run_to_end(batch: RoundBatch, policy: Policy) -> None:
-    """Run a batch (fast or reference) to the end: one policy call per round."""
-    decisions = batch.advance(np.zeros(0, np.int64))
-    while len(decisions):
-        decisions = batch.advance(np.asarray(policy(decisions)))
-
-
 class BusEnv:
     """The fast engine as a :class:`repro.core.rollout.BatchEnv`."""
 
     name = "bus"
     obs_dim = OBS_DIM
-    batch_type: type[RoundBatch] = BusBatch
-    """The batch class that simulates; the SimPy reference swaps in its own."""
 
     def __init__(self, cfg: BusConfig | None = None):
         self.cfg = cfg or BusConfig()
@@ -655,8 +632,8 @@ class BusEnv:
         """What a batch holds per episode besides its decisions (its state), for up-front checks
         of sizes."""
 
-    def start(self, n_episodes: int) -> RoundBatch:
-        return self.batch_type(self.cfg, n_episodes)
+    def start(self, n_episodes: int) -> BusBatch:
+        return BusBatch(self.cfg, n_episodes)
 
     def rollout(self, policy: Policy, n_episodes: int,
                 seed: int | np.random.SeedSequence = 0) -> Rollout:

@@ -13,6 +13,9 @@ from repro.core.config import Validated
 DECISION_LATENCY = 1e-5
 """Seconds between a bus's observation and the start of its action under B5 (the released
 simulator's ACTION_WAIT_TIME, as in the wildfire)."""
+OBS_DIM = 4
+"""Observation: [stop index (0-based), headway h (s, or -1 under B2; min without B2), load at
+arrival (pax), time since the bus's previous action started (s)]; both models write it."""
 SWITCHES = ("b1_reward", "b2_headway", "b3_boarding", "b4_round_half_even", "b5_timing")
 """The BusConfig fields of B1-B5: True follows the released simulator, False the paper's prose."""
 

@@ -13,10 +13,11 @@ Under B5 the service is a process of its own that starts DECISION_LATENCY after 
 that the bus waits for (as the released code does, so the observation comes two same-instant steps
 after the arrival); without B5 it runs inline and the observation is the arrival's own step.
 
-Decisions are batched like the fast engine's (see ``engine.py`` for the round and reward
-conventions): a bus yields an untriggered ``decision`` event; an episode runs until some bus waits
-and the next event lies later; the driver then succeeds the waiting events with the policy's
-actions. The model favours plainness over speed; ``engine.py`` must agree with it exactly.
+Decisions are batched like the fast engine's (``engine.py`` states the round and reward
+conventions; this model shares only the parameters, ``params.py``, with it): a bus yields an
+untriggered ``decision`` event; an episode runs until some bus waits and the next event lies
+later; the driver then succeeds the waiting events with the policy's actions. The model favours
+plainness over speed; ``engine.py`` must agree with it exactly.
 """
 
 from __future__ import annotations
@@ -29,9 +30,8 @@ import simpy
 
 from repro.core.errors import require
 from repro.core.paths import path_layout
-from repro.core.rollout import DecisionBatch, Rollout, check_actions
-from repro.envs.bus.engine import OBS_DIM, BusEnv
-from repro.envs.bus.params import DECISION_LATENCY, BusConfig
+from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions, run_to_end
+from repro.envs.bus.params import DECISION_LATENCY, OBS_DIM, BusConfig
 
 
 class _Episode:
@@ -227,9 +227,24 @@ class ReferenceBatch:
             info={"arrivals": self.arrivals()})
 
 
-class ReferenceBusEnv(BusEnv):
-    """The SimPy reference as a :class:`repro.core.rollout.BatchEnv` (slow; for checking): the
-    fast engine's environment with the SimPy batch in its place."""
+class ReferenceBusEnv:
+    """The SimPy reference as a :class:`repro.core.rollout.BatchEnv` (slow; for checking)."""
 
     name = "bus-reference"
-    batch_type = ReferenceBatch
+    obs_dim = OBS_DIM
+
+    def __init__(self, cfg: BusConfig | None = None):
+        self.cfg = cfg or BusConfig()
+        self.n_actions = self.cfg.n_actions
+        self.n_agents = self.cfg.n_buses
+        self.gamma = self.cfg.gamma
+
+    def start(self, n_episodes: int) -> ReferenceBatch:
+        return ReferenceBatch(self.cfg, n_episodes)
+
+    def rollout(self, policy: Policy, n_episodes: int,
+                seed: int | np.random.SeedSequence = 0) -> Rollout:
+        """The environment is deterministic, so ``seed`` is unused (only the policy is random)."""
+        batch = self.start(n_episodes)
+        run_to_end(batch, policy)
+        return batch.to_rollout()

@@ -12,15 +12,42 @@ SimPy schedules them, or run at once when they would be the next event anyway. A
 process no longer waits for (its wait was interrupted, or its fire re-planned) is stale and
 skipped, as SimPy skips a triggered event without callbacks.
 
+Processes. ``_run`` hands each event to the process it resumes, as SimPy does: ``_uav_event``
+(the reference's ``_uav`` and ``_macro_action``), ``_fire_event`` (``_fire`` and ``_burn``) and
+``_end_event`` (``_clock``, or the released order's end condition). Each ``yield`` of the model, and
+the event kinds it is here ("released": only in the released order; hops are zero-delay):
+
+=====================================================  =============================================
+SimPy model (``reference.py``)                         event kinds here
+=====================================================  =============================================
+``_uav``: ``yield from self._timeout(latency)``        LATENCY
+``_uav``: ``env.process(self._macro_action(i))``       ACT_START (released; URGENT hop)
+``_macro_action``: ``yield from self._timeout(...)``   ACTION
+``_uav``: ``yield env.any_of([action, self.over])``    ACT_END (the action sub-process ended or
+                                                       failed), then ANY_OF (released; NORMAL hops)
+``_uav``: ``except simpy.Interrupt``                   INT_UAV (URGENT; scheduling order, or in the
+                                                       latency without Q4)
+``_interrupt``: ``action_procs[i].interrupt()``        INT_ACT (released; URGENT)
+``_burn``: ``yield from self._timeout(health/party)``  EXTINGUISH
+``_burn``: ``yield self.env.event()`` (no party)       none: ``fire_wait`` is -1
+``_party_change``: ``burning.interrupt()``             INT_FIRE (URGENT)
+``_fire``: ``yield self.burn_procs[j]``                BURN_END (ended) or BURN_FAIL (failed;
+                                                       released; NORMAL hops)
+``_fire``: ``env.process(self._burn(j))`` again        BURN_START (released; URGENT hop)
+``_fire``: ``yield self.env.timeout(0)``, twice        OUT_WAIT1, OUT_WAIT2 (without fire_out_first)
+``_clock``: ``yield env.timeout(t_max)`` (released:    CLOCK
+the ``clock`` timeout)
+``env.all_of(fire_out) | clock`` triggering            END_HOP (released; ``who`` more hops: the
+                                                       last ``fire_out``, the all_of, the "or")
+=====================================================  =============================================
+
 ``_advance`` records the policy's last actions, then runs every live episode until it is blocked
 (its next event is the end of a decision latency whose action the policy has not given yet) or
 over. Python then hands all pending observations of the batch to the policy in ONE call and
-repeats. Decisions are appended to a flat log and placed into contiguous paths at the end.
-A policy that offers a compiled form (:class:`repro.core.policy_kernel.CompiledPolicy`, as the
-learner's sampler does) is applied to rounds of a few decisions inside the kernel
-(``_act_and_advance``), with the same actions as its call: learned policies make episodes of
-hundreds of thousands of decisions, whose rounds near the end hold one row or a few, and one such
-600-episode rollout, profiled, spent 95% of its time in the round trips to Python.
+repeats, also for the rounds of a decision or a few near a rollout's end: under the cap of 1,000
+decisions per UAV and episode they are few (acting on them inside the kernel would save 0-20% of
+a rollout of a trained policy, CHANGELOG 2026-11-26). Decisions are appended to a flat log and
+placed into contiguous paths at the end.
 
 Speed. A rollout of the training batch (600 episodes, about 14,000 decisions and 32,000 events)
 takes about 50 rounds, so the per-event cost dominates. An episode's state is one numpy record (a
@@ -55,21 +82,17 @@ from repro.core.event_queue import (NORMAL, URGENT, event_key, heap_pop, heap_pu
                                     key_fields)
 from repro.core.fixed_step import fs_delay
 from repro.core.paths import path_layout, path_order
-from repro.core.policy_kernel import MAX_ROWS, act_row
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
                                         OWN_Y, RACE_TOLERANCE, STATUS, EpisodeDraws,
                                         WildfireConfig, draw_episodes, fire_positions, rank_key)
 
-(LATENCY, ACTION, EXTINGUISH, INT_UAV, INT_FIRE, CLOCK, ACT_START, INT_ACT, ACT_END, ANY_OF,
- BURN_FAIL, BURN_START, BURN_END, END_HOP, OUT_WAIT1, OUT_WAIT2) = range(16)
-"""Event kinds: decision latency over, macro-action over, fire out, UAV process interrupted (its
-fire went out: in scheduling order, or in the latency without Q4), fire interrupted (its party
-changed), T_max reached. The released order's hops, SimPy's intermediate events there: the action
-sub-process starts (URGENT), is interrupted (URGENT), ends or fails, then the AnyOf the UAV waits
-on triggers; the burn sub-process fails (interrupted), restarts (URGENT), ends (its fire is out);
-the episode's end condition (END_HOP: ``who`` more hops to go); without ``fire_out_first``, the
-two zero-delay timeouts a fire waits after its burn sub-process ended."""
+(LATENCY, ACT_START, ACTION, INT_ACT, ACT_END, ANY_OF, INT_UAV,
+ EXTINGUISH, INT_FIRE, BURN_FAIL, BURN_START, BURN_END, OUT_WAIT1, OUT_WAIT2,
+ CLOCK, END_HOP) = range(16)
+"""Event kinds, numbered by the process they resume (the module docstring's table): a UAV's
+(LATENCY to INT_UAV), a fire's (EXTINGUISH to OUT_WAIT2), the episode's end (CLOCK, END_HOP).
+The number only tells the kind: an event's place in the queue is its (time, priority, sequence)."""
 OK, GROW_LOG, HEAP_FULL, BAD_ACTION = range(4)
 """Status codes of ``_advance``."""
 def heap_capacity(cfg: WildfireConfig) -> int:
@@ -88,6 +111,9 @@ def queue_capacity(cfg: WildfireConfig) -> int:
 # ``params`` the parameters' record, ``record`` a log row; ``e`` indexes episodes, ``i`` UAVs and
 # ``j`` fires.
 jit = njit(cache=True)
+dispatch = njit(cache=True, inline="always")
+"""The event loop's dispatcher and handlers: inlined into the loop, as one body (each call of a
+compiled function that takes an array costs reference-count updates, once per event here)."""
 
 rank_key_nb = jit(rank_key)
 
@@ -467,7 +493,7 @@ def _extinguish(state, params, j):
 
 
 @jit
-def _fire_out(state, log, params, j):
+def _fire_out(state, params, j):
     """Released order: fire j's burn sub-process ended, the fire goes out; after the last one the
     conditions "fire out", "all out", "all out or T_max" trigger in turn."""
     _extinguish(state, params, j)
@@ -476,12 +502,12 @@ def _fire_out(state, log, params, j):
 
 
 @jit
-def _burn_ended(state, log, params, j):
+def _burn_ended(state, params, j):
     """Released order: the end of fire j's burn sub-process reaches the fire, which goes out now
     (``fire_out_first``), or waits two zero-delay timeouts first (OUT_WAIT1, OUT_WAIT2), so that
     a UAV whose macro-action ends at this instant observes before (two hops after its timeout)."""
     if params.fire_out_first:
-        _fire_out(state, log, params, j)
+        _fire_out(state, params, j)
     else:
         _push(state, 0.0, NORMAL, OUT_WAIT1, j)
 
@@ -524,10 +550,16 @@ def _note_expiry(state):
 
 
 @jit
-def _end(state, log, params):
-    """The episode ends now: every UAV's running decision closes."""
+def _end(state):
+    """The episode ends now (the event loop then closes every UAV's running decision,
+    :func:`_close_running`)."""
     state.done = True
     state.t_end = state.now
+
+
+@jit
+def _close_running(state, log, params):
+    """The episode has ended: every UAV's running decision closes."""
     for i in range(params.n_agents):
         _close(state, log[state.running_row[i]], i)
 
@@ -573,10 +605,64 @@ def _macro_action_over(state, log, params, e, row, i, cut):
     _close(state, log[state.running_row[i]], i)
     if state.n_dec[i] == params.max_decisions:  # 0 (no limit) never: n_dec >= 1 here
         state.truncated = True
-        _end(state, log, params)
+        _end(state)
         return row
     _observe(state, params, log[row], row, e, i)
     return row + 1
+
+
+@dispatch
+def _latency_over(state, params, holds, e, i):
+    """UAV i's decision latency is over: it acts, in the released order through its action
+    sub-process, whose start is one URGENT hop."""
+    state.in_lat[i] = False
+    if not params.released_order:
+        _act(state, params, holds, e, i)
+    else:
+        state.acting[i] = True
+        if _next_anyway(state, URGENT):
+            state.events += 1
+            _act(state, params, holds, e, i)
+        else:
+            _push(state, 0.0, URGENT, ACT_START, i)
+
+
+@dispatch
+def _action_ends(state, log, params, e, row, i, cut):
+    """Released order: UAV i's action sub-process ends (``cut``: fails, interrupted, and its
+    timeout is stale); returns the next free row."""
+    state.acting[i] = False
+    state.cut[i] = cut
+    if cut:
+        state.uav_wait[i] = -1
+    return _to_uav(state, log, params, e, row, i, 2)
+
+
+@dispatch
+def _burnt_out(state, params, j):
+    """Fire j's extinguish timeout expires: it goes out, or in the released order its burn
+    sub-process ends, which reaches the fire one NORMAL hop later."""
+    if not params.released_order:
+        _extinguish(state, params, j)
+        if state.n_alive == 0:
+            _end(state)
+    else:
+        state.burning[j] = False
+        if _next_anyway(state, NORMAL):
+            state.events += 1
+            _burn_ended(state, params, j)
+        else:
+            _push(state, 0.0, NORMAL, BURN_END, j)
+
+
+@dispatch
+def _count_races(state, seq, kind, who):
+    """Races: the exact time of the event just popped (:func:`_exact_time`), and, if it is a
+    timeout whose process still waits for it, its expiry (:func:`_note_expiry`)."""
+    _exact_time(state, kind, who)
+    if (kind == CLOCK or ((kind == LATENCY or kind == ACTION) and seq == state.uav_wait[who])
+            or (kind == EXTINGUISH and seq == state.fire_wait[who])):
+        _note_expiry(state)
 
 
 # --- kernels -------------------------------------------------------------------------------------
@@ -662,111 +748,8 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
     n_live = 0
     for q in range(live[0]):
         e = live[1 + q]
-        state = states[e]
-        while not state.done:
-            seq, kind, who = key_fields(_next_key(state))
-            if kind == LATENCY and seq == state.uav_wait[who] and state.act[who] < 0:
-                break  # the policy has not decided yet
-            if row >= len(log):
-                status = GROW_LOG
-                break
-            room = params.n_agents + 3  # what one event may push, at most
-            if (state.heap_size + room > state.heap_key.shape[0]
-                    or state.urgent_size + room > state.urgent_queue.shape[0]
-                    or state.normal_size + room > state.normal_queue.shape[0]):
-                status = HEAP_FULL
-                break
-            t, key = _pop(state)
-            seq, kind, who = key_fields(key)
-            state.now = t
-            state.events += 1
-            if params.count_races:
-                _exact_time(state, kind, who)
-            if kind == LATENCY:
-                if seq == state.uav_wait[who]:
-                    if params.count_races:
-                        _note_expiry(state)
-                    state.in_lat[who] = False
-                    if not params.released_order:
-                        _act(state, params, holds, e, who)
-                    else:  # the action sub-process starts
-                        state.acting[who] = True
-                        if _next_anyway(state, URGENT):
-                            state.events += 1
-                            _act(state, params, holds, e, who)
-                        else:
-                            _push(state, 0.0, URGENT, ACT_START, who)
-            elif kind == ACT_START:
-                _act(state, params, holds, e, who)
-            elif kind == ACTION:
-                if seq == state.uav_wait[who]:
-                    if params.count_races:
-                        _note_expiry(state)
-                    if params.released_order:  # the sub-process ends
-                        state.acting[who] = False
-                        state.cut[who] = False
-                        row = _to_uav(state, log, params, e, row, who, 2)
-                    else:
-                        row = _macro_action_over(state, log, params, e, row, who, False)
-            elif kind == INT_UAV:
-                row = _macro_action_over(state, log, params, e, row, who, True)
-            elif kind == INT_ACT:
-                if state.acting[who]:  # the sub-process fails
-                    state.acting[who] = False
-                    state.cut[who] = True
-                    state.uav_wait[who] = -1
-                    row = _to_uav(state, log, params, e, row, who, 2)
-            elif kind == ACT_END:
-                row = _to_uav(state, log, params, e, row, who, 1)
-            elif kind == ANY_OF:
-                row = _macro_action_over(state, log, params, e, row, who, state.cut[who])
-            elif kind == EXTINGUISH:
-                if seq == state.fire_wait[who]:
-                    if params.count_races:
-                        _note_expiry(state)
-                    if not params.released_order:
-                        _extinguish(state, params, who)
-                        if state.n_alive == 0:
-                            _end(state, log, params)
-                    else:  # the burn sub-process ends
-                        state.burning[who] = False
-                        if _next_anyway(state, NORMAL):
-                            state.events += 1
-                            _burn_ended(state, log, params, who)
-                        else:
-                            _push(state, 0.0, NORMAL, BURN_END, who)
-            elif kind == BURN_END:
-                _burn_ended(state, log, params, who)
-            elif kind == OUT_WAIT1:
-                _push(state, 0.0, NORMAL, OUT_WAIT2, who)
-            elif kind == OUT_WAIT2:
-                _fire_out(state, log, params, who)
-            elif kind == INT_FIRE:
-                if params.released_order:
-                    if state.burning[who]:  # the burn sub-process fails
-                        state.burning[who] = False
-                        state.fire_wait[who] = -1
-                        _burn_restarts(state, params, who, 2)
-                elif state.alive[who]:
-                    _replan(state, params, who)
-            elif kind == BURN_FAIL:  # the fire restarts its burn sub-process
-                _burn_restarts(state, params, who, 1)
-            elif kind == BURN_START:
-                state.burning[who] = True
-                _replan(state, params, who)
-            elif kind == END_HOP:
-                if who > 0:
-                    _push(state, 0.0, NORMAL, END_HOP, who - 1)
-                else:
-                    _end(state, log, params)
-            else:  # CLOCK
-                if params.count_races:
-                    _note_expiry(state)
-                if params.released_order:  # then the condition "all out or T_max"
-                    _push(state, 0.0, NORMAL, END_HOP, 0)
-                else:
-                    _end(state, log, params)
-        if not state.done:
+        status, row = _run(states[e], log, params, holds, e, row)
+        if not states[e].done:
             live[1 + n_live] = e
             n_live += 1
         if status != OK:  # keep the episodes not visited
@@ -779,22 +762,104 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
     return status, first + len(actions)
 
 
-@jit
-def _act_and_advance(states, live, log, used, params_array, holds, first, weights, biases, mean,
-                     scale, rng):
-    """Act on the pending round of at most MAX_ROWS decisions as the policy's call would (its
-    last five arguments: a CompiledPolicy) and :func:`_advance`; repeat while the next round is as
-    small. Long episodes end in many rounds of a row or a few, each a return to Python otherwise.
-    Returns as :func:`_advance` does. The actions made here are in range: the network has one
-    output per action."""
-    own = np.empty(MAX_ROWS, np.int64)
-    while True:
-        n = used[0] - first
-        for k in range(n):
-            own[k] = act_row(log[first + k].obs, weights, biases, mean, scale, rng.random())
-        status, first = _advance(states, live, log, used, params_array, holds, own[:n], first)
-        if status != OK or not 0 < used[0] - first <= MAX_ROWS:
-            return status, first
+@dispatch
+def _run(state, log, params, holds, e, row):
+    """Process episode e's events until it is blocked or over (OK), or its next event might not
+    fit (GROW_LOG: the log is full; HEAP_FULL: a queue might overflow). Each event goes to the
+    process it resumes (kinds are numbered by process). Returns the status and the next free row."""
+    while not state.done:
+        seq, kind, who = key_fields(_next_key(state))
+        if kind == LATENCY and seq == state.uav_wait[who] and state.act[who] < 0:
+            return OK, row  # the policy has not decided yet
+        if row >= len(log):
+            return GROW_LOG, row
+        room = params.n_agents + 3  # what one event may push, at most
+        if (state.heap_size + room > state.heap_key.shape[0]
+                or state.urgent_size + room > state.urgent_queue.shape[0]
+                or state.normal_size + room > state.normal_queue.shape[0]):
+            return HEAP_FULL, row
+        t, key = _pop(state)
+        seq, kind, who = key_fields(key)
+        state.now = t
+        state.events += 1
+        if params.count_races:
+            _count_races(state, seq, kind, who)
+        if kind < EXTINGUISH:
+            row = _uav_event(state, log, params, holds, e, row, seq, kind, who)
+        elif kind < CLOCK:
+            _fire_event(state, params, seq, kind, who)
+        else:
+            _end_event(state, params, kind, who)
+    _close_running(state, log, params)
+    return OK, row
+
+
+@dispatch
+def _uav_event(state, log, params, holds, e, row, seq, kind, who):
+    """An event of UAV ``who``'s process (the reference's ``_uav`` and ``_macro_action``); a
+    timeout it no longer waits for is stale. Returns the next free row."""
+    if kind == LATENCY:
+        if seq == state.uav_wait[who]:
+            _latency_over(state, params, holds, e, who)
+    elif kind == ACT_START:
+        _act(state, params, holds, e, who)
+    elif kind == ACTION:
+        if seq == state.uav_wait[who]:
+            if params.released_order:
+                row = _action_ends(state, log, params, e, row, who, False)
+            else:
+                row = _macro_action_over(state, log, params, e, row, who, False)
+    elif kind == INT_ACT:
+        if state.acting[who]:
+            row = _action_ends(state, log, params, e, row, who, True)
+    elif kind == ACT_END:
+        row = _to_uav(state, log, params, e, row, who, 1)
+    elif kind == ANY_OF:
+        row = _macro_action_over(state, log, params, e, row, who, state.cut[who])
+    else:  # INT_UAV
+        row = _macro_action_over(state, log, params, e, row, who, True)
+    return row
+
+
+@dispatch
+def _fire_event(state, params, seq, kind, who):
+    """An event of fire ``who``'s process (the reference's ``_fire`` and ``_burn``); an extinguish
+    timeout it no longer waits for is stale."""
+    if kind == EXTINGUISH:
+        if seq == state.fire_wait[who]:
+            _burnt_out(state, params, who)
+    elif kind == INT_FIRE:
+        if params.released_order:
+            if state.burning[who]:  # the burn sub-process fails
+                state.burning[who] = False
+                state.fire_wait[who] = -1
+                _burn_restarts(state, params, who, 2)
+        elif state.alive[who]:
+            _replan(state, params, who)
+    elif kind == BURN_FAIL:  # the fire restarts its burn sub-process
+        _burn_restarts(state, params, who, 1)
+    elif kind == BURN_START:
+        state.burning[who] = True
+        _replan(state, params, who)
+    elif kind == BURN_END:
+        _burn_ended(state, params, who)
+    elif kind == OUT_WAIT1:
+        _push(state, 0.0, NORMAL, OUT_WAIT2, who)
+    else:  # OUT_WAIT2
+        _fire_out(state, params, who)
+
+
+@dispatch
+def _end_event(state, params, kind, who):
+    """T_max's clock (the reference's ``_clock``, or its timeout in the released order, where the
+    condition "all out or T_max" triggers one hop later), or a hop of the released order's end
+    condition (END_HOP: ``who`` more to go)."""
+    if kind == END_HOP and who > 0:
+        _push(state, 0.0, NORMAL, END_HOP, who - 1)
+    elif kind == CLOCK and params.released_order:
+        _push(state, 0.0, NORMAL, END_HOP, 0)
+    else:
+        _end(state)
 
 
 @jit
@@ -851,14 +916,6 @@ class WildfireBatch:
         """Give every pending decision its action, and run every live episode until blocked."""
         answer = check_actions(actions, self.n_pending, self.env.n_actions, check_range=False)
         self._settle(self._advance(answer), answer)  # the range is checked in _advance
-
-    def act_compiled(self, compiled: tuple) -> None:
-        """Act as a compiled policy's call would, inside the kernel, on this small round and the
-        next ones as small (see ``_act_and_advance``)."""
-        env = self.env
-        status, self.first = _act_and_advance(self.states, self.live, self.log, self.used,
-                                              env.params, self.holds, self.first, *compiled)
-        self._settle(status, _NO_ACTIONS)
 
     def _advance(self, given: np.ndarray) -> int:
         status, self.first = _advance(self.states, self.live, self.log, self.used, self.env.params,
@@ -950,14 +1007,8 @@ class WildfireEnv:
 
     def simulate(self, policy: Policy, draws: EpisodeDraws) -> Rollout:
         """Run the episodes of ``draws`` (tests script start positions and hold durations): one
-        policy call per round; the kernel itself acts on small rounds for a compiled policy."""
+        policy call per round."""
         batch = WildfireBatch(self, draws)
-        compiled = getattr(policy, "compiled", None)
-        if compiled is not None and compiled.n_actions != self.n_actions:
-            compiled = None  # the policy's call will meet the range check, and report it
-        while (n := batch.n_pending) > 0:
-            if compiled is not None and n <= MAX_ROWS:
-                batch.act_compiled(compiled)
-            else:
-                batch.act(policy(batch.pending()))
+        while batch.n_pending > 0:
+            batch.act(policy(batch.pending()))
         return batch.to_rollout()

@@ -68,17 +68,17 @@ class _ReferenceEpisode:
         self.model.act(i, action)
 
     def observation(self, i: int) -> np.ndarray:
-        return np.array(self.model.rec[self.model.current[i]]["obs"], dtype=np.float32)
+        return np.array(self.model.rec[self.model.uav[i].current]["obs"], dtype=np.float32)
 
     def previous(self, i: int) -> tuple[float, float] | None:
         """The reward and duration of the macro-action before UAV i's decision now, if any."""
         m = self.model
-        prev = m.rec[m.current[i]]["prev"]
+        prev = m.rec[m.uav[i].current]["prev"]
         return None if prev < 0 else (m.rec[prev]["reward"], m.rec[prev]["duration"])
 
     def last(self, i: int) -> tuple[float, float]:
         """The reward and duration of UAV i's last macro-action, once the episode is over."""
-        rec = self.model.rec[self.model.current[i]]
+        rec = self.model.rec[self.model.uav[i].current]
         return rec["reward"], rec["duration"]
 
     def truncated(self) -> bool:

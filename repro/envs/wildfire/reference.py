@@ -52,6 +52,7 @@ sections 3.3-3.7, 3.11):
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 import simpy
@@ -62,39 +63,71 @@ from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (RACE_TOLERANCE, EpisodeDraws, WildfireConfig,
                                         draw_episodes, fire_positions, rank_key)
 
+@dataclass
+class _Uav:
+    """A UAV's state in :class:`WildfireModel`."""
+
+    pos: tuple
+    """Where it is, or, while it flies, where its flight started."""
+    flight: tuple | None = None
+    """(origin, goal, departure time, length) of the flight under way."""
+    interest: int = -1
+    """The fire whose interest party it is in."""
+    joined: int = 0
+    """When it joined that party (a counter: the party's order)."""
+    attacking: int = -1
+    """The fire it remembers attacking (quirk Q1)."""
+    in_party: bool = False
+    """Whether it is in that fire's extinguish party."""
+    n_holds: int = 0
+    action: int | None = None
+    ranking: list[int] = field(default_factory=list)
+    """The fires its latest observation saw, closest first."""
+    in_latency: bool = False
+    t_disc: float = 0.0
+    """Origin of the discount of its rewards."""
+    action_proc: simpy.Process | None = None
+    """Its action sub-process (released order)."""
+    current: int = -1
+    """Its current decision (an index into the model's records)."""
+    latency_due: float = 0.0
+    """Races: the exact due times of its latency and its macro-action, which its process reads as
+    it resumes."""
+    action_due: float = 0.0
+
+
+@dataclass
+class _Fire:
+    """A fire's state in :class:`WildfireModel`."""
+
+    health: float
+    """As of ``t_update``."""
+    alive: bool = True
+    t_update: float = 0.0
+    party: int = 0
+    """Extinguish party size."""
+    burn_proc: simpy.Process | None = None
+    """Its burn sub-process (released order)."""
+    out_due: float = 0.0
+    """Races: the exact due times of its extinguishing and of its latest party change."""
+    change_due: float = 0.0
+
+
 class WildfireModel:
     """One episode. Drive it with :meth:`advance` and :meth:`act` (or let :class:`ReferenceEnv`)."""
 
     def __init__(self, cfg: WildfireConfig, starts: np.ndarray, holds: np.ndarray):
         self.cfg = cfg
         self.released = cfg.same_instant_order == "released"
-        self.fires = fire_positions(cfg)
-        n, k = cfg.n_agents, len(self.fires)
+        self.fire_xy = fire_positions(cfg)
+        n, k = cfg.n_agents, len(self.fire_xy)
         self.dt = cfg.dt or 0.0
         self.holds = holds
         self.env = simpy.Environment()
-        # UAV state
-        self.pos = [tuple(p) for p in starts]
-        self.flight: list[tuple | None] = [None] * n  # (origin, goal, departure time, length)
-        self.interest = [-1] * n  # fire whose interest party the UAV is in
-        self.joined = [0] * n  # when it joined that party (a counter: the party's order)
-        self.attacking = [-1] * n  # fire the UAV remembers attacking (quirk Q1)
-        self.in_party = [False] * n  # whether it is in that fire's extinguish party
-        self.n_holds = [0] * n
-        self.action: list[int | None] = [None] * n
-        self.ranking: list[list[int]] = [[] for _ in range(n)]
-        self.in_latency = [False] * n
-        self.t_disc = [0.0] * n  # origin of the discount of the UAV's rewards
-        self.action_procs: list[simpy.Process | None] = [None] * n  # released order
-        # fire state
-        self.alive = [True] * k
-        self.health = [cfg.t_health] * k  # as of t_update
-        self.t_update = [0.0] * k
-        self.party = [0] * k  # extinguish party size
-        self.burn_procs: list[simpy.Process | None] = [None] * k  # released order
+        self.uav = [_Uav(tuple(p)) for p in starts]
+        self.fire = [_Fire(cfg.t_health) for _ in range(k)]
         # records: one list entry per decision
         self.rec: list[dict] = []
-        self.current = [-1] * n  # each UAV's current decision (index into rec)
         self.returns = np.zeros(n)
         self.pending: list[int] = []  # UAVs that observed and wait for their action
         self.done = False
@@ -103,12 +136,8 @@ class WildfireModel:
         self.events = 0
         self.joins = 0
         # races: the exact time of the event being processed, as ED would time it along this run
-        # (see _timeout); the exact due times of each UAV's latency and macro-action, of each
-        # fire's extinguishing and latest party change, which a process reads as it resumes; the
-        # (time, exact due time) of each timeout that expired
+        # (see _timeout); the (time, exact due time) of each timeout that expired
         self.exact_now = 0.0
-        self.latency_due, self.action_due = [0.0] * n, [0.0] * n
-        self.out_due, self.change_due = [0.0] * k, [0.0] * k
         self.expired: list[tuple[float, float]] = []
         self.fire_procs = [self.env.process(self._fire(j)) for j in range(k)]
         self.uav_procs = [self.env.process(self._uav(i)) for i in range(n)]
@@ -133,13 +162,15 @@ class WildfireModel:
 
     def act(self, i: int, action: int) -> None:
         """Pending UAV ``i`` takes ``action``: 0..n_observed-1 fly to the k-th closest, or hold."""
+        uav = self.uav[i]
         self.pending.remove(i)
-        self.action[i] = int(action)
-        self.rec[self.current[i]]["action"] = int(action)
+        uav.action = int(action)
+        self.rec[uav.current]["action"] = int(action)
 
     # --- processes -------------------------------------------------------------------------------
 
     def _uav(self, i: int):
+        uav = self.uav[i]
         while True:
             if self._decisions(i) == self.cfg.max_decisions:
                 self.truncated = True
@@ -147,13 +178,13 @@ class WildfireModel:
                 return
             self._observe(i)
             try:
-                yield from self._timeout(self.cfg.decision_latency, self.latency_due, i,
+                yield from self._timeout(self.cfg.decision_latency, uav, "latency_due",
                                          rounded=False)
-                self.in_latency[i] = False
+                uav.in_latency = False
                 if self.released:
-                    self.action_procs[i] = self.env.process(self._macro_action(i))
-                    yield self.env.any_of([self.action_procs[i], self.over])
-                    self.exact_now = self.action_due[i]
+                    uav.action_proc = self.env.process(self._macro_action(i))
+                    yield self.env.any_of([uav.action_proc, self.over])
+                    self.exact_now = uav.action_due
                 else:
                     yield from self._macro_action(i)
                 self._land(i, cut=False)
@@ -163,15 +194,17 @@ class WildfireModel:
                     self._land(i, cut=True)
 
     def _macro_action(self, i: int):
-        self.exact_now = self.latency_due[i]  # released: a sub-process starts a step later
-        yield from self._timeout(self._start_action(i), self.action_due, i)
+        uav = self.uav[i]
+        self.exact_now = uav.latency_due  # released: a sub-process starts a step later
+        yield from self._timeout(self._start_action(i), uav, "action_due")
 
     def _fire(self, j: int):
+        fire = self.fire[j]
         while True:
             try:
                 if self.released:
-                    self.burn_procs[j] = self.env.process(self._burn(j))
-                    yield self.burn_procs[j]
+                    fire.burn_proc = self.env.process(self._burn(j))
+                    yield fire.burn_proc
                 else:
                     yield from self._burn(j)
                 break
@@ -180,28 +213,30 @@ class WildfireModel:
         if not self.cfg.fire_out_first:  # after the UAVs whose macro-action ends now observed
             yield self.env.timeout(0)
             yield self.env.timeout(0)
-        self.exact_now = self.out_due[j]
+        self.exact_now = fire.out_due
         self._extinguish(j)
 
     def _burn(self, j: int):
-        self.exact_now = self.change_due[j]  # released: a sub-process starts a step later
-        if self.party[j] == 0:
+        fire = self.fire[j]
+        self.exact_now = fire.change_due  # released: a sub-process starts a step later
+        if fire.party == 0:
             yield self.env.event()  # idle until the party changes
         else:
-            yield from self._timeout(self.health[j] / self.party[j], self.out_due, j)
+            yield from self._timeout(fire.health / fire.party, fire, "out_due")
 
     def _clock(self):
         yield self.env.timeout(self.cfg.t_max)
         self._clock_expired()
         self._end()
 
-    def _timeout(self, delay: float, dues: list[float], index: int, rounded: bool = True):
+    def _timeout(self, delay: float, owner: _Uav | _Fire, due: str, rounded: bool = True):
         """Wait ``delay`` (FS: rounded to the grid, unless not ``rounded``). Its exact due time,
-        ``dues[index]``, is the exact time of what scheduled it plus ``delay``: ED's time for it
-        along this run. If the wait is not interrupted, it is noted at the instant it expires."""
-        dues[index] = self.exact_now + delay
+        the ``due`` field of the UAV or fire ``owner``, is the exact time of what scheduled it plus
+        ``delay``: ED's time for it along this run. If the wait is not interrupted, it is noted at
+        the instant it expires."""
+        setattr(owner, due, self.exact_now + delay)
         yield self.env.timeout(self._delay(delay) if rounded else delay)
-        self.exact_now = dues[index]
+        self.exact_now = getattr(owner, due)
         self._note_expiry()
 
     def _clock_expired(self) -> None:
@@ -211,87 +246,92 @@ class WildfireModel:
     # --- UAV -------------------------------------------------------------------------------------
 
     def _observe(self, i: int) -> None:
+        uav = self.uav[i]
         now, cfg = self.env.now, self.cfg
-        prev = self.current[i]
+        prev = uav.current
         sojourn = 0.0 if prev < 0 else now - self.rec[prev]["time"]
         if prev >= 0:
             self.rec[prev]["duration"] = sojourn
         x, y = self._position(i)
         dist = np.array([math.sqrt((fx - x) * (fx - x) + (fy - y) * (fy - y))
-                         for fx, fy in self.fires])
+                         for fx, fy in self.fire_xy])
         key = [rank_key(d, cfg.ranking_resolution) for d in dist]
         rank = np.argsort(key, kind="stable")[:cfg.n_observed]
-        self.ranking[i] = rank.tolist()
+        uav.ranking = rank.tolist()
         obs = [x, y]
         for j in rank:
-            interested = sum(1 for f in self.interest if f == j)
-            obs += [dist[j], 1.0, float(interested), float(self.alive[j]), self._health_now(j)]
+            interested = sum(1 for other in self.uav if other.interest == j)
+            obs += [dist[j], 1.0, float(interested), float(self.fire[j].alive), self._health_now(j)]
         obs.append(sojourn)
-        self.current[i] = len(self.rec)
+        uav.current = len(self.rec)
         self.rec.append(dict(agent=i, prev=prev,
                              index=0 if prev < 0 else self.rec[prev]["index"] + 1,
                              time=now, obs=obs, action=-1, reward=0.0, duration=math.nan))
         self.pending.append(i)
-        self.in_latency[i] = True
+        uav.in_latency = True
         if not cfg.quirk_q5_discount_from_action_start:
-            self.t_disc[i] = now
+            uav.t_disc = now
 
     def _start_action(self, i: int) -> float:
         """Act; return the macro-action's duration (before FS rounding)."""
+        uav = self.uav[i]
         cfg, now = self.cfg, self.env.now
         if cfg.quirk_q5_discount_from_action_start:
-            self.t_disc[i] = now
+            uav.t_disc = now
         self._land(i, cut=True)  # a cut flight that went on until now
-        self.interest[i] = -1
-        a = self.action[i]
+        uav.interest = -1
+        a = uav.action
         if a < cfg.n_observed:
-            target = self.ranking[i][a]
+            target = uav.ranking[a]
             self._join_interest(i, target)
-            if self.in_party[i]:
-                self.in_party[i] = False
-                self._party_change(self.attacking[i], -1)
+            if uav.in_party:
+                uav.in_party = False
+                self._party_change(uav.attacking, -1)
             if not cfg.quirk_q1_stale_attack:
-                self.attacking[i] = -1
-            origin, goal = self.pos[i], tuple(self.fires[target])
+                uav.attacking = -1
+            origin, goal = uav.pos, tuple(self.fire_xy[target])
             length = math.sqrt((goal[0] - origin[0]) * (goal[0] - origin[0])
                                + (goal[1] - origin[1]) * (goal[1] - origin[1]))
-            self.flight[i] = (origin, goal, now, length)
+            uav.flight = (origin, goal, now, length)
             return length / cfg.v_uav
-        x, y = self.pos[i]
-        for j, (fx, fy) in enumerate(self.fires):
+        x, y = uav.pos
+        for j, (fx, fy) in enumerate(self.fire_xy):
             if math.sqrt((fx - x) * (fx - x) + (fy - y) * (fy - y)) < cfg.at_fire_tol:
                 self._join_interest(i, j)
-                if self.attacking[i] != j:
-                    self.attacking[i] = j
-                    if self.alive[j]:
-                        self.in_party[i] = True
+                if uav.attacking != j:
+                    uav.attacking = j
+                    if self.fire[j].alive:
+                        uav.in_party = True
                         self._party_change(j, +1)
                         self._penalise(j)
                 break
-        hold = self.holds[i, self.n_holds[i] % len(self.holds[i])]
-        self.n_holds[i] += 1
+        hold = self.holds[i, uav.n_holds % len(self.holds[i])]
+        uav.n_holds += 1
         return hold
 
     def _join_interest(self, i: int, j: int) -> None:
-        self.interest[i] = j
-        self.joined[i] = self.joins
+        uav = self.uav[i]
+        uav.interest = j
+        uav.joined = self.joins
         self.joins += 1
 
     def _land(self, i: int, cut: bool) -> None:
         """The flight ends now: at its goal if it finished, else where it got to."""
-        if self.flight[i] is not None:
-            self.pos[i] = self._position(i) if cut or self._stays(i) else self.flight[i][1]
-            self.flight[i] = None
+        uav = self.uav[i]
+        if uav.flight is not None:
+            uav.pos = self._position(i) if cut or self._stays(i) else uav.flight[1]
+            uav.flight = None
 
     def _stays(self, i: int) -> bool:
         """Whether UAV i's flight leaves it at its origin (quirk Q6)."""
-        return self.cfg.quirk_q6_short_flight_stays and self.flight[i][3] < self.cfg.at_fire_tol
+        return self.cfg.quirk_q6_short_flight_stays and self.uav[i].flight[3] < self.cfg.at_fire_tol
 
     def _position(self, i: int) -> tuple:
         """Where UAV i is now: on its flight's segment, or where it landed."""
-        if self.flight[i] is None:
-            return self.pos[i]
-        origin, goal, t0, length = self.flight[i]
+        uav = self.uav[i]
+        if uav.flight is None:
+            return uav.pos
+        origin, goal, t0, length = uav.flight
         if self._stays(i):
             return origin
         if length == 0:
@@ -301,63 +341,67 @@ class WildfireModel:
 
     def _interrupt(self, i: int) -> None:
         """A fire UAV i is interested in went out."""
-        if self.in_latency[i]:
+        uav = self.uav[i]
+        if uav.in_latency:
             if not self.cfg.quirk_q4_latency_not_interrupted:
                 self.uav_procs[i].interrupt(self.exact_now)  # drop the pending decision
         elif not self.released:
             self.uav_procs[i].interrupt(self.exact_now)
-        elif self.action_procs[i].is_alive:  # else it ended at this instant: the UAV will observe
-            self.action_procs[i].interrupt(self.exact_now)
+        elif uav.action_proc.is_alive:  # else it ended at this instant: the UAV will observe
+            uav.action_proc.interrupt(self.exact_now)
 
     # --- fires -----------------------------------------------------------------------------------
 
     def _health_now(self, j: int) -> float:
-        left = self.health[j] - self.party[j] * (self.env.now - self.t_update[j])
+        fire = self.fire[j]
+        left = fire.health - fire.party * (self.env.now - fire.t_update)
         if self.cfg.quirk_q3_unclamped_health:
             return left
-        return max(0.0, left) if self.alive[j] else 0.0
+        return max(0.0, left) if fire.alive else 0.0
 
     def _party_change(self, j: int, delta: int) -> None:
         """Drain fire j's health at the old rate, change its party size, and make it re-plan."""
-        if not self.alive[j]:
+        fire = self.fire[j]
+        if not fire.alive:
             return
         now = self.env.now
-        self.health[j] = self.health[j] - self.party[j] * (now - self.t_update[j])
-        self.t_update[j] = now
-        self.party[j] += delta
-        self.change_due[j] = self.exact_now
-        burning = self.burn_procs[j] if self.released else self.fire_procs[j]
+        fire.health = fire.health - fire.party * (now - fire.t_update)
+        fire.t_update = now
+        fire.party += delta
+        fire.change_due = self.exact_now
+        burning = fire.burn_proc if self.released else self.fire_procs[j]
         if burning.is_alive:  # else it ended at this instant: the fire goes out all the same
             burning.interrupt()
 
     def _penalise(self, j: int) -> None:
         """A UAV just joined fire j's extinguish party: penalise if it already had a member."""
-        if self.party[j] < 2:
+        if self.fire[j].party < 2:
             return
-        for i in range(self.cfg.n_agents):
-            member = self.in_party[i] and self.attacking[i] == j
+        for i, uav in enumerate(self.uav):
+            member = uav.in_party and uav.attacking == j
             if member or not self.cfg.quirk_q2_penalty_party_only:
                 self._accrue(i, self.cfg.r_pen)
 
     def _extinguish(self, j: int) -> None:
-        self.alive[j] = False
+        self.fire[j].alive = False
         for i in range(self.cfg.n_agents):
             self._accrue(i, self.cfg.r_ext)
-        party = [i for i in range(self.cfg.n_agents) if self.interest[i] == j]
+        party = [i for i, uav in enumerate(self.uav) if uav.interest == j]
         if self.released:
-            party.sort(key=lambda i: self.joined[i])
+            party.sort(key=lambda i: self.uav[i].joined)
         for i in party:
             self._interrupt(i)
         if self.released:
             self.fire_out[j].succeed()
-        elif not any(self.alive):
+        elif not any(fire.alive for fire in self.fire):
             self._end()
 
     # --- bookkeeping -----------------------------------------------------------------------------
 
     def _decisions(self, i: int) -> int:
         """How many decisions UAV i has made so far."""
-        return 0 if self.current[i] < 0 else self.rec[self.current[i]]["index"] + 1
+        uav = self.uav[i]
+        return 0 if uav.current < 0 else self.rec[uav.current]["index"] + 1
 
     def _delay(self, d: float) -> float:
         return fs_delay(self.env.now, d, self.dt, self.cfg.fs_round_negative_delays)
@@ -380,16 +424,17 @@ class WildfireModel:
                    for run in instants)
 
     def _accrue(self, i: int, r: float) -> None:
-        rec = self.rec[self.current[i]]
-        rec["reward"] += math.exp(-self.cfg.gamma * (self.env.now - self.t_disc[i])) * r
+        uav = self.uav[i]
+        rec = self.rec[uav.current]
+        rec["reward"] += math.exp(-self.cfg.gamma * (self.env.now - uav.t_disc)) * r
         self.returns[i] += r
 
     def _end(self) -> None:
         self.done = True
         self.over.succeed()
         self.t_end = self.env.now
-        for i in range(self.cfg.n_agents):
-            rec = self.rec[self.current[i]]
+        for uav in self.uav:
+            rec = self.rec[uav.current]
             rec["duration"] = self.t_end - rec["time"]
 
 
@@ -429,7 +474,7 @@ class ReferenceEnv:
                 if not model.pending:
                     break
                 i = model.pending[0]
-                rec = model.rec[model.current[i]]
+                rec = model.rec[model.uav[i].current]
                 batch = DecisionBatch(obs=np.array([rec["obs"]]), episode=np.array([e]),
                                       agent=np.array([i]), index=np.array([rec["index"]]))
                 model.act(i, check_actions(policy(batch), 1, self.n_actions)[0])

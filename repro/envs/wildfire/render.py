@@ -50,12 +50,13 @@ def frame_of_state(env, state: np.void) -> Frame:
 
 def frame_of_model(model) -> Frame:
     """The frame of the SimPy model (:class:`repro.envs.wildfire.reference.WildfireModel`)."""
-    k, n = len(model.alive), len(model.interest)
-    return Frame(time=float(model.env.now), fires=np.asarray(model.fires, float),
+    k, n = len(model.fire), len(model.uav)
+    return Frame(time=float(model.env.now), fires=np.asarray(model.fire_xy, float),
                  health=np.array([model._health_now(j) for j in range(k)]),
-                 alive=np.array(model.alive, bool), party=np.array(model.party, np.int64),
+                 alive=np.array([fire.alive for fire in model.fire], bool),
+                 party=np.array([fire.party for fire in model.fire], np.int64),
                  uavs=np.array([model._position(i) for i in range(n)], float),
-                 target=np.array(model.interest, np.int64))
+                 target=np.array([uav.interest for uav in model.uav], np.int64))
 
 
 def draw(fig, frame: Frame, cfg: WildfireConfig) -> None:
