@@ -364,7 +364,8 @@ def test_a_whole_checkpoint_still_resumes(wildfire_run, tmp_path, monkeypatch):
 # --- sizes and paths -----------------------------------------------------------------------------
 
 REQUIRED = {"train": ["--env", "toy"], "render": ["--out", "x.gif"],
-            "wildfire-eval": ["--policy", "nearest"], "bus-eval": ["--policy", "nohold"]}
+            "wildfire-eval": ["--policy", "nearest"], "bus-eval": ["--policy", "nohold"],
+            "plot-runs": ["run"]}
 """The options a command needs besides the path under test."""
 
 

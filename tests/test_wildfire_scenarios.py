@@ -225,8 +225,8 @@ def test_clusters_are_rotations_of_cluster_a(n_clusters):
 
 
 @pytest.mark.parametrize("fields, param", [
-    (dict(n_clusters=1), "n_observed"), (dict(n_clusters=0), "n_clusters"),
-    (dict(n_clusters=2.5), "n_clusters"),
+    (dict(n_clusters=1), "--n-observed"), (dict(n_clusters=0), "--n-clusters"),
+    (dict(n_clusters=2.5), "--n-clusters"),
     (dict(fire_out_first=False, same_instant_order="scheduling"), "--no-fire-out-first")])
 def test_layouts_and_orders_that_cannot_be_built(fields, param):
     with pytest.raises(ValueError, match=param):
