@@ -22,6 +22,7 @@ from repro.core.rollout import Policy
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, arrival_table, record_loads,
                                     time_to_regularity, time_to_uniform)
+from repro.learn.config import LEARNERS
 from repro.experiments.bus_policies import POLICIES, make_policy
 
 PICTURE_HORIZON = 6 * 3600.0
@@ -33,7 +34,7 @@ def policy_from_args(name: str, args: argparse.Namespace, cfg: BusConfig) -> Pol
     thresholds and the best trained run recorded in --results-dir."""
     thresholds = None if args.thresholds is None else np.array(args.thresholds, float)
     return make_policy(name, cfg, thresholds=thresholds, results_dir=args.results_dir,
-                       mlp_run=args.mlp_run)
+                       mlp_run=args.mlp_run, learner=args.learner)
 
 
 def _finite_or_none(x: float) -> float | None:
@@ -73,6 +74,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="thresholds in seconds (default: ours in results/bus_thresholds.csv)")
     p.add_argument("--mlp-run", help="training run folder of the mlp policy "
                    "(default: the best run in results/bus_lambda_summary.csv)")
+    p.add_argument("--learner", help="the mlp policy is the best run of this learner's lambda "
+                   "sweep: " + ", ".join(LEARNERS) + " (default authors)")
     p.add_argument("--results-dir", default="results/paper",
                    help="where bus_thresholds.csv and bus_lambda_summary.csv are read")
     p.add_argument("--json", action="store_true", help="print one JSON object")

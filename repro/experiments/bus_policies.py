@@ -14,6 +14,7 @@ from repro.core.rollout import DecisionBatch, Policy
 from repro.envs.bus.params import SWITCHES, BusConfig
 from repro.envs.bus.policies import (AUTHORS_THRESHOLDS, ThresholdPolicy, check_thresholds,
                                      no_holding)
+from repro.learn.config import DEFAULT_LEARNER, LEARNERS, learner_stem
 from repro.learn.run_folder import CHECKPOINT
 from repro.envs.bus import make_env
 from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
@@ -48,7 +49,11 @@ POLICIES = ("nohold", "authors", "thresholds", "mlp")
 (``make bus-thresholds``), the trained MLP."""
 
 THRESHOLDS_CSV = "bus_thresholds.csv"
-LAMBDA_SUMMARY_CSV = "bus_lambda_summary.csv"
+
+
+def lambda_summary_csv(learner: str | None = None) -> str:
+    """The lambda sweep's summary of ``learner`` (None: the default learner's)."""
+    return f"{learner_stem('bus_lambda', learner or DEFAULT_LEARNER)}_summary.csv"
 
 
 def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.ndarray:
@@ -75,11 +80,14 @@ def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.
                          str(results_dir)) from None
 
 
-def best_run(results_dir: str | Path, param: str = "--mlp-run") -> Path:
-    """The run folder of the lambda sweep's best run (highest final return), from
-    results/bus_lambda_summary.csv, written by `make fig-bus-lambda`; a UsageError naming
+def best_run(results_dir: str | Path, param: str = "--mlp-run",
+             learner: str | None = None) -> Path:
+    """The run folder of ``learner``'s lambda sweep's best run (highest final return), from
+    results/bus_lambda[_suite]_summary.csv, written by `make fig-bus-lambda`; a UsageError naming
     ``param`` without it."""
-    path = Path(results_dir) / LAMBDA_SUMMARY_CSV
+    require(learner is None or learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
+            learner)
+    path = Path(results_dir) / lambda_summary_csv(learner)
     try:
         runs = read_result(path).query("policy == 'mlp-run'")
         return Path(runs.run.iloc[int(np.argmax(runs.final_iqm.to_numpy(float)))])
@@ -88,23 +96,25 @@ def best_run(results_dir: str | Path, param: str = "--mlp-run") -> Path:
                          ) from None
     except (ValueError, KeyError, IndexError, AttributeError, TypeError,
             pd.errors.UndefinedVariableError):
-        raise UsageError(param, f"given, or a {LAMBDA_SUMMARY_CSV} as `make fig-bus-lambda` "
+        raise UsageError(param, f"given, or a {path.name} as `make fig-bus-lambda` "
                          "writes it (run it again)", str(path)) from None
 
 
 def make_policy(name: str, cfg: BusConfig, *, thresholds: np.ndarray | None = None,
                 results_dir: str | Path = "results/paper",
                 mlp_run: str | Path | None = None, results_param: str | None = None,
-                mlp_param: str = "--mlp-run") -> Policy:
+                mlp_param: str = "--mlp-run", learner: str | None = None) -> Policy:
     """The policy called ``name`` on corridor ``cfg``; our thresholds default to the optimised
-    ones in ``results_dir``, the trained MLP to the best run of the lambda sweep recorded there.
+    ones in ``results_dir``, the trained MLP to the best run of ``learner``'s lambda sweep
+    recorded there.
     Refusals name the options the caller has: ``mlp_param`` for the run, ``results_param`` (if
     given) for the results folder, else --thresholds and --mlp-run."""
     require(name in POLICIES, "--policy", "one of " + ", ".join(POLICIES), name)
     if name == "nohold":
         return no_holding
     if name == "mlp":
-        run = best_run(results_dir, results_param or mlp_param) if mlp_run is None else mlp_run
+        run = (best_run(results_dir, results_param or mlp_param, learner) if mlp_run is None
+               else mlp_run)
         return GreedyPolicy(run, cfg, mlp_param)
     if name == "authors":
         thresholds = np.array(AUTHORS_THRESHOLDS)

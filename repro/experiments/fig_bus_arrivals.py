@@ -24,6 +24,7 @@ from repro.envs.bus import add_switch_arguments, config_from_args
 from repro.envs.bus.policies import check_thresholds
 from repro.experiments.bus_policies import POLICIES, best_run
 from repro.experiments.bus_eval import picture_arrivals, policy_from_args
+from repro.learn.config import DEFAULT_LEARNER, add_learner_option, learner_stem
 
 TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",
           "authors": "Authors' Thresholds", "thresholds": "Optimized Thresholds (ours)"}
@@ -40,17 +41,25 @@ def add_policy_arguments(p: argparse.ArgumentParser) -> None:
                    help="our thresholds in seconds (default: results/bus_thresholds.csv)")
     p.add_argument("--mlp-run", help="training run folder of the mlp panel, acting greedily "
                    "(default: the lambda sweep's best run, from results/bus_lambda_summary.csv)")
+    add_learner_option(p, "<figure>_suite*; the mlp panel is then the suite learner's best run")
     p.add_argument("--all-buses", action="store_true",
                    help="draw all six buses (the paper drew buses 1-5)")
     add_replot(p)
     add_switch_arguments(p)
 
 
+def learner_csv(csv_name: str, learner: str | None) -> str:
+    """A bus figure's CSV for ``learner``'s mlp panel: ``csv_name``, its stem then ``_suite`` for
+    the suite learner's."""
+    return learner_stem(Path(csv_name).stem, learner or DEFAULT_LEARNER) + ".csv"
+
+
 def mlp_source(args: argparse.Namespace) -> str | None:
     """The run folder the mlp panel comes from (None without an mlp panel), for the provenance."""
     if "mlp" not in args.policies:
         return None
-    return str(args.mlp_run if args.mlp_run is not None else best_run(args.results_dir))
+    return str(args.mlp_run if args.mlp_run is not None
+               else best_run(args.results_dir, learner=args.learner))
 
 
 def collect(args: argparse.Namespace) -> pd.DataFrame:
@@ -129,6 +138,7 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
         require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
     if args.thresholds is not None:  # checked even where no panel uses them
         check_thresholds(args.thresholds)
+    csv_name = learner_csv(csv_name, args.learner)
     stem = Path(args.figures_dir) / Path(csv_name).stem
     if args.replot:
         table, = read_for_replot(args, csv_name)
@@ -142,7 +152,8 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
     table = table_of(collect(args))
     prov = provenance(config_from_args(args), command=command, scale=args.scale, seed=None,
                       wall_seconds=time.perf_counter() - t0,
-                      extra={"policies": args.policies, "mlp_run": mlp_source(args)})
+                      extra={"policies": args.policies, "mlp_run": mlp_source(args),
+                             "learner": args.learner or DEFAULT_LEARNER})
     write_result(results / csv_name, table, prov)
     plot_table(table, stem, args.all_buses)
     print(f"wrote {results / csv_name} and {stem}.png/.pdf")

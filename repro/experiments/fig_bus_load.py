@@ -27,11 +27,12 @@ from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.envs.bus import BusConfig, config_from_args
 from repro.envs.bus.metrics import l1_per_point, record_loads
 from repro.envs.bus.params import SWITCHES
-from repro.experiments.bus_policies import LAMBDA_SUMMARY_CSV, GreedyPolicy, make_policy
+from repro.experiments.bus_policies import GreedyPolicy, lambda_summary_csv, make_policy
 from repro.experiments.bus_eval import picture_arrivals
 from repro.envs.bus.paper_data import PAPER_RECORDS, PAPER_STOPS, paper_loads
-from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, add_policy_arguments, policy_grid,
-                                                run_policy_figure)
+from repro.experiments.fig_bus_arrivals import (PAPER_BUSES, add_policy_arguments, learner_csv,
+                                                policy_grid, run_policy_figure)
+from repro.learn.config import DEFAULT_LEARNER
 
 LOAD_CSV = "bus_load.csv"
 SWITCHES_CSV = "bus_load_switches.csv"
@@ -89,9 +90,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_policy_arguments(p)
 
 
-def mlp_run_distances(cfg: BusConfig, results: Path) -> pd.DataFrame:
-    """Rows lambda, seed, final_return, run, l1_per_point: each run of the lambda sweep."""
-    runs = read_result(results / LAMBDA_SUMMARY_CSV)
+def mlp_run_distances(cfg: BusConfig, results: Path, learner: str | None) -> pd.DataFrame:
+    """Rows lambda, seed, final_return, run, l1_per_point: each run of ``learner``'s lambda
+    sweep."""
+    runs = read_result(results / lambda_summary_csv(learner))
     rows = []
     for lam, ret, run in runs[runs.policy == "mlp-run"][["lambda", "final_iqm", "run"]].values:
         arrivals = picture_arrivals(GreedyPolicy(run, cfg), cfg).assign(policy="mlp")
@@ -117,8 +119,10 @@ def run(args: argparse.Namespace) -> int:
     if "mlp" in args.policies and args.mlp_run is None:
         t0 = time.perf_counter()
         cfg = config_from_args(args)
-        table = mlp_run_distances(cfg, Path(args.results_dir))
+        table = mlp_run_distances(cfg, Path(args.results_dir), args.learner)
         prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
-                          wall_seconds=time.perf_counter() - t0)
-        write_result(Path(args.results_dir) / MLP_RUNS_CSV, table, prov)
+                          wall_seconds=time.perf_counter() - t0,
+                          extra={"learner": args.learner or DEFAULT_LEARNER})
+        write_result(Path(args.results_dir) / learner_csv(MLP_RUNS_CSV, args.learner), table,
+                     prov)
     return rc
