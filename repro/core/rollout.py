@@ -243,3 +243,15 @@ def run_to_end(batch: RoundBatch, policy: Policy) -> None:
     decisions = batch.advance(np.zeros(0, np.int64))
     while len(decisions):
         decisions = batch.advance(np.asarray(policy(decisions)))
+
+
+class RunsToEnd:
+    """Mixin of a deterministic :class:`BatchEnv` whose ``start(n_episodes)`` gives a
+    :class:`RoundBatch`: ``rollout`` runs it to the end. ``seed`` is unused (only the policy is
+    random)."""
+
+    def rollout(self, policy: Policy, n_episodes: int,
+                seed: int | np.random.SeedSequence = 0) -> Rollout:
+        batch = self.start(n_episodes)  # type: ignore[attr-defined]
+        run_to_end(batch, policy)
+        return batch.to_rollout()

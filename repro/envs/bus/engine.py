@@ -80,8 +80,7 @@ from numba import njit
 from repro.core.config import numba_record
 from repro.core.errors import require
 from repro.core.paths import path_layout
-from repro.core.rollout import (BadActions, DecisionBatch, Policy, Rollout, check_actions,
-                                run_to_end)
+from repro.core.rollout import BadActions, DecisionBatch, Rollout, RunsToEnd, check_actions
 from repro.envs.bus.params import DECISION_LATENCY, OBS_DIM, BusConfig
 
 INIT, GRANT, DECISION, DWELL, RELEASE, TRAVEL, HOLD, SERVED, WAITED, LATENCY = range(10)
@@ -617,7 +616,7 @@ def _arrivals(params_array, states, logs, episode, time, bus, stop, h, load, ali
     return o
 
 
-class BusEnv:
+class BusEnv(RunsToEnd):
     """The fast engine as a :class:`repro.core.rollout.BatchEnv`."""
 
     name = "bus"
@@ -634,10 +633,3 @@ class BusEnv:
 
     def start(self, n_episodes: int) -> BusBatch:
         return BusBatch(self.cfg, n_episodes)
-
-    def rollout(self, policy: Policy, n_episodes: int,
-                seed: int | np.random.SeedSequence = 0) -> Rollout:
-        """The environment is deterministic, so ``seed`` is unused (only the policy is random)."""
-        batch = self.start(n_episodes)
-        run_to_end(batch, policy)
-        return batch.to_rollout()

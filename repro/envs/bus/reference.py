@@ -30,7 +30,7 @@ import simpy
 
 from repro.core.errors import require
 from repro.core.paths import path_layout
-from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions, run_to_end
+from repro.core.rollout import DecisionBatch, Rollout, RunsToEnd, check_actions
 from repro.envs.bus.params import DECISION_LATENCY, OBS_DIM, BusConfig
 
 
@@ -227,7 +227,7 @@ class ReferenceBatch:
             info={"arrivals": self.arrivals()})
 
 
-class ReferenceBusEnv:
+class ReferenceBusEnv(RunsToEnd):
     """The SimPy reference as a :class:`repro.core.rollout.BatchEnv` (slow; for checking)."""
 
     name = "bus-reference"
@@ -241,10 +241,3 @@ class ReferenceBusEnv:
 
     def start(self, n_episodes: int) -> ReferenceBatch:
         return ReferenceBatch(self.cfg, n_episodes)
-
-    def rollout(self, policy: Policy, n_episodes: int,
-                seed: int | np.random.SeedSequence = 0) -> Rollout:
-        """The environment is deterministic, so ``seed`` is unused (only the policy is random)."""
-        batch = self.start(n_episodes)
-        run_to_end(batch, policy)
-        return batch.to_rollout()
