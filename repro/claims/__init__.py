@@ -174,17 +174,15 @@ def side_by_side(check: Callable[[Path, str], Verdict],
 
 def learner_of(result: Path) -> str:
     """The named learner of a result's runs, as its sidecar records it (beside the config, or in it
-    at any depth of a study made of studies); results made before the learner was a setting were
-    the suite's."""
+    at any depth of a study made of studies; the outermost first); results made before the
+    learner was a setting were the suite's."""
     def find(config: object) -> str | None:
         if not isinstance(config, dict):
             return None
         if isinstance(config.get("learner"), str):
             return config["learner"]
         return next(filter(None, map(find, config.values())), None)
-    prov = read_provenance(result)
-    return find(prov) if isinstance(prov.get("learner"), str) else (
-        find(prov.get("config", {})) or "suite")
+    return find(read_provenance(result)) or "suite"
 
 
 def registry() -> list[Claim]:
