@@ -1,5 +1,5 @@
 """The policy evaluated row by row in compiled code (repro.core.policy_kernel) against numpy, torch
-and the sampler's BLAS path."""
+and the sampler."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from numba import njit
 
-from repro.core.policy_kernel import MAX_ROWS, logits_row, tanh32
+from repro.core.policy_kernel import act_row, logits_row, tanh32
 from repro.core.rollout import DecisionBatch
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 
@@ -70,15 +70,23 @@ def batch(obs: np.ndarray) -> DecisionBatch:
                          index=np.zeros(m, np.int64))
 
 
-def test_small_rounds_sample_as_the_blas_path_does():
-    """Rounds of at most MAX_ROWS rows (row by row) and one large round (BLAS) draw the same
-    uniforms in the same order and give the same actions."""
-    obs = np.random.default_rng(2).normal(2.0, 5.0, size=(MAX_ROWS * 300, 7))
+def test_rounds_of_any_size_sample_as_rows_do():
+    """Rounds of a few rows and one large round draw the same uniforms in the same order and give
+    the same actions, and the sampler's logits are logits_row's, bit for bit."""
+    rows_per_round = 16
+    obs = np.random.default_rng(2).normal(2.0, 5.0, size=(rows_per_round * 300, 7))
     small_rounds = _policy(7, 5, (32, 32), seed=3)[1]
     one_round = _policy(7, 5, (32, 32), seed=3)[1]
-    small = np.concatenate([small_rounds(batch(obs[i:i + MAX_ROWS]))
-                            for i in range(0, len(obs), MAX_ROWS)])
+    small = np.concatenate([small_rounds(batch(obs[i:i + rows_per_round]))
+                            for i in range(0, len(obs), rows_per_round)])
     large = one_round(batch(obs))
     assert len(np.unique(large)) == 5
     np.testing.assert_array_equal(small, large)
     assert small_rounds.rng.random() == one_round.rng.random()
+    c = one_round
+    rows = np.stack([logits_row(o, c.weights, c.biases, c.mean, c.scale) for o in obs])
+    np.testing.assert_array_equal(one_round.logits(obs).view(np.int32), rows.view(np.int32))
+    ref = _policy(7, 5, (32, 32), seed=3)[1]
+    u = ref.rng.random(len(obs))
+    by_row = [act_row(o, c.weights, c.biases, c.mean, c.scale, ui) for o, ui in zip(obs, u)]
+    np.testing.assert_array_equal(large, by_row)

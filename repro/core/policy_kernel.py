@@ -1,14 +1,13 @@
 """The shared categorical tanh-MLP policy evaluated one decision at a time in compiled code: the
-:class:`repro.learn.policy.Sampler`'s path for small rounds.
+arithmetic of the :class:`repro.learn.policy.Sampler`.
 
-Engines hand the policy one round of decisions at a time. The sampler evaluates a round with one
-BLAS product per layer, about 50 us of calls whatever the round's size, so a round of at most
-:data:`MAX_ROWS` rows is evaluated here instead, row by row. The arithmetic is the network's, in
-float32: each layer's sums in input order, then the bias, then tanh (:func:`tanh32`, correctly
-rounded). BLAS blocks its sums differently, so the two paths can differ in the last bits of a
-logit. Which path a round takes depends only on its size, so a seeded run is still reproduced
-exactly. tests/test_policy_network.py checks these layers, the torch module and the derivative
-products of :mod:`repro.learn.network` against one spec of the network.
+Engines hand the policy one round of decisions at a time, and the sampler evaluates it row by row
+with the functions here, whatever the round's size. The arithmetic is the network's, in float32:
+each layer's sums in input order, then the bias, then tanh (:func:`tanh32`, correctly rounded).
+It is the same on every CPU: numba reorders no sums and fuses no multiply-adds without fast-math,
+while numpy's BLAS, which blocks its sums by CPU, stays out of it (:mod:`repro.core.kernels`).
+tests/test_policy_network.py checks these layers, the torch module and the derivative products of
+:mod:`repro.learn.network` against one spec of the network.
 
 numba caches a compiled kernel under its own source file's timestamp only, so kernels elsewhere
 that call these (the sampler's) keep a stale copy after an edit here: ``make clean`` removes the
@@ -20,10 +19,6 @@ from __future__ import annotations
 import math
 import numpy as np
 from numba import njit
-
-MAX_ROWS = 16
-"""Rounds of at most this many decisions are evaluated row by row. With a network of 2 x 32 units
-a row costs 2-4 us here; the sampler's BLAS path costs about 50 us of calls per round."""
 
 
 @njit(cache=True)
@@ -77,13 +72,10 @@ def tanh32(v):
 
 
 @njit(cache=True, error_model="numpy")
-def logits_row(obs, weights, biases, mean, scale):
-    """The network's logits (float32) for one raw observation ``obs``."""
-    width = len(obs)
-    for w in weights:
-        width = max(width, w.shape[1])
-    x = np.empty(width, np.float32)  # a layer's input
-    y = np.empty(width, np.float32)  # its output
+def logits_into(obs, weights, biases, mean, scale, x, y):
+    """The network's logits (float32) for one raw observation ``obs``, computed in the float32
+    scratch ``x`` and ``y`` (each at least as long as the observation and every layer) and
+    returned as a view of ``x``."""
     for i in range(len(obs)):
         x[i] = np.float32((obs[i] - mean[i]) * scale[i])
     last = len(weights) - 1
@@ -99,6 +91,23 @@ def logits_row(obs, weights, biases, mean, scale):
         for j in range(n_out):
             x[j] = tanh32(y[j] + b[j]) if k < last else y[j] + b[j]
     return x[:weights[last].shape[1]]
+
+
+@njit(cache=True)
+def width(obs_dim, weights):
+    """The length :func:`logits_into`'s scratch needs."""
+    out = obs_dim
+    for w in weights:
+        out = max(out, w.shape[1])
+    return out
+
+
+@njit(cache=True)
+def logits_row(obs, weights, biases, mean, scale):
+    """The network's logits (float32) for one raw observation ``obs``."""
+    n = width(len(obs), weights)
+    return logits_into(obs, weights, biases, mean, scale, np.empty(n, np.float32),
+                       np.empty(n, np.float32))
 
 
 @njit(cache=True)

@@ -16,7 +16,7 @@ from threadpoolctl import threadpool_limits
 from numba import njit
 from torch import nn
 
-from repro.core.policy_kernel import MAX_ROWS, act_row, sample_row
+from repro.core.policy_kernel import logits_into, sample_row, width
 from repro.core.rollout import DecisionBatch
 
 DTYPE = torch.float32
@@ -152,54 +152,28 @@ class Sampler:
 
     Engines call it once per round, often for a handful of rows, where torch's per-operation
     overhead (tens of microseconds) would dominate. So the sampler evaluates a numpy snapshot of the
-    network and normaliser, taken when it is created (the policy is fixed during a rollout): float32
-    like the network, each layer one BLAS product and one vectorised tanh written into buffers that
-    are reused from call to call, and the sampling step (a dozen small numpy operations along rows
-    of a few entries) one compiled loop, :func:`_sample_rows`. In the engine benchmarks it costs
-    about 1 us per decision, calls included (``policy_cpu_seconds`` in results/bench_*.csv).
-
-    A round of at most :data:`~repro.core.policy_kernel.MAX_ROWS` rows skips those calls: it is
-    evaluated row by row in one compiled function (:mod:`repro.core.policy_kernel`).
+    network and normaliser, taken when it is created (the policy is fixed during a rollout), row
+    by row in one compiled loop (:func:`repro.core.policy_kernel.logits_into`, float32 like the
+    network; the sampling step :func:`~repro.core.policy_kernel.sample_row`). Its sums run in a
+    fixed order, so the actions are the same on every CPU and for rounds of any size; numpy's BLAS,
+    whose kernels block their sums by CPU, is not used (:mod:`repro.core.kernels`).
     """
 
     def __init__(self, policy: CategoricalPolicy, normalizer: ObsNormalizer,
                  rng: np.random.Generator):
         linears = [m for m in policy.net if isinstance(m, nn.Linear)]
-        self.layers = [(m.weight.detach().numpy().T.copy(), m.bias.detach().numpy().copy())
-                       for m in linears]
-        """Per layer, the (inputs, outputs) weights and the (outputs,) biases, float32."""
-        self.weights = tuple(w for w, _ in self.layers)
-        self.biases = tuple(b for _, b in self.layers)
+        self.weights = tuple(m.weight.detach().numpy().T.copy() for m in linears)
+        """Per layer, the (inputs, outputs) weights, float32, C-contiguous."""
+        self.biases = tuple(m.bias.detach().numpy().copy() for m in linears)
+        """Per layer, the (outputs,) biases, float32."""
         self.mean = normalizer.mean.copy()
         self.scale = 1.0 / np.sqrt(normalizer.var + normalizer.eps)
         self.rng = rng
-        self._buffers: list[np.ndarray] = []
-
-    def _buffer(self, i: int, rows: int, cols: int, dtype: type) -> np.ndarray:
-        """Work buffer i as a (rows, cols) view, regrown (doubled) when too small."""
-        while len(self._buffers) <= i:
-            self._buffers.append(np.empty(0, dtype))
-        if self._buffers[i].size < rows * cols:
-            self._buffers[i] = np.empty(2 * rows * cols, dtype)
-        return self._buffers[i][:rows * cols].reshape(rows, cols)
 
     def logits(self, obs: np.ndarray) -> np.ndarray:
-        """The network's logits (N, n_actions) for raw observations (N, obs_dim); a view of a work
-        buffer, valid until the next call."""
-        n = len(obs)
-        z = self._buffer(0, n, obs.shape[1], np.float64)
-        np.subtract(obs, self.mean, out=z)
-        np.multiply(z, self.scale, out=z)
-        x = self._buffer(1, n, obs.shape[1], np.float32)
-        x[...] = z
-        for i, (w, b) in enumerate(self.layers):
-            y = self._buffer(2 + i, n, w.shape[1], np.float32)
-            np.matmul(x, w, out=y)
-            np.add(y, b, out=y)
-            if i < len(self.layers) - 1:
-                np.tanh(y, out=y)
-            x = y
-        return x
+        """The network's logits (N, n_actions), float32, for raw observations (N, obs_dim)."""
+        return _logits_rows(np.ascontiguousarray(obs, dtype=np.float64), self.weights,
+                            self.biases, self.mean, self.scale)
 
     def probabilities(self, obs: np.ndarray) -> np.ndarray:
         """pi(. | o) for raw observations (N, obs_dim), in float64."""
@@ -210,23 +184,28 @@ class Sampler:
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
         actions = np.empty(len(batch.obs), np.int64)
         u = self.rng.random(len(actions))
-        if len(actions) <= MAX_ROWS:
-            _act_rows(batch.obs, self.weights, self.biases, self.mean, self.scale, u, actions)
-        else:
-            _sample_rows(self.logits(batch.obs), u, actions)
+        _act_rows(batch.obs, self.weights, self.biases, self.mean, self.scale, u, actions)
         return actions
 
 
 @njit(cache=True)
-def _sample_rows(logits, u, actions):
-    """actions[r] ~ softmax(logits[r]) with the uniform u[r] (:func:`sample_row`)."""
-    cdf = np.empty(logits.shape[1])
-    for r in range(logits.shape[0]):
-        actions[r] = sample_row(logits[r], u[r], cdf)
+def _logits_rows(obs, weights, biases, mean, scale):
+    """The logits of every row of ``obs``, row by row (:func:`logits_into`)."""
+    n = width(obs.shape[1], weights)
+    x, y = np.empty(n, np.float32), np.empty(n, np.float32)
+    out = np.empty((obs.shape[0], weights[-1].shape[1]), np.float32)
+    for r in range(obs.shape[0]):
+        out[r] = logits_into(obs[r], weights, biases, mean, scale, x, y)
+    return out
 
 
 @njit(cache=True)
 def _act_rows(obs, weights, biases, mean, scale, u, actions):
-    """The actions of a small round, row by row (:func:`act_row`) with the uniforms u."""
+    """The actions of a round, row by row with the uniforms u: :func:`act_row`'s arithmetic, with
+    its scratch allocated once."""
+    n = width(obs.shape[1], weights)
+    x, y = np.empty(n, np.float32), np.empty(n, np.float32)
+    cdf = np.empty(weights[-1].shape[1])
     for r in range(obs.shape[0]):
-        actions[r] = act_row(obs[r], weights, biases, mean, scale, u[r])
+        logits = logits_into(obs[r], weights, biases, mean, scale, x, y)
+        actions[r] = sample_row(logits, u[r], cdf)
