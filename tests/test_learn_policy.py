@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from repro.core.rollout import DecisionBatch
@@ -84,17 +85,16 @@ def test_linear_baseline_recovers_linear_features_and_mlp_fits():
 
 
 def test_inverse_cdf_sampling_by_hand():
-    from repro.learn.policy import _sample_rows
+    from repro.core.policy_kernel import sample_row
 
     # probabilities 1/4, 1/4, 1/2: the CDF's steps are at u = 0.25 and 0.5
-    logits = np.log(np.array([[1.0, 1.0, 2.0]] * 5, np.float32))
-    u = np.array([0.0, 0.2499, 0.25, 0.4999, 0.9999999])
-    actions = np.empty(5, np.int64)
-    _sample_rows(logits, u, actions)
-    np.testing.assert_array_equal(actions, [0, 0, 1, 1, 2])
+    logits = np.log(np.array([1.0, 1.0, 2.0], np.float32))
+    u = [0.0, 0.2499, 0.25, 0.4999, 0.9999999]
+    actions = [sample_row(logits, ui, np.empty(3)) for ui in u]
+    assert actions == [0, 0, 1, 1, 2]
 
 
-def test_sampler_work_buffers_do_not_leak_between_calls():
+def test_sampler_calls_of_different_sizes_do_not_interfere():
     torch.manual_seed(0)
     sampler = Sampler(CategoricalPolicy(3, 4, (8,)), ObsNormalizer(3), np.random.default_rng(0))
     rng = np.random.default_rng(1)
@@ -114,3 +114,33 @@ def test_linear_baseline_features_are_rllabs():
     expected = np.concatenate([z, z**2, k, k**2, k**3, np.ones_like(k)], axis=1)
     np.testing.assert_array_equal(LinearFeatureBaseline.features(obs, index), expected)
     assert np.isnan(expected[0, 0])
+
+
+def test_linear_baseline_solves_as_numpys_lstsq_did():
+    """The regression's matrix products and solve are torch's (numpy's BLAS stays out of the
+    learner): the coefficients are those of rllab's numpy formulation to rounding."""
+    from repro.learn.baseline import LinearFeatureBaseline
+
+    rng = np.random.default_rng(3)
+    obs, index = rng.normal(size=(5000, 6)) * 3, rng.integers(0, 400, 5000)
+    returns = obs[:, 0] ** 2 - index / 50 + rng.normal(size=5000)
+    lin = LinearFeatureBaseline(6)
+    error = lin.fit(obs, index, returns)
+    x = LinearFeatureBaseline.features(obs, index)
+    gram = x.T @ x + 1e-5 * np.eye(x.shape[1])
+    expected = np.linalg.lstsq(gram, x.T @ returns, rcond=None)[0]
+    np.testing.assert_allclose(lin.coeffs, expected, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(lin.predict(obs, index), x @ expected, rtol=1e-9, atol=1e-9)
+    assert error == pytest.approx(np.mean((x @ expected - returns) ** 2) / returns.var())
+
+
+def test_linear_baseline_with_a_nan_has_nan_coefficients():
+    """A NaN observation gives NaN coefficients (LAPACK would refuse the system, or hang)."""
+    from repro.learn.baseline import LinearFeatureBaseline
+
+    rng = np.random.default_rng(4)
+    obs, index = rng.normal(size=(100, 2)), np.arange(100)
+    obs[7, 1] = np.nan
+    lin = LinearFeatureBaseline(2)
+    assert np.isnan(lin.fit(obs, index, rng.normal(size=100)))
+    assert np.all(np.isnan(lin.coeffs))

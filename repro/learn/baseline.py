@@ -14,6 +14,7 @@ Both predict 0 before their first fit, so the first batch's advantages are disco
 
 from __future__ import annotations
 
+import math
 from typing import Any, Protocol, Sequence
 
 import numpy as np
@@ -41,32 +42,46 @@ class Baseline(Protocol):
 
 
 class LinearFeatureBaseline:
+    """rllab's linear feature baseline. numpy's BLAS and LAPACK, whose kernels depend on the CPU,
+    are kept out of it (:mod:`repro.core.kernels`): the features and the prediction are compiled
+    loops whose sums run in a fixed order, and the regression's matrix products and solve are
+    torch's, whose MKL runs its pinned AVX2 branch."""
+
     def __init__(self, obs_dim: int, reg_coeff: float = 1e-5):
         self.coeffs = np.zeros(2 * obs_dim + 4)
         self.reg_coeff = reg_coeff
 
     @staticmethod
     def features(obs: np.ndarray, index: np.ndarray) -> np.ndarray:
-        """[z, z^2, k/100, (k/100)^2, (k/100)^3, 1], written row by row into one array by a
-        compiled loop (numpy's column-wise writes into the rows took 8.5 ms on a 37,535-decision
-        wildfire batch, this 4-5.5 ms). The powers of k are numpy's, so the bits are unchanged."""
-        k = index / 100.0
-        return _features(obs, np.stack([k, k**2, k**3, np.ones_like(k)], axis=1))
+        """The feature matrix (N, 2 obs_dim + 4), row k [z, z^2, k/100, (k/100)^2, (k/100)^3, 1]
+        (:func:`_feature_row`), written row by row by a compiled loop."""
+        return _features(*_inputs(obs, index))
 
     def predict(self, obs: np.ndarray, index: np.ndarray) -> np.ndarray:
-        return self.features(obs, index) @ self.coeffs
+        """features @ coeffs, one row at a time (the features are never stored)."""
+        return _predict(*_inputs(obs, index), self.coeffs)
 
     def fit(self, obs: np.ndarray, index: np.ndarray, returns: np.ndarray) -> float:
-        x = self.features(obs, index)
-        gram, rhs = x.T @ x, x.T @ returns
+        """Ridge regression: the normal equations X'X + reg I, solved as ``numpy.linalg.lstsq``
+        solves them (LAPACK's gelsd, singular values below n eps of the largest dropped), reg
+        raised tenfold while the solution has a NaN. A system with a NaN or infinity (from NaN
+        observations or returns) has NaN coefficients: LAPACK would refuse it (torch's raises,
+        numpy's OpenBLAS hangs)."""
+        obs, index = _inputs(obs, index)
+        x = torch.from_numpy(_features(obs, index))
+        gram, rhs = x.T @ x, x.T @ torch.from_numpy(np.ascontiguousarray(returns, np.float64))
         reg = self.reg_coeff
         for _ in range(5):
-            coeffs = np.linalg.lstsq(gram + reg * np.eye(len(gram)), rhs, rcond=None)[0]
-            if not np.any(np.isnan(coeffs)):
+            system = gram + reg * torch.eye(len(gram), dtype=torch.float64)
+            if not (torch.isfinite(system).all() and torch.isfinite(rhs).all()):
+                coeffs = torch.full_like(rhs, float("nan"))
+            else:
+                coeffs = torch.linalg.lstsq(system, rhs[:, None], driver="gelsd").solution[:, 0]
+            if not torch.any(torch.isnan(coeffs)):
                 break
             reg *= 10
-        self.coeffs = coeffs
-        return _relative_error(x @ coeffs, returns)
+        self.coeffs = coeffs.numpy()
+        return _relative_error(_predict(obs, index, self.coeffs), returns)
 
     def state_dict(self) -> dict[str, Any]:
         return {"coeffs": torch.as_tensor(self.coeffs)}
@@ -113,23 +128,52 @@ class MLPBaseline(nn.Module):
         return _relative_error(self.predict(obs, index), returns)
 
 
+def _inputs(obs: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return (np.ascontiguousarray(obs, dtype=np.float64),
+            np.ascontiguousarray(index, dtype=np.float64))
+
+
+@njit(cache=True, inline="always")
+def _feature_row(obs, k, out):
+    """Write [clip(z, -10, 10), its square, k/100, (k/100)^2, (k/100)^3, 1] for the observation
+    ``obs`` (z) and decision number ``k`` into ``out``. The clip lets NaN through, as np.clip does;
+    (k/100)^3 is libm's pow, as numpy's power computes it at the AVX2 level."""
+    d = obs.shape[0]
+    for j in range(d):
+        z = obs[j]
+        if z < -10.0:
+            z = -10.0
+        elif z > 10.0:
+            z = 10.0
+        out[j] = z
+        out[d + j] = z * z
+    t = k / 100.0
+    out[2 * d] = t
+    out[2 * d + 1] = t * t
+    out[2 * d + 2] = math.pow(t, 3.0)
+    out[2 * d + 3] = 1.0
+
+
 @njit(cache=True)
-def _features(obs, tail):
-    """Rows [clip(z, -10, 10), its square, tail]."""
-    n, d = obs.shape
-    x = np.empty((n, 2 * d + tail.shape[1]))
-    for i in range(n):
-        for j in range(d):
-            z = obs[i, j]  # clipped like np.clip, which lets NaN through
-            if z < -10.0:
-                z = -10.0
-            elif z > 10.0:
-                z = 10.0
-            x[i, j] = z
-            x[i, d + j] = z * z
-        for j in range(tail.shape[1]):
-            x[i, 2 * d + j] = tail[i, j]
+def _features(obs, index):
+    x = np.empty((obs.shape[0], 2 * obs.shape[1] + 4))
+    for i in range(obs.shape[0]):
+        _feature_row(obs[i], index[i], x[i])
     return x
+
+
+@njit(cache=True)
+def _predict(obs, index, coeffs):
+    """features @ coeffs, each row's sum in feature order."""
+    f = np.empty(len(coeffs))
+    out = np.empty(obs.shape[0])
+    for i in range(obs.shape[0]):
+        _feature_row(obs[i], index[i], f)
+        total = 0.0
+        for j in range(len(f)):
+            total += f[j] * coeffs[j]
+        out[i] = total
+    return out
 
 
 def _relative_error(pred: np.ndarray, target: np.ndarray) -> float:
