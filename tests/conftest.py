@@ -5,6 +5,8 @@ from pathlib import Path
 
 import pytest
 
+import repro  # noqa: F401  (first, so that it pins the CPU kernels before a test imports numpy)
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

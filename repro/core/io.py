@@ -217,14 +217,17 @@ def versions() -> dict[str, str]:
 
 
 def machine() -> dict[str, Any]:
-    """What the numbers may depend on beyond the code: training results are byte-identical on one
-    CPU model but not across CPUs, because torch picks its vectorised kernels (and so its rounding)
-    by what the CPU supports (docs/performance.md, "Determinism across machines")."""
+    """What the numbers may depend on beyond the code: the CPU, and where torch is loaded the
+    kernels torch, its MKL and numpy compute with (``kernels``: pinned to AVX2 on x86-64 CPUs with
+    AVX2, so that training is byte-identical across them; see :mod:`repro.core.kernels`)."""
     out: dict[str, Any] = {"platform": platform.platform(), "cpus": os.cpu_count(),
                            "cpu": cpu_model()}
     torch = sys.modules.get("torch")  # not imported here: drivers without torch stay light
     if torch is not None:
+        from repro.core.kernels import state
+
         out["torch_cpu_capability"] = torch.backends.cpu.get_cpu_capability()
+        out["kernels"] = state()
     return out
 
 

@@ -16,7 +16,10 @@ process-wide settings, which the process's entry point makes once
 
 Determinism: torch is seeded from the run seed; the policy's sampling draws come from one numpy
 Generator owned by the trainer (its state is checkpointed); epoch e's environment seed is derived
-from (seed, e). Timing columns are the only run-to-run differences in the outputs.
+from (seed, e). Timing columns are the only run-to-run differences in the outputs. Across machines:
+on every x86-64 CPU with AVX2 the kernels of torch, its MKL and numpy are the pinned AVX2 ones
+(:mod:`repro.core.kernels`; the trainer warns where they are not), numpy's BLAS is not used, and
+the outputs are the same bytes.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import pandas as pd
 import torch
 
 from repro.core.errors import require
+from repro.core.kernels import check as check_kernels
 from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
 from repro.learn import batch
@@ -73,6 +77,7 @@ class Trainer:
         self.env_config = env_config
         self.run_config = run_folder.run_config(cfg, env_config, env.name)
         check_training_size(cfg, env)  # before the networks are built
+        check_kernels()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
         self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden, cfg.init)
         self.baseline = make_baseline(cfg.baseline, env.obs_dim, cfg.baseline_hidden,
