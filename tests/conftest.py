@@ -19,6 +19,16 @@ def run_cli(*args: str, cwd: Path | None = None,
                           capture_output=True, text=True, timeout=timeout)
 
 
+def env_without_pins(**extra: str) -> dict[str, str]:
+    """This process's environment without the variables that importing repro sets (so it holds
+    the pinned values; repro.core.kernels), plus ``extra``: what a fresh shell would hand a
+    child process."""
+    from repro.core.kernels import NUMPY_VARIABLES, TORCH_PINS
+
+    env = {k: v for k, v in os.environ.items() if k not in (*TORCH_PINS, *NUMPY_VARIABLES)}
+    return {**env, "PYTHONPATH": str(ROOT), **extra}
+
+
 def tree_snapshot(*dirs: Path) -> dict[str, bytes]:
     """Every file under ``dirs`` with its bytes (to prove that nothing was written)."""
     return {str(p): p.read_bytes() for d in dirs if d.exists() for p in sorted(d.rglob("*"))

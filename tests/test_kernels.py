@@ -4,30 +4,22 @@ alone, and that the pin takes in the processes the suite starts."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 
 import pytest
 
 from repro.core import kernels
-from tests.conftest import ROOT
+from tests.conftest import ROOT, env_without_pins
 
 PINNABLE = kernels.pinnable()
 needs_pin = pytest.mark.skipif(not PINNABLE, reason="the pin applies to x86-64 CPUs with AVX2")
 SET_BY_PIN = (*kernels.TORCH_PINS, *kernels.NUMPY_VARIABLES)
 
 
-def clean_env(**extra: str) -> dict[str, str]:
-    """This process's environment without what the pin sets (this process imported repro, so it
-    holds the pinned values), plus ``extra``."""
-    env = {k: v for k, v in os.environ.items() if k not in SET_BY_PIN}
-    return {**env, "PYTHONPATH": str(ROOT), **extra}
-
-
 def python(code: str, **env: str) -> str:
     """stdout of ``python -c code`` in a fresh process."""
-    out = subprocess.run([sys.executable, "-c", code], env=clean_env(**env), cwd=ROOT,
+    out = subprocess.run([sys.executable, "-c", code], env=env_without_pins(**env), cwd=ROOT,
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     return out.stdout
