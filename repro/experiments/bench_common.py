@@ -24,7 +24,7 @@ Each engine runs ``repeats`` batches per policy: the fast engine batches of ``fa
 environment's training batch), the reference smaller ones (its cost per episode does not depend on
 the batch). Batch r draws its episodes from child r of the seed, and each engine gets the same
 freshly seeded sampler. The warm-up rollout also compiles the fast engine (or loads it from cache).
-Everything runs on one thread, numpy's BLAS included, as in training.
+Everything runs on one thread, as in training.
 
 Rates are per second of this process's CPU time, which is what one core achieves when the machine
 is shared, and per wall second; each is the median over the batches, as other processes' bursts of
@@ -53,7 +53,7 @@ from repro.core.errors import require
 from repro.core.io import provenance, write_result
 from repro.core.memory import require_memory
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy, rollout_bytes
-from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler, blas_on_one_thread
+from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.envs import env_package, make_vector_env, train_defaults
 from repro.learn.config import TrainConfig
 from repro.learn.trained_policy import check_fits, load_trained_run, policy_from_state
@@ -175,20 +175,19 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
         policies = {"checkpoint": lambda env, rng: policy_from_state(trained, rng),
                     cheap_name: cheap}
     rows = []
-    with blas_on_one_thread():  # as in training
-        for engine, env, episodes in (("fast", fast, cfg.fast_episodes),
-                                      ("reference", reference, cfg.reference_episodes)):
-            for name, make in policies.items():
-                policy = make(env, np.random.default_rng(seed))
-                rows.append(dict(engine=engine, policy=name,
-                                 **_time(env, policy, episodes, cfg.repeats, seed)))
-        # the step API on the fast engine with the first policy (the network), as many decisions
-        # per batch as its rollouts made
-        name, make = next(iter(policies.items()))
-        per_batch = rows[0]["decisions"] // cfg.repeats
-        rows.append(dict(engine="fast-step-api", policy=name,
-                         **_time_steps(fast, make(fast, np.random.default_rng(seed)),
-                                       cfg.fast_episodes, cfg.repeats, seed, per_batch)))
+    for engine, env, episodes in (("fast", fast, cfg.fast_episodes),
+                                  ("reference", reference, cfg.reference_episodes)):
+        for name, make in policies.items():
+            policy = make(env, np.random.default_rng(seed))
+            rows.append(dict(engine=engine, policy=name,
+                             **_time(env, policy, episodes, cfg.repeats, seed)))
+    # the step API on the fast engine with the first policy (the network), as many decisions
+    # per batch as its rollouts made
+    name, make = next(iter(policies.items()))
+    per_batch = rows[0]["decisions"] // cfg.repeats
+    rows.append(dict(engine="fast-step-api", policy=name,
+                     **_time_steps(fast, make(fast, np.random.default_rng(seed)),
+                                   cfg.fast_episodes, cfg.repeats, seed, per_batch)))
     frame = pd.DataFrame(rows)
     ref = frame[frame.engine == "reference"].set_index("policy")
     for column, rate in (("speedup_vs_reference", "decisions_per_cpu_second"),

@@ -31,7 +31,7 @@ from repro.learn import trainer
 from repro.learn.config import DEFAULT_LEARNER, LEARNERS, train_config
 from repro.learn.m_gae import m_gae_paths
 from repro.learn.network import TanhMLP, log_softmax
-from repro.learn.policy import DTYPE, Sampler, blas_on_one_thread
+from repro.learn.policy import DTYPE, Sampler
 from repro.learn.process import configure_process
 from repro.learn.run_folder import config_dict
 from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, normalize,
@@ -165,8 +165,7 @@ def run(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory() as out:  # checkpoints are written, as in a real run
         run = trainer.Trainer(train_cfg, pkg.make_env(env_cfg), out, env_cfg)
         frame = run.train()
-    with blas_on_one_thread():
-        pieces = epoch_pieces(run, cfg.repeats)
+    pieces = epoch_pieces(run, cfg.repeats)
     wall = time.perf_counter() - t0
     table = frame[["epoch", "batch_episodes", "decisions", *trainer.TIMING_COLUMNS]].copy()
     table.insert(0, "env", args.env)

@@ -12,7 +12,6 @@ from typing import Sequence
 
 import numpy as np
 import torch
-from threadpoolctl import threadpool_limits
 from numba import njit
 from torch import nn
 
@@ -43,18 +42,6 @@ def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, out_gain: float,
             nn.init.orthogonal_(layer.weight, gain=out_gain if last else np.sqrt(2.0))
         nn.init.zeros_(layer.bias)
     return nn.Sequential(*layers)
-
-
-def blas_on_one_thread() -> threadpool_limits:
-    """A context in which numpy's BLAS computes on one thread (torch and the engines already do).
-
-    The :class:`Sampler`'s matrix products are small (a round of about 1,000 rows times 32 units),
-    and BLAS would split them over every core: on a 2-core machine shared with other work, a thread
-    that waits for a busy core made such a call 3-7x slower than one thread alone. Training and the
-    benchmarks run under this context; entering it costs about half a millisecond, so use it around
-    whole rollouts, not around single policy calls.
-    """
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 class ObsNormalizer:

@@ -9,10 +9,8 @@ new normalisation, which it will be used with). Given a run folder, the trainer 
 row and state to :mod:`repro.learn.run_folder`, which records them so that running the same
 command again resumes exactly.
 
-Threads: numpy's BLAS runs on one thread during the epochs
-(:func:`~repro.learn.policy.blas_on_one_thread` says why); torch's threads and malloc are
-process-wide settings, which the process's entry point makes once
-(:func:`repro.learn.process.configure_process`).
+Threads and malloc: torch's thread count and malloc's thresholds are process-wide settings, which
+the process's entry point makes once (:func:`repro.learn.process.configure_process`).
 
 Determinism: torch is seeded from the run seed; the policy's sampling draws come from one numpy
 Generator owned by the trainer (its state is checkpointed); epoch e's environment seed is derived
@@ -42,8 +40,7 @@ from repro.learn.baseline import make_baseline
 from repro.learn.config import TrainConfig
 from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
-from repro.learn.policy import (DTYPE, CategoricalPolicy, ObsNormalizer, Sampler,
-                                blas_on_one_thread)
+from repro.learn.policy import DTYPE, CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn import run_folder
 from repro.learn.sizes import check_training_size
 from repro.learn.trpo import normalize, trpo_step
@@ -167,18 +164,17 @@ class Trainer:
         return self.progress()
 
     def _epochs(self, on_epoch: Callable[[dict[str, Any]], None] | None) -> None:
-        with blas_on_one_thread():
-            for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
-                              total=self.cfg.epochs - self.epoch):
-                t0 = time.perf_counter()
-                row = self.run_epoch()
-                row["seconds"] = time.perf_counter() - t0
-                self.rows.append(row)
-                if self.out is not None:
-                    run_folder.record_epoch(self.out, row, PROGRESS_COLUMNS, self.state_dict(),
-                                            self.cfg.epochs)
-                if on_epoch is not None:
-                    on_epoch(row)
+        for _ in progress(range(self.epoch, self.cfg.epochs), f"train {self.cfg.env}",
+                          total=self.cfg.epochs - self.epoch):
+            t0 = time.perf_counter()
+            row = self.run_epoch()
+            row["seconds"] = time.perf_counter() - t0
+            self.rows.append(row)
+            if self.out is not None:
+                run_folder.record_epoch(self.out, row, PROGRESS_COLUMNS, self.state_dict(),
+                                        self.cfg.epochs)
+            if on_epoch is not None:
+                on_epoch(row)
 
     def progress(self) -> pd.DataFrame:
         return pd.DataFrame(self.rows, columns=PROGRESS_COLUMNS)
