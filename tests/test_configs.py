@@ -27,3 +27,41 @@ from repro.learn.config import TrainConfig
 def test_a_bad_value_cannot_be_constructed(make, param):
     with pytest.raises(UsageError, match=param):
         make()
+
+
+def _study_configs() -> list[type]:
+    """Every config class of the studies (repro.experiments): dataclasses that validate and have
+    their sizes by scale (a bare base like bench_common.BenchConfig has none)."""
+    import importlib
+    import pkgutil
+
+    import repro.experiments as pkg
+    from repro.core.config import Validated
+
+    found = set()
+    for info in pkgutil.iter_modules(pkg.__path__):
+        module = importlib.import_module(f"{pkg.__name__}.{info.name}")
+        found |= {c for c in vars(module).values() if isinstance(c, type)
+                  and issubclass(c, Validated) and dataclasses.is_dataclass(c)
+                  and hasattr(c, "SCALES")
+                  and c.__module__.startswith(pkg.__name__)}
+    return sorted(found, key=lambda c: (c.__module__, c.__qualname__))
+
+
+@pytest.mark.parametrize("cls", _study_configs(), ids=lambda c: f"{c.__module__}.{c.__name__}")
+def test_a_studys_refusal_names_the_flag_of_the_field_it_refuses(cls):
+    """A bad number in any field of a study's config is refused naming that field's flag (the
+    flags are generated from the fields), never another spelling."""
+    from repro.core.config import flag, for_scale
+
+    base, tried = for_scale(cls, "quick"), 0
+    for field in dataclasses.fields(cls):
+        value = getattr(base, field.name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue
+        try:
+            dataclasses.replace(base, **{field.name: -10**6})
+        except UsageError as err:
+            tried += 1
+            assert err.param == flag(field.name), (field.name, str(err))
+    assert tried, f"{cls.__name__}: no numeric field is checked"

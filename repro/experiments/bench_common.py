@@ -49,7 +49,6 @@ import torch
 
 from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
-from repro.core.errors import require
 from repro.core.io import provenance, write_result
 from repro.core.memory import require_memory
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy, rollout_bytes
@@ -76,10 +75,9 @@ class BenchConfig(Validated):
     """Batches each engine runs per policy."""
 
     def validate(self) -> None:
-        require(self.fast_episodes >= 1, "--fast-episodes", "an integer >= 1", self.fast_episodes)
-        require(self.reference_episodes >= 1, "--reference-episodes", "an integer >= 1",
-                self.reference_episodes)
-        require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
+        self.check(self.fast_episodes >= 1, "fast_episodes", "an integer >= 1")
+        self.check(self.reference_episodes >= 1, "reference_episodes", "an integer >= 1")
+        self.check(self.repeats >= 1, "repeats", "an integer >= 1")
 
 
 def scales(env: str) -> dict[str, dict[str, int]]:

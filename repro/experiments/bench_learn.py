@@ -23,7 +23,6 @@ import torch
 
 from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields, to_dict
-from repro.core.errors import require
 from repro.core.io import provenance, write_result
 from repro.envs import BUILT_IN, env_package
 from repro.experiments import train
@@ -56,9 +55,9 @@ class BenchConfig(Validated):
     }
 
     def validate(self) -> None:
-        require(self.episodes >= 1, "--episodes", "an integer >= 1", self.episodes)
-        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
+        self.check(self.episodes >= 1, "episodes", "an integer >= 1")
+        self.check(self.epochs >= 1, "epochs", "an integer >= 1")
+        self.check(self.repeats >= 1, "repeats", "an integer >= 1")
 
 
 def median_cpu_seconds(fns: list[Callable[[], Any]], repeats: int) -> list[float]:

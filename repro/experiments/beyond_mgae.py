@@ -38,7 +38,6 @@ import numpy as np
 import pandas as pd
 
 from repro.core.config import Validated, for_scale, given_fields
-from repro.core.errors import require
 from repro.core.io import (check_writable_dir, provenance, read_provenance, save_figure,
                            write_result)
 from repro.core.stats import bootstrap_ci, ci_side, iqm, sem
@@ -76,13 +75,12 @@ class MgaeStudyConfig(Validated):
     SCALES: ClassVar[dict] = {"smoke": dict(n_boot=200), "quick": {}, "paper": {}}
 
     def validate(self) -> None:
-        require(len(self.estimators) >= 2 and self.estimators[0] == REFERENCE
+        self.check(len(self.estimators) >= 2 and self.estimators[0] == REFERENCE
                 and set(self.estimators) <= set(ESTIMATORS), "estimators",
-                f"{REFERENCE} and one or more of " + ", ".join(ESTIMATORS), self.estimators)
-        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
-                self.learner)
-        require(self.seeds is None or self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
-        require(self.n_boot >= 1, "n_boot", "an integer >= 1", self.n_boot)
+                   f"{REFERENCE} and one or more of " + ", ".join(ESTIMATORS))
+        self.check(self.learner in LEARNERS, "learner", "one of " + ", ".join(LEARNERS))
+        self.check(self.seeds is None or self.seeds >= 1, "seeds", "an integer >= 1")
+        self.check(self.n_boot >= 1, "n_boot", "an integer >= 1")
 
     def bus(self, scale: str) -> bus_sweeps.BusSweepConfig:
         """The bus lambda sweep at ``scale``."""

@@ -27,7 +27,6 @@ import numpy as np
 import pandas as pd
 
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
-from repro.core.errors import require
 from repro.core.io import (check_writable_dir, provenance, read_result, save_figure,
                            write_result)
 from repro.envs.wildfire import WildfireConfig, make_env
@@ -74,17 +73,17 @@ class BeyondRacesConfig(Validated):
     }
 
     def validate(self) -> None:
-        require(self.episodes >= 1, "--episodes", "an integer >= 1", self.episodes)
-        require(len(set(self.n_agents)) >= 2 and min(self.n_agents) >= 1, "--n-agents",
-                "at least two different integers >= 1", list(self.n_agents))
-        require(set(self.policies) <= set(POLICIES) and len(self.policies) >= 1, "--policies",
-                "one of " + ", ".join(POLICIES), list(self.policies))
-        require(self.log10_dt_step > 0, "--log10-dt-step", "a number > 0", self.log10_dt_step)
+        self.check(self.episodes >= 1, "episodes", "an integer >= 1")
+        self.check(len(set(self.n_agents)) >= 2 and min(self.n_agents) >= 1, "n_agents",
+                   "at least two different integers >= 1")
+        self.check(set(self.policies) <= set(POLICIES) and len(self.policies) >= 1, "policies",
+                   "one of " + ", ".join(POLICIES))
+        self.check(self.log10_dt_step > 0, "log10_dt_step", "a number > 0")
         # ten times the race count's tolerance (1 ns) at least
-        require(-8 <= self.log10_dt_min < self.log10_dt_max <= 2, "--log10-dt-min",
-                "below --log10-dt-max, both in [-8, 2] (dT from 10 ns to 100 s)",
-                (self.log10_dt_min, self.log10_dt_max))
-        require(0 < self.delta < 1, "--delta", "in (0, 1)", self.delta)
+        self.check(-8 <= self.log10_dt_min <= 2, "log10_dt_min", "in [-8, 2] (dT from 10 ns)")
+        self.check(self.log10_dt_min < self.log10_dt_max <= 2, "log10_dt_max",
+                   "above --log10-dt-min and at most 2 (dT to 100 s)")
+        self.check(0 < self.delta < 1, "delta", "in (0, 1)")
 
     def log10_dts(self) -> np.ndarray:
         """The grid, smallest first, in decades (rounded, so that 10^x prints as written)."""

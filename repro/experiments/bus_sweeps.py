@@ -35,7 +35,6 @@ import pandas as pd
 from scipy import stats as sps
 
 from repro.core.config import Validated, for_scale, given_fields
-from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
@@ -90,14 +89,12 @@ class BusSweepConfig(Validated):
     products (at 540 episodes, ~1.1e5 decisions, the full products took ~75% of an epoch)."""
 
     def validate(self) -> None:
-        require(len(self.lambdas) >= 1 and min(self.lambdas) >= 0, "lambdas", ">= 0", self.lambdas)
-        require(len(self.batches) >= 1 and min(self.batches) >= 1, "batches", ">= 1", self.batches)
-        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
-                self.learner)
-        require(self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
-        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        require(1 <= self.final_epochs <= self.epochs, "--final-epochs", "in [1, epochs]",
-                self.final_epochs)
+        self.check(len(self.lambdas) >= 1 and min(self.lambdas) >= 0, "lambdas", ">= 0")
+        self.check(len(self.batches) >= 1 and min(self.batches) >= 1, "batches", ">= 1")
+        self.check(self.learner in LEARNERS, "learner", "one of " + ", ".join(LEARNERS))
+        self.check(self.seeds >= 1, "seeds", "an integer >= 1")
+        self.check(self.epochs >= 1, "epochs", "an integer >= 1")
+        self.check(1 <= self.final_epochs <= self.epochs, "final_epochs", "in [1, epochs]")
 
     def settings(self, sweep: str) -> list[tuple[float, int]]:
         """(lambda, batch) of every setting of ``sweep``, in plotting order."""

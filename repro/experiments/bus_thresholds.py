@@ -24,7 +24,6 @@ from scipy.optimize import differential_evolution
 
 from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields, to_dict
-from repro.core.errors import require
 from repro.core.io import provenance, write_result
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.policies import AUTHORS_THRESHOLDS, ThresholdPolicy
@@ -47,8 +46,8 @@ class ThresholdsConfig(Validated):
     }
 
     def validate(self) -> None:
-        require(self.popsize >= 2, "--popsize", "an integer >= 2", self.popsize)
-        require(self.maxiter >= 1, "--maxiter", "an integer >= 1", self.maxiter)
+        self.check(self.popsize >= 2, "popsize", "an integer >= 2")
+        self.check(self.maxiter >= 1, "maxiter", "an integer >= 1")
 
 
 def returns(bus: BusConfig, thresholds: np.ndarray) -> np.ndarray:

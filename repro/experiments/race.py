@@ -71,18 +71,17 @@ class RaceConfig(Validated):
     }
 
     def validate(self) -> None:
-        require(self.n_sets >= 1, "--n-sets", "an integer >= 1", self.n_sets)
-        require(self.n_min >= 2, "--n-min", "an integer >= 2", self.n_min)
-        require(self.n_max >= self.n_min + 1, "--n-max", "an integer > --n-min", self.n_max)
+        self.check(self.n_sets >= 1, "n_sets", "an integer >= 1")
+        self.check(self.n_min >= 2, "n_min", "an integer >= 2")
+        self.check(self.n_max >= self.n_min + 1, "n_max", "an integer > --n-min")
         # the event times of one N are held at once: 8 bytes each, a few copies while sorting
-        require(self.n_sets * self.n_max <= MAX_EVENT_TIMES, "--n-sets",
-                f"at most {MAX_EVENT_TIMES:,} / --n-max (the event times of one N, 8 bytes each, "
-                "are held in memory)", self.n_sets)
-        require(0.0 < self.delta < 1.0, "--delta", "in (0, 1)", self.delta)
+        self.check(self.n_sets * self.n_max <= MAX_EVENT_TIMES, "n_sets",
+                   f"at most {MAX_EVENT_TIMES:,} / --n-max (the event times of one N, 8 bytes "
+                   "each, are held in memory)")
+        self.check(0.0 < self.delta < 1.0, "delta", "in (0, 1)")
         for d in self.distributions:
             require(d in DISTRIBUTIONS, "--distributions", "one of " + ", ".join(DISTRIBUTIONS), d)
-        require(self.bisection_steps >= 1, "--bisection-steps", "an integer >= 1",
-                self.bisection_steps)
+        self.check(self.bisection_steps >= 1, "bisection_steps", "an integer >= 1")
         self.check(len(self.exact_n) >= 1 and min(self.exact_n) >= 2, "exact_n",
                    "one or more integers >= 2")
 

@@ -83,15 +83,15 @@ class ScalingConfig(Validated):
     }
 
     def validate(self) -> None:
-        require(len(self.n_agents) >= 3 and min(self.n_agents) >= 2
-                and len(set(self.n_agents)) == len(self.n_agents), "--n-agents",
-                "at least 3 distinct integers >= 2", self.n_agents)
-        require(0.0 < self.delta < 1.0, "--delta", "in (0, 1)", self.delta)
-        require(self.duration > 0 and math.isfinite(self.duration), "--duration",
-                "a finite number > 0", self.duration)
+        self.check(len(self.n_agents) >= 3 and min(self.n_agents) >= 2
+                and len(set(self.n_agents)) == len(self.n_agents), "n_agents",
+                   "at least 3 distinct integers >= 2")
+        self.check(0.0 < self.delta < 1.0, "delta", "in (0, 1)")
+        self.check(self.duration > 0 and math.isfinite(self.duration), "duration",
+                   "a finite number > 0")
         for d in self.distributions:
             require(d in DISTRIBUTIONS, "--distributions", "one of " + ", ".join(DISTRIBUTIONS), d)
-        require(self.repeats >= 1, "--repeats", "an integer >= 1", self.repeats)
+        self.check(self.repeats >= 1, "repeats", "an integer >= 1")
         self.check(self.split_n >= 2, "split_n", "an integer >= 2")
 
 

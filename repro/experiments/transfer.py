@@ -47,7 +47,7 @@ from repro.core.stats import bootstrap_ci, iqm, sem
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
 from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
-                                check_study_learner, learner_label, learner_suffix, setting_tag)
+                                check_policy_study, learner_label, learner_suffix, setting_tag)
 from repro.experiments.options import add_common, add_replot, read_for_replot
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
@@ -118,16 +118,17 @@ class TransferConfig(Validated):
     }
 
     def validate(self) -> None:
-        require(self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
-        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        check_study_learner(self.learner, self.batch_decisions, self.batch_episodes)
-        require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
-        require(self.sim_version in SIM_VERSIONS, "--sim-version",
-                "one of " + ", ".join(SIM_VERSIONS), self.sim_version)
-        require(all(k in SETTING_FIELDS for k, _ in self.settings), "settings",
-                "fields among " + ", ".join(SETTING_FIELDS), list(self.settings))
-        require(self.variant_t_health > 0, "variant_t_health", "> 0", self.variant_t_health)
-        require(self.n_boot >= 1, "n_boot", "an integer >= 1", self.n_boot)
+        check_policy_study(self)
+        self.check(self.sim_version in SIM_VERSIONS, "sim_version",
+                   "one of " + ", ".join(SIM_VERSIONS))
+        self.check(all(k in SETTING_FIELDS for k, _ in self.settings), "settings",
+                   "fields among " + ", ".join(SETTING_FIELDS))
+        self.check(all(-8 <= x <= 2 for x in self.log10_dts), "log10_dts",
+                   "exponents in [-8, 2] (dT from 10 ns to 100 s)")
+        self.check(-8 <= self.variant_log10_dt <= 2, "variant_log10_dt",
+                   "in [-8, 2] (dT from 10 ns to 100 s)")
+        self.check(self.variant_t_health > 0, "variant_t_health", "> 0")
+        self.check(self.n_boot >= 1, "n_boot", "an integer >= 1")
         short = [q.split("_")[1] for q in QUIRKS]
         require(set(self.quirks_off) <= set(short), "--no-quirk", "one of " + ", ".join(short),
                 list(self.quirks_off))

@@ -29,7 +29,6 @@ from typing import ClassVar
 import pandas as pd
 
 from repro.core.config import Validated, for_scale, given_fields
-from repro.core.errors import require
 from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.experiments import beyond_races, transfer
 from repro.experiments.sweep import add_study_arguments, check_study_arguments
@@ -61,12 +60,12 @@ class TransferDtConfig(Validated):
     SCALES: ClassVar[dict] = {"smoke": {}, "quick": {}, "paper": {}}
 
     def validate(self) -> None:
-        require(len(self.log10_dts) >= 1 and len(set(self.log10_dts)) == len(self.log10_dts),
-                "log10_dts", "one or more distinct exponents", self.log10_dts)
-        require(self.seeds is None or self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
-        require(self.learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
-                self.learner)
-        require(self.race_agents >= 2, "race_agents", "an integer >= 2", self.race_agents)
+        distinct = len(set(self.log10_dts)) == len(self.log10_dts)
+        self.check(len(self.log10_dts) >= 1 and distinct, "log10_dts",
+                   "one or more distinct exponents")
+        self.check(self.seeds is None or self.seeds >= 1, "seeds", "an integer >= 1")
+        self.check(self.learner in LEARNERS, "learner", "one of " + ", ".join(LEARNERS))
+        self.check(self.race_agents >= 2, "race_agents", "an integer >= 2")
 
     def study(self, scale: str) -> transfer.TransferConfig:
         """The transfer study at ``scale`` on this grid, without its T_health variant. The study's

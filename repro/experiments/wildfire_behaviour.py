@@ -51,7 +51,6 @@ import pandas as pd
 
 from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
-from repro.core.errors import require
 from repro.core.io import check_writable_dir, provenance, write_result
 from repro.core.rollout import Rollout
 from repro.envs.wildfire import (RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, fire_positions,
@@ -61,7 +60,7 @@ from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL, FlowchartPolicy
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
-from repro.learn.config import add_study_learner_arguments, check_study_learner, learner_suffix
+from repro.learn.config import add_study_learner_arguments, check_policy_study, learner_suffix
 
 PAPER = dict(hold_shared=0.27, hold_alone=0.84, fly_rank_1=0.15, fly_rank_2=0.15, fly_rank_3=0.68,
              closest_cluster=0.98, flowchart_worse=0.28)
@@ -108,14 +107,11 @@ class BehaviourConfig(Validated):
     }
 
     def validate(self) -> None:
-        require(self.seeds >= 1, "--seeds", "an integer >= 1", self.seeds)
-        require(self.epochs >= 1, "--epochs", "an integer >= 1", self.epochs)
-        check_study_learner(self.learner, self.batch_decisions, self.batch_episodes)
-        require(self.test_episodes >= 1, "--test-episodes", "an integer >= 1", self.test_episodes)
-        require(self.sim_version in SIM_VERSIONS, "--sim-version",
-                "one of " + ", ".join(SIM_VERSIONS), self.sim_version)
-        require(self.max_decisions is None or self.max_decisions >= 1, "--max-decisions",
-                "a positive integer (0: no limit)", self.max_decisions)
+        check_policy_study(self)
+        self.check(self.sim_version in SIM_VERSIONS, "sim_version",
+                   "one of " + ", ".join(SIM_VERSIONS))
+        self.check(self.max_decisions is None or self.max_decisions >= 1, "max_decisions",
+                   "a positive integer (0: no limit)")
 
     def env(self) -> WildfireConfig:
         """The ED simulator every policy is trained and tested on."""
