@@ -77,3 +77,32 @@ def test_committed_results_name_the_learner_their_sidecars_record():
         assert learner_of(csv) == ("suite" if suite else "authors"), csv
         checked += 1
     assert checked >= 20
+
+
+PREDATES_PIN = ("beyond_mgae", "bus_arrivals", "bus_batch", "bus_lambda", "bus_load",
+                "c9_inputs", "learner_ablation", "order_reversal", "transfer_corrected_suite",
+                "transfer_dt_grid", "transfer_no_q3", "transfer_suite",
+                "wildfire_behaviour_20170422", "wildfire_behaviour_suite", "corrected/bus_")
+"""Stems of the committed results of trained policies made before the CPU kernels were pinned
+(their sidecars record no ``machine.kernels``): made with this project's machine's native
+kernels, they are regenerated bit for bit only on such a CPU (README, "What it found")."""
+
+
+def test_the_results_made_before_the_kernel_pin_are_the_listed_ones():
+    """Every committed result of trained policies was made under the pinned kernels, unless its
+    stem is listed in PREDATES_PIN (and every listed one is still unpinned): the list, and the
+    README's sentence that names it, shrink as the studies are rerun."""
+    from pathlib import Path
+
+    paper = Path(__file__).resolve().parents[1] / "results" / "paper"
+    unpinned, pinned = set(), set()
+    for csv in sorted(paper.rglob("*.csv")):
+        if not csv.stem.startswith(TRAINED) or csv.stem in UNTRAINED:
+            continue
+        name = csv.relative_to(paper).with_suffix("").as_posix()
+        stem = max((s for s in PREDATES_PIN if name.startswith(s)), key=len, default=name)
+        kernels = read_provenance(csv).get("machine", {}).get("kernels", {})
+        (pinned if kernels.get("pinned") else unpinned).add((stem, csv.name))
+    assert {name for stem, name in unpinned if stem not in PREDATES_PIN} == set()
+    assert {stem for stem, _ in pinned} & set(PREDATES_PIN) == set()
+    assert {stem for stem, _ in unpinned} == set(PREDATES_PIN)
