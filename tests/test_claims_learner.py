@@ -53,7 +53,7 @@ def test_x5_follows_the_normalised_rows_interval(tmp_path):
     assert v.verdict == "FAIL" and "Without normalisation it degrades" in v.detail
 
 
-TRAINED = ("beyond_mgae", "bus_arrivals", "bus_batch", "bus_lambda", "bus_load", "c9_inputs",
+TRAINED = ("beyond_mgae", "bus_arrivals", "bus_batch", "bus_lambda_suite", "bus_load", "c9_inputs",
            "learner_ablation", "order_reversal", "transfer", "transfer_dt_grid",
            "wildfire_behaviour")
 """Stems of the committed results made of trained policies (a learner's results)."""
@@ -79,7 +79,7 @@ def test_committed_results_name_the_learner_their_sidecars_record():
     assert checked >= 20
 
 
-PREDATES_PIN = ("beyond_mgae", "bus_arrivals", "bus_batch", "bus_lambda", "bus_load",
+PREDATES_PIN = ("beyond_mgae", "bus_arrivals", "bus_batch", "bus_lambda_suite", "bus_load",
                 "c9_inputs", "learner_ablation", "order_reversal", "transfer_corrected_suite",
                 "transfer_dt_grid", "transfer_no_q3", "transfer_suite",
                 "wildfire_behaviour_20170422", "wildfire_behaviour_suite", "corrected/bus_")
