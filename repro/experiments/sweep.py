@@ -33,10 +33,10 @@ from typing import Any, Callable
 
 from repro.core.config import add_config_arguments
 from repro.core.errors import UsageError, require
-from repro.core.io import check_writable_dir, write_bytes
+from repro.core.io import write_bytes
 from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
-from repro.experiments.options import add_common, results_folder
+from repro.experiments.options import add_common, figures_folder, results_folder
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PROVENANCE,
                                     check_run_folder, epochs_done, is_finished, locked_by,
                                     writer_lock)
@@ -317,9 +317,10 @@ def check_sweep_arguments(args: argparse.Namespace) -> None:
 
 
 def check_study_arguments(args: argparse.Namespace) -> tuple[Path, Path]:
-    """Check the options of :func:`add_study_arguments` before any work: the sweep's, and that
-    the results and figures folders can be written; returns those two folders, the results folder
-    held until the command ends (:func:`~repro.experiments.options.results_folder`)."""
+    """Check the options of :func:`add_study_arguments` before any work: the sweep's, and the
+    figures and results folders (:func:`~repro.experiments.options.figures_folder`,
+    :func:`~repro.experiments.options.results_folder`); returns the results and figures folders,
+    the results folder held until the command ends."""
     check_sweep_arguments(args)
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    figures = figures_folder(args)
     return results_folder(args), figures
