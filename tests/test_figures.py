@@ -20,7 +20,7 @@ from repro.core.io import (CSV_HASH, figure_sidecar, open_figures, read_provenan
                            release_results, save_figure)
 from repro.experiments import (beyond_mgae, beyond_order, fig_bus_arrivals, fig_bus_load,
                                learner_ablation, race, transfer)
-from tests.conftest import run_cli, tree_snapshot
+from tests.conftest import ROOT, run_cli, tree_snapshot
 
 PAPER = Path(__file__).resolve().parents[1] / "results" / "paper"
 
@@ -263,3 +263,14 @@ def test_a_figures_folder_that_is_the_results_folder_is_refused(cli, tmp_path):
     assert len(lines) == 1 and "--figures-dir" in lines[0] and "--results-dir" in lines[0]
     assert not (tmp_path / "out").exists()
 
+
+def test_the_committed_figures_sidecars_describe_them():
+    """Every committed figure that has a sidecar is the figure it describes, drawn from the
+    committed results it names."""
+    sidecars = sorted((ROOT / "figures" / "paper").glob("*.provenance.json"))
+    assert sidecars
+    for side in sidecars:
+        stem = side.with_name(side.name.removesuffix(".provenance.json"))
+        prov = json.loads(side.read_text())
+        sources = [ROOT / s["csv"] for s in prov["sources"]]
+        assert_sidecar_describes(stem, sources, "paper")
