@@ -64,8 +64,8 @@ def test_load_figure_reproduces_the_paper(smoke):
 def test_load_figure_fails_on_the_corrected_semantics(tmp_path):
     """The comparison can fail: the paper's prose (--corrected) does not draw its thresholds
     panel."""
-    assert main(["fig-bus-load", "--results-dir", str(tmp_path), "--figures-dir", str(tmp_path),
-                 "--policies", "authors", "--corrected"]) == 0
+    assert main(["fig-bus-load", "--results-dir", str(tmp_path), "--figures-dir",
+                 str(tmp_path / "fig"), "--policies", "authors", "--corrected"]) == 0
     assert load_distances(pd.read_csv(tmp_path / "bus_load.csv"))["authors"] > 1.0
 
 

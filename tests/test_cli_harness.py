@@ -292,7 +292,8 @@ def test_a_result_interrupted_before_its_sidecar_reads_not_yet_run(tmp_path, mon
     sidecar (never a sidecar of another run), which claims takes for missing; rerunning heals."""
     import repro.core.io as io
 
-    argv = ["race", *SMALL, "--results-dir", str(tmp_path), "--figures-dir", str(tmp_path)]
+    argv = ["race", *SMALL, "--results-dir", str(tmp_path), "--figures-dir",
+            str(tmp_path / "fig")]
     assert main(argv) == 0
     c10 = next(c for c in registry() if c.id == "C10")
     sidecar = "table_race.provenance.json"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import time
 from pathlib import Path
 
 import numpy as np
@@ -137,6 +138,89 @@ def test_a_dask_sweep_needs_no_shared_disk(tmp_path, monkeypatch):
         a, b = (pd.read_csv(Path(root) / job.name / "progress.csv").drop(columns=TIMING_COLUMNS)
                 for root in ("dask", "joblib"))
         pd.testing.assert_frame_equal(a, b)
+
+
+def _cluster(distributed):
+    """A Dask cluster of one in-process worker behind a real TCP scheduler on loopback."""
+    return distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                    protocol="tcp://", host="127.0.0.1", dashboard_address=None)
+
+
+def test_a_dask_sweep_whose_scheduler_goes_away_stops_in_one_line_and_resumes(tmp_path,
+                                                                            monkeypatch, capsys):
+    """The cluster closes once the first epoch of two is in its run folder: one line naming
+    --scheduler, exit 2, within seconds; the same command on another cluster resumes from the
+    run folder and trains only the epoch left."""
+    from repro.experiments import sweep
+    from repro.learn.run_folder import epochs_done
+
+    distributed = pytest.importorskip("dask.distributed")
+    monkeypatch.setenv("REPRO_QUIET", "1")
+    runs = tmp_path / "runs"
+    argv = ["fig-transfer", "--scale", "smoke", "--simulator", "ED", "--test-episodes", "5",
+            "--runs-dir", str(runs), "--results-dir", str(tmp_path / "res"),
+            "--figures-dir", str(tmp_path / "fig")]
+    cluster = _cluster(distributed)
+    finished = sweep.is_finished
+
+    def then_close(folder, epochs):  # asked by the client once it has written an epoch
+        if epochs_done(folder) >= 1:
+            cluster.close()
+        return finished(folder, epochs)
+
+    monkeypatch.setattr(sweep, "is_finished", then_close)
+    try:
+        t0 = time.perf_counter()
+        assert _main([*argv, "--scheduler", cluster.scheduler_address]) == 2
+        assert time.perf_counter() - t0 < 60
+    finally:
+        cluster.close()
+    monkeypatch.undo()
+    monkeypatch.setenv("REPRO_QUIET", "1")
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--scheduler: must be a Dask cluster that answers" in err, err
+    assert "lost the scheduler" in err and "running the same command again resumes" in err
+    folder = runs / "transfer" / "smoke" / "ed-th3-seed0"
+    assert epochs_done(folder) == 1 and not (tmp_path / "res").exists()
+    with _cluster(distributed) as again, distributed.Client(again) as client, \
+            distributed.get_task_stream(client) as tasks:
+        assert _main([*argv, "--scheduler", again.scheduler_address]) == 0
+    assert sum("run_shipped_job" in t["key"] for t in tasks.data) == 1  # the second epoch
+    assert epochs_done(folder) == 2
+
+
+def test_a_dask_sweep_whose_workers_go_away_stops_after_the_silence(tmp_path, monkeypatch):
+    """The scheduler stays but its only worker leaves once the first epoch is in its folder: no
+    epoch finishes any more, and the sweep stops (UsageError naming --scheduler) once
+    CLUSTER_SILENCE has passed, here 3 s, instead of waiting for ever."""
+    from repro.core.errors import UsageError
+    from repro.experiments import sweep
+    from repro.learn.run_folder import epochs_done
+
+    distributed = pytest.importorskip("dask.distributed")
+    monkeypatch.setattr(sweep, "CLUSTER_SILENCE", 3.0)
+    _, labelled = _jobs(("ED",))
+    jobs = [dataclasses.replace(job, train=dataclasses.replace(job.train, epochs=3))
+            for _, job in labelled]
+    with _cluster(distributed) as cluster:
+        finished = sweep.is_finished
+
+        def then_leave(folder, epochs):  # asked by the client once it has written an epoch
+            if epochs_done(folder) >= 1 and cluster.scheduler.workers:
+                cluster.scale(0)
+                deadline = time.monotonic() + 20
+                while cluster.scheduler.workers and time.monotonic() < deadline:
+                    time.sleep(0.05)
+                assert not cluster.scheduler.workers
+            return finished(folder, epochs)
+
+        monkeypatch.setattr(sweep, "is_finished", then_leave)
+        t0 = time.perf_counter()
+        with pytest.raises(UsageError, match="--scheduler") as caught:
+            run_sweep(jobs, tmp_path / "runs", scheduler=cluster.scheduler_address)
+        assert 3 <= time.perf_counter() - t0 < 60
+    assert "no epoch finished within 3 s" in str(caught.value)
+    assert epochs_done(tmp_path / "runs" / jobs[0].name) == 1
 
 
 def _main(argv: list[str]) -> int:

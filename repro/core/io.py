@@ -17,6 +17,14 @@ A result is a pair, a CSV and its sidecar, and the pair is trusted only whole:
 - **Provenance guards results, not folder names.** A run never replaces a result whose sidecar
   records a larger scale (smoke < quick < paper) unless told to (``--overwrite``); a driver checks
   its results folder for such results before any work.
+
+Figures are guarded the same way. A figure is ``<stem>.png`` and ``<stem>.pdf`` with a sidecar,
+``<stem>.provenance.json``, that records both files' SHA-256, the result CSVs it was drawn from
+(each with its hash and scale) and the scale (:func:`save_figure`). A driver checks its figures
+folder for figures of a larger scale before any work (:func:`open_figures`), and a figure is not
+replaced by one of a smaller scale unless told to; figures without a sidecar are replaced. A
+figure's sidecar has the name of its stem's result's, so a figures folder is never the results
+folder.
 """
 
 from __future__ import annotations
@@ -34,7 +42,7 @@ import time
 from contextlib import ExitStack, contextmanager, nullcontext
 from importlib import metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterator
+from typing import TYPE_CHECKING, Any, Iterator, Sequence
 
 from repro.core.config import SCALES
 from repro.core.errors import UsageError, require
@@ -170,20 +178,82 @@ def append_csv(dest: str | Path, frame: pd.DataFrame) -> None:
         raise
 
 
-def save_figure(fig: Any, stem: str | Path) -> list[Path]:
+FIGURE_FORMATS = (".png", ".pdf")
+"""The files of a figure, each ``<stem><format>``."""
+
+
+def figure_sidecar(stem: str | Path) -> Path:
+    """``figures/x`` -> ``figures/x.provenance.json``: the sidecar of a figure's files."""
+    return Path(str(stem) + ".provenance.json")
+
+
+def source_records(sources: Sequence[str | Path]) -> list[dict[str, Any]]:
+    """What a figure's sidecar records of each result CSV it was drawn from: its path, the hash
+    its sidecar records (or, for a sidecar without one, the hash of its bytes), and its sidecar's
+    scale, command and commit."""
+    out = []
+    for source in sources:
+        source = Path(source)
+        try:
+            prov = json.loads(sidecar_path(source).read_text())
+        except (OSError, ValueError):
+            prov = {}
+        prov = prov if isinstance(prov, dict) else {}
+        digest = prov.get(CSV_HASH) or hashlib.sha256(source.read_bytes()).hexdigest()
+        out.append({"csv": str(source), CSV_HASH: digest, "scale": prov.get("scale"),
+                    "command": prov.get("command"), "git_commit": prov.get("git_commit")})
+    return out
+
+
+def figure_scale(records: list[dict[str, Any]]) -> Any:
+    """A figure's scale: that of its first source, the result it shows (each source's own scale
+    is recorded beside it)."""
+    return records[0]["scale"] if records else None
+
+
+def save_figure(fig: Any, stem: str | Path, sources: Sequence[str | Path], *,
+                overwrite: bool = False) -> list[Path]:
     """Lay ``fig`` out, write ``stem.png`` and ``stem.pdf`` atomically (PDF without a timestamp, so
-    it is stable), and close it."""
+    it is stable), close it, and write its sidecar ``stem.provenance.json``: the files' hashes,
+    the result CSVs ``sources`` it was drawn from (:func:`source_records`, the first the result it
+    shows), its scale (its first source's), the command, argv, commit and versions.
+
+    Refused (UsageError naming --figures-dir) if ``stem`` is a figure whose sidecar records a larger
+    scale, unless ``overwrite`` or its folder was opened with it (:func:`open_figures`). As for a
+    result, the old sidecar goes first, so that a sidecar never describes files it was not written
+    with."""
     import matplotlib.pyplot as plt  # loaded already by the caller that drew ``fig``
 
+    records = source_records(sources)
+    mine = figure_scale(records)
+    folder = Path(stem).parent
+    theirs = _recorded_figure_scale(figure_sidecar(stem))
+    if scale_rank(theirs) > scale_rank(mine) and not (
+            overwrite or _figures_held.get(folder.resolve())):
+        plt.close(fig)
+        _refuse_larger([(Path(str(stem) + FIGURE_FORMATS[0]).name, theirs)], mine,
+                       "--figures-dir", folder, "figures")
     fig.tight_layout()
-    out = []
-    for ext, kw in ((".png", {"dpi": 150}), (".pdf", {"metadata": {"CreationDate": None}})):
-        dest = Path(str(stem) + ext)
-        with atomic_path(dest) as tmp:
-            fig.savefig(tmp, format=ext[1:], bbox_inches="tight", **kw)
-        out.append(dest)
+    files = {}
+    for ext, kw in zip(FIGURE_FORMATS, ({"dpi": 150}, {"metadata": {"CreationDate": None}})):
+        buf = io.BytesIO()
+        fig.savefig(buf, format=ext[1:], bbox_inches="tight", **kw)
+        files[Path(str(stem) + ext)] = buf.getvalue()
     plt.close(fig)
-    return out
+    figure_sidecar(stem).unlink(missing_ok=True)
+    for dest, data in files.items():
+        write_bytes(dest, data)
+    write_json(figure_sidecar(stem), {
+        "command": records[0]["command"] if records else None,
+        "argv": sys.argv,
+        "scale": mine,
+        "figures": {dest.name: hashlib.sha256(data).hexdigest() for dest, data in files.items()},
+        "sources": records,
+        "git_commit": git_commit(),
+        "versions": versions(),
+        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    })
+    return list(files)
 
 
 OUTPUTS = ("results", "figures", "paper_claims.md")
@@ -285,6 +355,9 @@ _session = ExitStack()
 """The results folders this process holds until :func:`release_results`."""
 _held: dict[Path, bool] = {}
 """Those folders (resolved), each with whether its results may replace larger-scale ones."""
+_figures_held: dict[Path, bool] = {}
+"""The figures folders this process has opened (resolved, :func:`open_figures`), each with whether
+its figures may replace larger-scale ones."""
 
 
 def scale_rank(scale: Any) -> int:
@@ -312,14 +385,55 @@ def larger_results(folder: Path, scale: str | None) -> list[tuple[str, str]]:
     return out
 
 
-def _refuse_larger(folder: Path, larger: list[tuple[str, str]], scale: str | None,
-                   param: str, path: Any) -> None:
+def _recorded_figure_scale(side: Path) -> Any:
+    """The scale the sidecar ``side`` records (None if there is none or it cannot be read): in a
+    figures folder, a result's sidecar counts as a figure's, since a figure would replace it."""
+    try:
+        prov = json.loads(side.read_text())
+    except (OSError, ValueError):
+        return None
+    return prov.get("scale") if isinstance(prov, dict) else None
+
+
+def larger_figures(folder: Path, scale: str | None) -> list[tuple[str, str]]:
+    """(name, its scale) of the figures directly in ``folder`` (named by their PNG; a sidecar
+    without one, by itself) whose sidecars record a scale larger than ``scale``."""
+    out = []
+    for side in sorted(Path(folder).glob("*.provenance.json")):
+        theirs = _recorded_figure_scale(side)
+        if scale_rank(theirs) > scale_rank(scale):
+            png = side.name.removesuffix(".provenance.json") + FIGURE_FORMATS[0]
+            out.append((png if (side.parent / png).exists() else side.name, theirs))
+    return out
+
+
+def _refuse_larger(larger: list[tuple[str, str]], scale: str | None, param: str, path: Any,
+                   what: str = "results") -> None:
     if larger:
         name, theirs = larger[0]
         more = f" and {len(larger) - 1} more" if len(larger) > 1 else ""
-        raise UsageError(param, f"a folder without results of a larger scale than this run's "
+        raise UsageError(param, f"a folder without {what} of a larger scale than this run's "
                          f"({scale}): it holds {theirs}-scale {name}{more} (--overwrite replaces "
                          "them)", str(path))
+
+
+def open_figures(path: str | Path, param: str, *, scale: str | None, overwrite: bool = False,
+                 results: str | Path | None = None) -> Path:
+    """The figures folder ``path`` of a driver at ``scale``, before any work: refused (UsageError
+    naming ``param``) if it cannot be written, if it is the results folder ``results`` (a
+    figure's sidecar has the name of its result's), or if it holds figures of a larger scale than
+    ``scale`` and ``overwrite`` is not given. Its figures may replace larger-scale ones from then
+    on if ``overwrite`` (:func:`save_figure`), until :func:`release_results`."""
+    folder = check_writable_dir(path, param)
+    if results is not None:
+        require(folder.resolve() != Path(results).resolve(), param, "a folder other than "
+                "--results-dir (a figure's sidecar, <stem>.provenance.json, has the name of its "
+                "result's)", str(path))
+    if not overwrite:
+        _refuse_larger(larger_figures(folder, scale), scale, param, path, "figures")
+    key = folder.resolve()
+    _figures_held[key] = _figures_held.get(key, False) or overwrite
+    return folder
 
 
 def open_results(path: str | Path, param: str, *, scale: str | None,
@@ -338,15 +452,17 @@ def open_results(path: str | Path, param: str, *, scale: str | None,
         stack.callback(_remove_empty, _missing(folder))  # after the lock file is gone
         stack.enter_context(folder_lock(folder, RESULTS_LOCK, param, "a results folder"))
         if not overwrite:
-            _refuse_larger(folder, larger_results(folder, scale), scale, param, path)
+            _refuse_larger(larger_results(folder, scale), scale, param, path)
         _session.push(stack.pop_all())
     _held[key] = overwrite
     return folder
 
 
 def release_results() -> None:
-    """Let go of every results folder this process holds (:func:`open_results`)."""
+    """Let go of every results folder this process holds (:func:`open_results`), and forget the
+    figures folders it opened (:func:`open_figures`)."""
     _held.clear()
+    _figures_held.clear()
     _session.close()
 
 
@@ -390,7 +506,7 @@ def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any], *,
         theirs = _recorded_scale(dest)
         mine = prov.get("scale")
         if scale_rank(theirs) > scale_rank(mine) and not (overwrite or _held.get(folder.resolve())):
-            _refuse_larger(folder, [(dest.name, theirs)], mine, "--results-dir", folder)
+            _refuse_larger([(dest.name, theirs)], mine, "--results-dir", folder)
         sidecar_path(dest).unlink(missing_ok=True)
         write_bytes(dest, data)
         write_json(sidecar_path(dest), prov)

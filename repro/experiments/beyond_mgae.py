@@ -43,7 +43,7 @@ from repro.core.io import (check_writable_dir, provenance, read_provenance, save
 from repro.core.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.envs.bus import BusConfig
 from repro.experiments import bus_sweeps, transfer
-from repro.experiments.options import add_replot, read_for_replot
+from repro.experiments.options import add_replot, read_for_replot, replot_figures
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
 from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
@@ -170,9 +170,10 @@ def summarise(runs: pd.DataFrame, n_boot: int, seed: int) -> pd.DataFrame:
     return table
 
 
-def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> None:
+def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str,
+         sources: list[Path]) -> None:
     """One panel per environment: each run's score (dots) and the mean with its 95% CI per
-    estimator."""
+    estimator; ``sources``: the runs' and the summary's CSVs."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -199,7 +200,7 @@ def plot(runs: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> N
         ax.set_ylabel(labels[env])
         ax.grid(True, alpha=0.3)
     fig.suptitle(title, fontsize=9)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def title(cfg: MgaeStudyConfig, scale: str) -> str:
@@ -220,12 +221,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def replot(cfg: MgaeStudyConfig, args: argparse.Namespace) -> int:
     """``--replot``: the figure of ``cfg``'s learner from its CSVs, titled with the settings their
     sidecar records."""
-    runs, summary = read_for_replot(args, f"{cfg.stem}.csv", f"{cfg.stem}_summary.csv")
+    names = (f"{cfg.stem}.csv", f"{cfg.stem}_summary.csv")
+    runs, summary = read_for_replot(args, *names)
     prov = read_provenance(Path(args.results_dir) / f"{cfg.stem}.csv")
     recorded = MgaeStudyConfig(**{k: transfer.as_tuples(v)
                                   for k, v in prov["config"]["study"].items()})
-    stem = check_writable_dir(args.figures_dir, "--figures-dir") / cfg.stem
-    plot(runs, summary, stem, title(recorded, prov["scale"]))
+    figures, sources = replot_figures(args, *names)
+    stem = figures / cfg.stem
+    plot(runs, summary, stem, title(recorded, prov["scale"]), sources)
     print(f"wrote {stem}.png/.pdf")
     return 0
 
@@ -244,8 +247,8 @@ def run(args: argparse.Namespace) -> int:
                            wildfire=dataclasses.asdict(wildfire)),
                       command="beyond-mgae", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0)
-    write_result(results / f"{cfg.stem}.csv", runs, prov)
-    write_result(results / f"{cfg.stem}_summary.csv", summary, prov)
-    plot(runs, summary, figures / cfg.stem, title(cfg, args.scale))
+    sources = [write_result(results / f"{cfg.stem}.csv", runs, prov),
+               write_result(results / f"{cfg.stem}_summary.csv", summary, prov)]
+    plot(runs, summary, figures / cfg.stem, title(cfg, args.scale), sources)
     print(summary.to_string(index=False))
     return 0

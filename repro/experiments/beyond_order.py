@@ -35,9 +35,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from repro.core.io import check_writable_dir, provenance, read_provenance, save_figure, write_result
+from repro.core.io import provenance, read_provenance, save_figure, write_result
 from repro.core.stats import bootstrap_ci
-from repro.experiments.options import add_replot, read_for_replot
+from repro.experiments.options import add_replot, read_for_replot, replot_figures
 from repro.experiments.sweep import check_jobs, check_study_arguments
 from repro.learn.config import learner_label, learner_stem
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
@@ -81,9 +81,10 @@ def effects(per_policy: pd.DataFrame, pair: tuple[str, str], n_boot: int, seed: 
     return pd.DataFrame(rows)
 
 
-def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> None:
+def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str,
+         sources: list[Path]) -> None:
     """ADR on ED per semantics and order: T_health 3.0 and 2.9999 side by side, mean with its
-    bootstrap CI, each policy a dot."""
+    bootstrap CI, each policy a dot; ``sources``: the per-policy and summary CSVs."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -109,7 +110,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     ax.set_title(title, fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def title(base: TransferConfig, scale: str) -> str:
@@ -127,10 +128,12 @@ def replot(base: TransferConfig, args: argparse.Namespace) -> int:
     """``--replot``: the figure of ``base``'s learner from its CSVs, titled with the settings
     their sidecar records."""
     stem = learner_stem(NAME, base.learner)
-    per_policy, summary = read_for_replot(args, f"{stem}.csv", f"{stem}_summary.csv")
+    names = (f"{stem}.csv", f"{stem}_summary.csv")
+    per_policy, summary = read_for_replot(args, *names)
     prov = read_provenance(Path(args.results_dir) / f"{stem}.csv")
-    out = check_writable_dir(args.figures_dir, "--figures-dir") / stem
-    plot(per_policy, summary, out, title(recorded_config(prov), prov["scale"]))
+    figures, sources = replot_figures(args, *names)
+    out = figures / stem
+    plot(per_policy, summary, out, title(recorded_config(prov), prov["scale"]), sources)
     print(f"wrote {out}.png/.pdf")
     return 0
 
@@ -161,9 +164,9 @@ def run(args: argparse.Namespace) -> int:
     prov = provenance(config, command="beyond-order", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dirs=[str(runs) for *_, runs in plan]))
-    write_result(results / f"{stem}.csv", per_policy, prov)
-    write_result(results / f"{stem}_summary.csv", summary, prov)
+    sources = [write_result(results / f"{stem}.csv", per_policy, prov),
+               write_result(results / f"{stem}_summary.csv", summary, prov)]
     write_result(results / f"{stem}_effect.csv", effect, prov)
-    plot(per_policy, summary, figures / stem, title(base, args.scale))
+    plot(per_policy, summary, figures / stem, title(base, args.scale), sources)
     print(effect.to_string(index=False))
     return 0

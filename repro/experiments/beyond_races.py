@@ -27,11 +27,10 @@ import numpy as np
 import pandas as pd
 
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
-from repro.core.io import (check_writable_dir, provenance, read_result, save_figure,
-                           write_result)
+from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.envs.wildfire import WildfireConfig, make_env
 from repro.envs.wildfire.policies import POLICIES
-from repro.experiments.options import add_common, results_folder
+from repro.experiments.options import add_common, figures_folder, results_folder
 from repro.experiments.race import fit_power_law
 from repro.experiments.sweep import check_sweep_arguments, map_tasks
 from repro.experiments.wildfire_eval import evaluate
@@ -157,9 +156,10 @@ def c10_beta(results: Path) -> float:
         return float("nan")
 
 
-def plot(table: pd.DataFrame, fits: pd.DataFrame, stem: Path) -> None:
+def plot(table: pd.DataFrame, fits: pd.DataFrame, stem: Path, sources: list[Path]) -> None:
     """Left: P(race per episode) against dT per N and policy; right: dT* against N, log-log, with
-    each policy's fit and lines of C10's slope through the fits' middle."""
+    each policy's fit and lines of C10's slope through the fits' middle; ``sources``: the table's
+    and the fits' CSVs."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -197,7 +197,7 @@ def plot(table: pd.DataFrame, fits: pd.DataFrame, stem: Path) -> None:
     ax2.set_ylabel(rf"$\Delta T^*$: P(race) = {fits.delta.iloc[0]:g}")
     ax2.legend(fontsize=7)
     ax2.grid(True, which="both", alpha=0.3)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -209,8 +209,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(BeyondRacesConfig, args.scale, **given_fields(args, BeyondRacesConfig))
     check_sweep_arguments(args)
+    figures = figures_folder(args)
     results = results_folder(args)
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
     # largest N first: the longest cells start first, so the workers finish together
     tasks = [(policy, n, float(x), cfg.episodes, args.seed) for n in sorted(cfg.n_agents)[::-1]
@@ -222,8 +222,8 @@ def run(args: argparse.Namespace) -> int:
     fits = fit(table, cfg.delta, c10_beta(results))
     prov = provenance(cfg, command="beyond-races", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0)
-    write_result(results / f"{RACES}.csv", table, prov)
-    write_result(results / f"{FIT}.csv", fits, prov)
-    plot(table, fits, figures / RACES)
+    sources = [write_result(results / f"{RACES}.csv", table, prov),
+               write_result(results / f"{FIT}.csv", fits, prov)]
+    plot(table, fits, figures / RACES, sources)
     print(fits.to_string(index=False))
     return 0

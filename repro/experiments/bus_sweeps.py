@@ -190,7 +190,9 @@ def summary(cfg: BusSweepConfig, finals: pd.DataFrame, baselines: dict[str, floa
 
 
 def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[str, float],
-         stem: Path) -> None:
+         stem: Path, sources: list[Path]) -> None:
+    """Mean training curve per setting with its 95% t-interval, the baselines as lines;
+    ``sources``: the curves' CSV and the summary's (which holds the baselines)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -215,7 +217,7 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     ax.set_ylabel("Average return per episode")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 FLAGS = ("seeds", "epochs", "final_epochs")
@@ -245,8 +247,8 @@ def run_named(sweep: str, args: argparse.Namespace) -> int:
     summ = summary(cfg, finals, baselines, args.seed, runs if sweep == "lambda" else None)
     prov = provenance(cfg, command=f"fig-bus-{sweep}", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0, extra={"runs_dir": str(root)})
-    write_result(results / f"{cfg.stem(sweep)}.csv", table, prov)
-    write_result(results / f"{cfg.stem(sweep)}_summary.csv", summ, prov)
-    plot(cfg, sweep, table, baselines, figures / cfg.stem(sweep))
+    sources = [write_result(results / f"{cfg.stem(sweep)}.csv", table, prov),
+               write_result(results / f"{cfg.stem(sweep)}_summary.csv", summ, prov)]
+    plot(cfg, sweep, table, baselines, figures / cfg.stem(sweep), sources)
     print(summ[summ.policy != "mlp-run"].to_string(index=False))
     return 0

@@ -17,9 +17,10 @@ from typing import Callable
 
 import pandas as pd
 
-from repro.experiments.options import add_common, add_replot, read_for_replot, results_folder
+from repro.experiments.options import (add_common, add_replot, figures_folder, read_for_replot,
+                                       replot_figures, results_folder)
 from repro.core.errors import require
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import provenance, save_figure, write_result
 from repro.envs.bus import add_switch_arguments, config_from_args
 from repro.envs.bus.policies import check_thresholds
 from repro.experiments.bus_policies import POLICIES, best_run
@@ -105,7 +106,8 @@ def policy_grid(names: list[str], what: str, all_buses: bool):
     return fig, flat[:len(names)]
 
 
-def plot(arrivals: pd.DataFrame, stem, all_buses: bool = False) -> None:
+def plot(arrivals: pd.DataFrame, stem, all_buses: bool, sources: list[Path]) -> None:
+    """One panel per policy of ``arrivals`` (drawn from the CSVs ``sources``)."""
     names = list(dict.fromkeys(arrivals.policy))
     fig, axes = policy_grid(names, "Arrival times at the ten stops", all_buses)
     for ax, name in zip(axes, names):
@@ -121,7 +123,7 @@ def plot(arrivals: pd.DataFrame, stem, all_buses: bool = False) -> None:
     axes[0].legend(fontsize=5, loc="upper center", ncol=3, markerscale=2.5,
                    handletextpad=0.05, columnspacing=0.6, borderpad=0.3, labelspacing=0.2,
                    framealpha=0.9)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -130,7 +132,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
                       table_of: Callable[[pd.DataFrame], pd.DataFrame],
-                      plot_table: Callable[[pd.DataFrame, Path, bool], None]) -> int:
+                      plot_table: Callable[[pd.DataFrame, Path, bool, list[Path]], None]) -> int:
     """Shared body of the per-policy bus figures: simulate each policy's episode, derive the
     figure's table from the arrival records, write it with provenance, and draw it; with
     ``--replot``, draw the table written before (the panels of ``--policies``)."""
@@ -142,20 +144,19 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
     stem = Path(args.figures_dir) / Path(csv_name).stem
     if args.replot:
         table, = read_for_replot(args, csv_name)
-        check_writable_dir(args.figures_dir, "--figures-dir")
-        plot_table(table[table.policy.isin(args.policies)], stem, args.all_buses)
+        _, sources = replot_figures(args, csv_name)
+        plot_table(table[table.policy.isin(args.policies)], stem, args.all_buses, sources)
         print(f"wrote {stem}.png/.pdf")
         return 0
+    figures_folder(args)
     results = results_folder(args)
-    check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
     table = table_of(collect(args))
     prov = provenance(config_from_args(args), command=command, scale=args.scale, seed=None,
                       wall_seconds=time.perf_counter() - t0,
                       extra={"policies": args.policies, "mlp_run": mlp_source(args),
                              "learner": args.learner or DEFAULT_LEARNER})
-    write_result(results / csv_name, table, prov)
-    plot_table(table, stem, args.all_buses)
+    plot_table(table, stem, args.all_buses, [write_result(results / csv_name, table, prov)])
     print(f"wrote {results / csv_name} and {stem}.png/.pdf")
     return 0
 

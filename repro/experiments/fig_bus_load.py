@@ -62,7 +62,8 @@ def loads(arrivals: pd.DataFrame) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)[COLUMNS]
 
 
-def plot(table: pd.DataFrame, stem, all_buses: bool = False) -> None:
+def plot(table: pd.DataFrame, stem, all_buses: bool, sources: list[Path]) -> None:
+    """One panel per policy of ``table`` (drawn from the CSVs ``sources``)."""
     names = list(dict.fromkeys(table.policy))
     fig, axes = policy_grid(names, "Load at arrival, records 40-50 (Stop 10 of cycle 4, "
                             "cycle 5)", all_buses)
@@ -83,7 +84,7 @@ def plot(table: pd.DataFrame, stem, all_buses: bool = False) -> None:
         ax.set_ylabel("Load at arrival [pax]", fontsize=6.5, labelpad=1)
     axes[0].legend(fontsize=5, loc="upper center", ncol=3, handlelength=1.2, handletextpad=0.3,
                    columnspacing=0.6, borderpad=0.3, labelspacing=0.2, framealpha=0.9)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

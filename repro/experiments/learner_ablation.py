@@ -29,10 +29,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from repro.core.io import check_writable_dir, provenance, read_provenance, save_figure, write_result
+from repro.core.io import provenance, read_provenance, save_figure, write_result
 from repro.envs.wildfire import FIGURE_VERSION, RELEASED_VERSION
 from repro.experiments.beyond_order import effects
-from repro.experiments.options import add_replot, read_for_replot
+from repro.experiments.options import add_replot, read_for_replot, replot_figures
 from repro.experiments.sweep import check_jobs, check_study_arguments
 from repro.learn.config import learner_stem
 from repro.experiments.transfer import (TransferConfig, add_size_arguments, batch_label,
@@ -66,9 +66,9 @@ def studies(base: TransferConfig) -> list[tuple[str, TransferConfig]]:
     return [(name, dataclasses.replace(base, **fields)) for name, fields in rows(base).items()]
 
 
-def plot(summary: pd.DataFrame, stem: Path, title: str) -> None:
+def plot(summary: pd.DataFrame, stem: Path, title: str, sources: list[Path]) -> None:
     """ADR on ED per row and training simulator (mean and SEM over policies), the paper's points
-    as dashed lines."""
+    as dashed lines; ``sources``: the summary's CSV."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -90,7 +90,7 @@ def plot(summary: pd.DataFrame, stem: Path, title: str) -> None:
     ax.set_title(title, fontsize=8)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, title="trained on (dashed: paper)", title_fontsize=7)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -113,8 +113,9 @@ def replot(base: TransferConfig, args: argparse.Namespace) -> int:
     stem = learner_stem(NAME, base.learner)
     summary, = read_for_replot(args, f"{stem}_summary.csv")
     prov = read_provenance(Path(args.results_dir) / f"{stem}_summary.csv")
-    out = check_writable_dir(args.figures_dir, "--figures-dir") / stem
-    plot(summary, out, title(recorded_config(prov), prov["scale"]))
+    figures, sources = replot_figures(args, f"{stem}_summary.csv")
+    out = figures / stem
+    plot(summary, out, title(recorded_config(prov), prov["scale"]), sources)
     print(f"wrote {out}.png/.pdf")
     return 0
 
@@ -149,10 +150,10 @@ def run(args: argparse.Namespace) -> int:
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dirs=[str(runs) for *_, runs in plan]))
     write_result(results / f"{stem}.csv", per_policy, prov)
-    write_result(results / f"{stem}_summary.csv", summary, prov)
+    sources = [write_result(results / f"{stem}_summary.csv", summary, prov)]
     if len(c9):
         write_result(results / f"{stem}_c9.csv", c9, prov)
-    plot(summary, figures / stem, title(base, args.scale))
+    plot(summary, figures / stem, title(base, args.scale), sources)
     print(summary[["setting", "simulator", "mean", "sem", "mean_kept", "paper_mean",
                    "z_paper"]].to_string(index=False))
     if len(c9):

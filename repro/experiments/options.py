@@ -7,7 +7,7 @@ from pathlib import Path
 
 from repro.core.config import DEFAULT_SCALE, SCALES
 from repro.core.errors import require
-from repro.core.io import open_results
+from repro.core.io import open_figures, open_results
 
 
 def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0,
@@ -21,11 +21,12 @@ def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0,
     parser.add_argument("--results-dir",
                         help="folder for CSVs and sidecars (default results/<scale>)")
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace results of a larger scale in --results-dir (their sidecars "
-                             "say which; without it such a folder is refused)")
+                        help="replace results (and figures) of a larger scale in --results-dir "
+                             "(--figures-dir; their sidecars say which; without it such a folder "
+                             "is refused)")
     if figures:
-        parser.add_argument("--figures-dir", help="folder for PNG and PDF figures "
-                            "(default figures/<scale>)")
+        parser.add_argument("--figures-dir", help="folder for PNG and PDF figures and their "
+                            "provenance sidecars (default figures/<scale>)")
 
 
 def scale_folder(kind: str, scale: str) -> Path:
@@ -48,6 +49,25 @@ def results_folder(args: argparse.Namespace) -> Path:
     ``--overwrite`` (:func:`repro.core.io.open_results`)."""
     return open_results(args.results_dir, "--results-dir", scale=args.scale,
                         overwrite=args.overwrite)
+
+
+def figures_folder(args: argparse.Namespace, scale: str | None = None) -> Path:
+    """The driver's ``--figures-dir``, checked before any work: writable, not ``--results-dir``,
+    and no figures of a larger scale than the run's (``scale``, default ``--scale``; a replot's
+    is its results') there unless ``--overwrite`` (:func:`repro.core.io.open_figures`)."""
+    return open_figures(args.figures_dir, "--figures-dir",
+                        scale=args.scale if scale is None else scale, overwrite=args.overwrite,
+                        results=args.results_dir)
+
+
+def replot_figures(args: argparse.Namespace, *names: str) -> tuple[Path, list[Path]]:
+    """``--replot``'s figures folder (:func:`figures_folder` at the scale of the results it
+    draws) and the paths of those results, ``names`` in ``--results-dir``, the sources of its
+    figure (read them with :func:`read_for_replot` first)."""
+    from repro.core.io import figure_scale, source_records
+
+    sources = [Path(args.results_dir) / name for name in names]
+    return figures_folder(args, figure_scale(source_records(sources[:1]))), sources
 
 
 def add_replot(parser: argparse.ArgumentParser) -> None:

@@ -30,10 +30,11 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from repro.experiments.options import add_common, add_replot, read_for_replot, results_folder
+from repro.experiments.options import (add_common, add_replot, figures_folder, read_for_replot,
+                                       replot_figures, results_folder)
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import UsageError, require
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import provenance, save_figure, write_result
 from repro.core.progress import progress
 from repro.envs.renewal.distributions import DISTRIBUTIONS, Distribution
 
@@ -245,9 +246,10 @@ def run_study(cfg: RaceConfig, seed: int) -> dict[str, pd.DataFrame]:
     }
 
 
-def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
+def plot(tables: dict[str, pd.DataFrame], stem: Path, sources: list[Path]) -> None:
     """Left: the largest safe dT against N per distribution, with our beta and the paper's
-    (Table nvdt), each with its standard error; right: the exact curve's local exponent."""
+    (Table nvdt), each with its standard error; right: the exact curve's local exponent.
+    ``sources``: the CSVs of the tables drawn (:data:`FIGURE_TABLES`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -282,7 +284,7 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
     ax2.grid(True, which="both", alpha=0.3)
     for a in (ax, ax2):
         a.tick_params(labelsize=7)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -292,25 +294,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
+FIGURE_TABLES = ("race_dt_vs_n", "table_race", "race_exact")
+"""The tables the figure draws, the first its name."""
+
+
 def run(args: argparse.Namespace) -> int:
     if args.replot:
-        names = ("race_dt_vs_n", "table_race", "race_exact")
-        read = read_for_replot(args, *(f"{name}.csv" for name in names))
-        figures = check_writable_dir(args.figures_dir, "--figures-dir")
-        plot(dict(zip(names, read)), figures / "race_dt_vs_n")
-        print(f"wrote {figures / 'race_dt_vs_n'}.png/.pdf")
+        names = [f"{name}.csv" for name in FIGURE_TABLES]
+        read = read_for_replot(args, *names)
+        figures, sources = replot_figures(args, *names)
+        plot(dict(zip(FIGURE_TABLES, read)), figures / FIGURE_TABLES[0], sources)
+        print(f"wrote {figures / FIGURE_TABLES[0]}.png/.pdf")
         return 0
     cfg = for_scale(RaceConfig, args.scale, **given_fields(args, RaceConfig))
+    figures = None if args.no_figure else figures_folder(args)
     results = results_folder(args)
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
     t0 = time.perf_counter()
     tables = run_study(cfg, args.seed)
     wall = time.perf_counter() - t0
     for name, frame in tables.items():
         prov = provenance(cfg, command="race", scale=args.scale, seed=args.seed, wall_seconds=wall)
         write_result(results / f"{name}.csv", frame, prov)
-    if not args.no_figure:
-        plot(tables, figures / "race_dt_vs_n")
+    if figures is not None:
+        plot(tables, figures / FIGURE_TABLES[0],
+             [results / f"{name}.csv" for name in FIGURE_TABLES])
     print(tables["table_race"].to_string(index=False))
     return 0
 

@@ -33,11 +33,11 @@ import numpy as np
 import pandas as pd
 from scipy import special
 
-from repro.experiments.options import add_common, results_folder
+from repro.experiments.options import add_common, figures_folder, results_folder
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.memory import require_memory
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.io import provenance, save_figure, write_result
 from repro.core.progress import progress
 from repro.core.rollout import episode_streams
 from repro.envs.renewal import (Outcome, StreamDraws, draw_inter_event_times, simulate_events,
@@ -209,7 +209,9 @@ WALL_SERIES = [("event_driven", "wall_seconds", "ED", "C0", "o"),
                ("time_stepped", "wall_seconds", "time-stepped", "C1", "o")]
 
 
-def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
+def plot(tables: dict[str, pd.DataFrame], stem: Path, sources: list[Path]) -> None:
+    """Work (top) and wall time (bottom) against N per distribution, with the fitted power laws;
+    ``sources``: the CSVs of the three tables drawn."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -237,7 +239,7 @@ def plot(tables: dict[str, pd.DataFrame], stem: Path) -> None:
         axes[1, col].set_title(f"{d.name}, median wall seconds", fontsize=9)
     axes[0, 0].set_ylabel("operations per simulated duration")
     axes[1, 0].set_ylabel("seconds")
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -252,8 +254,8 @@ def run(args: argparse.Namespace) -> int:
         given["n_agents"] = tuple(sorted(given["n_agents"]))  # the fits read them in order
     cfg = for_scale(ScalingConfig, args.scale, **given)
     check_work(cfg)
+    figures = None if args.no_figure else figures_folder(args)
     results = results_folder(args)
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
     warm_up()
     t0 = time.perf_counter()
     tables = run_study(cfg, args.seed)
@@ -262,7 +264,7 @@ def run(args: argparse.Namespace) -> int:
         prov = provenance(cfg, command="scaling", scale=args.scale, seed=args.seed,
                           wall_seconds=wall)
         write_result(results / f"{name}.csv", frame, prov)
-    if not args.no_figure:
-        plot(tables, figures / "scaling")
+    if figures is not None:
+        plot(tables, figures / "scaling", [results / f"{name}.csv" for name in tables])
     print(tables["scaling_fit"].to_string(index=False))
     return 0

@@ -13,7 +13,10 @@ sends its files (none for a new run) with a task that trains one more epoch; the
 private temporary folder and sends the files back, the client writes them into place and sends the
 next epoch's task. No shared file system is needed, and a worker (or the client) that dies loses at
 most the epoch in progress; the next sweep resumes from the client's folders. Each epoch pays for
-building the environment and loading the checkpoint on the worker, tens of milliseconds.
+building the environment and loading the checkpoint on the worker, tens of milliseconds. A cluster
+that stops answering mid-sweep (its scheduler lost, or no epoch finished for
+:data:`CLUSTER_SILENCE` seconds) ends the sweep in one line naming --scheduler; the same command
+run again resumes.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import re
 import socket
 import tempfile
 import threading
+import time
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,10 +37,10 @@ from typing import Any, Callable
 
 from repro.core.config import add_config_arguments
 from repro.core.errors import UsageError, require
-from repro.core.io import check_writable_dir, write_bytes
+from repro.core.io import write_bytes
 from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
-from repro.experiments.options import add_common, results_folder
+from repro.experiments.options import add_common, figures_folder, results_folder
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PROVENANCE,
                                     check_run_folder, epochs_done, is_finished, locked_by,
                                     writer_lock)
@@ -116,7 +120,43 @@ def _write_files(folder: Path, files: dict[str, bytes]) -> None:
         write_bytes(folder / name, data)
 
 
+CLUSTER_SILENCE = 30 * 60.0
+"""Seconds a Dask sweep waits for the next of its epochs to finish before it takes the cluster
+for gone (its scheduler or every worker went away, or the network to them). One epoch task takes
+well under a minute at paper scale, so half an hour without one is silence by a wide margin, also
+behind workers that start slowly or a cluster busy with other work; and it is short enough that
+a sweep left running overnight does not wait the night for a cluster that is gone."""
+_POLL = 0.2
+"""Seconds between two looks at a Dask sweep's tasks and its client while none has finished."""
+
+
+def _cluster_gone(scheduler: str, why: str) -> UsageError:
+    return UsageError("--scheduler", f"a Dask cluster that answers until the sweep ends: it "
+                      f"stopped answering ({why}); running the same command again resumes from "
+                      "the run folders", scheduler)
+
+
+def _next_finished(done: Any, client: Any, scheduler: str) -> Any:
+    """The next task of ``done`` (an ``as_completed``) to finish, waited for at most
+    :data:`CLUSTER_SILENCE` seconds; a UsageError naming --scheduler if none finishes in that
+    time or the client has lost the scheduler (its tasks are then cancelled)."""
+    deadline = time.monotonic() + CLUSTER_SILENCE
+    while not done.has_ready():
+        if client.status != "running":
+            raise _cluster_gone(scheduler, "the client lost the scheduler")
+        if time.monotonic() > deadline:
+            raise _cluster_gone(scheduler, f"no epoch finished within {CLUSTER_SILENCE:g} s")
+        time.sleep(_POLL)
+    future = next(done)
+    if future.status == "cancelled":
+        raise _cluster_gone(scheduler, "the client lost the scheduler")
+    return future
+
+
 def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
+    """Train ``pending`` on the Dask scheduler ``scheduler``, one epoch per task, into their run
+    folders under ``root``; stops (UsageError naming --scheduler) when the cluster stops answering
+    (:func:`_next_finished`), the epochs finished so far kept in the run folders."""
     from dask.distributed import as_completed
 
     with _dask_client(scheduler) as client, ExitStack() as locks:
@@ -135,7 +175,8 @@ def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
         for job in pending:
             locks.enter_context(writer_lock(run_dir(root, job), "--runs-dir"))
         done = as_completed([next_epoch(job) for job in pending])
-        for future in done:
+        while not done.is_empty():
+            future = _next_finished(done, client, scheduler)
             job = running.pop(future)
             folder, files = run_dir(root, job), future.result()
             for stale in set(folder_files(folder)) - set(files):  # e.g. a killed write's leftovers
@@ -317,9 +358,10 @@ def check_sweep_arguments(args: argparse.Namespace) -> None:
 
 
 def check_study_arguments(args: argparse.Namespace) -> tuple[Path, Path]:
-    """Check the options of :func:`add_study_arguments` before any work: the sweep's, and that
-    the results and figures folders can be written; returns those two folders, the results folder
-    held until the command ends (:func:`~repro.experiments.options.results_folder`)."""
+    """Check the options of :func:`add_study_arguments` before any work: the sweep's, and the
+    figures and results folders (:func:`~repro.experiments.options.figures_folder`,
+    :func:`~repro.experiments.options.results_folder`); returns the results and figures folders,
+    the results folder held until the command ends."""
     check_sweep_arguments(args)
-    figures = check_writable_dir(args.figures_dir, "--figures-dir")
+    figures = figures_folder(args)
     return results_folder(args), figures

@@ -48,7 +48,7 @@ from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, Wildfir
                                  version_suffix)
 from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
                                 check_policy_study, learner_label, learner_suffix, setting_tag)
-from repro.experiments.options import add_common, add_replot, read_for_replot
+from repro.experiments.options import add_common, add_replot, read_for_replot, replot_figures
 from repro.experiments.sweep import (TrainJob, add_sweep_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
@@ -313,10 +313,11 @@ def distance_in_se(mean: float, err: float, paper_mean: float, paper_err: float)
     return float((mean - paper_mean) / np.hypot(err, paper_err))
 
 
-def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str) -> None:
+def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str,
+         sources: list[Path]) -> None:
     """The paper's figure: x = training simulator, y = ADR on ED, error bars = SEM over policies;
     the T_health variant sits at its dT beside the T_health = 3.0 point; the paper's points beside
-    ours."""
+    ours. ``sources``: the per-policy and summary CSVs."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -347,7 +348,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     ax.set_title(title, fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 SIZES = ("seeds", "epochs", "test_episodes")
@@ -444,11 +445,13 @@ def figure_title(cfg: TransferConfig, scale: str) -> str:
 def replot(cfg: TransferConfig, args: argparse.Namespace) -> int:
     """``--replot``: the figure of the study ``cfg`` names, from its CSVs and the settings its
     sidecar records."""
-    per_policy, summary = read_for_replot(args, f"{cfg.name}.csv", f"{cfg.name}_summary.csv")
+    names = (f"{cfg.name}.csv", f"{cfg.name}_summary.csv")
+    per_policy, summary = read_for_replot(args, *names)
     prov = read_provenance(Path(args.results_dir) / f"{cfg.name}.csv")
     recorded = recorded_config(prov)
-    stem = check_writable_dir(args.figures_dir, "--figures-dir") / cfg.name
-    plot(per_policy, summary, stem, figure_title(recorded, prov["scale"]))
+    figures, sources = replot_figures(args, *names)
+    stem = figures / cfg.name
+    plot(per_policy, summary, stem, figure_title(recorded, prov["scale"]), sources)
     print(f"wrote {stem}.png/.pdf")
     return 0
 
@@ -475,9 +478,9 @@ def run(args: argparse.Namespace) -> int:
     summary = summarise(per_policy, cfg.n_boot, args.seed)
     prov = provenance(dataclasses.asdict(cfg), command="fig-transfer", scale=args.scale,
                       seed=args.seed, wall_seconds=time.perf_counter() - t0, extra=extra)
-    write_result(results / f"{cfg.name}.csv", per_policy, prov)
-    write_result(results / f"{cfg.name}_summary.csv", summary, prov)
-    plot(per_policy, summary, figures / cfg.name, figure_title(cfg, args.scale))
+    sources = [write_result(results / f"{cfg.name}.csv", per_policy, prov),
+               write_result(results / f"{cfg.name}_summary.csv", summary, prov)]
+    plot(per_policy, summary, figures / cfg.name, figure_title(cfg, args.scale), sources)
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high",
                    "paper_mean"]].to_string(index=False))
     return 0

@@ -99,9 +99,10 @@ def by_dt(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, races: pd.DataFrame | None,
-         n_agents: int, stem: Path, title: str) -> None:
+         n_agents: int, stem: Path, title: str, sources: list[Path]) -> None:
     """ADR on ED (mean and 95% CI per FS-dT, each policy a dot) against dT on a log axis, the
-    ED-trained policies' CI as a band; on a second axis the race rate, when X2 has measured it."""
+    ED-trained policies' CI as a band; on a second axis the race rate, when X2 has measured it.
+    ``sources``: the CSVs drawn (the race rate's too, where drawn)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -135,7 +136,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, races: pd.DataFrame | 
         more, more_names = twin.get_legend_handles_labels()
         handles, names = handles + more, names + more_names
     ax.legend(handles, names, fontsize=7, loc="best")
-    save_figure(fig, stem)
+    save_figure(fig, stem, sources)
 
 
 def title(cfg: TransferDtConfig, scale: str) -> str:
@@ -165,10 +166,11 @@ def run(args: argparse.Namespace) -> int:
     prov = provenance(dict(grid=dataclasses.asdict(cfg), study=dataclasses.asdict(study)),
                       command="beyond-transfer-dt", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0, extra=extra)
-    write_result(results / f"{cfg.stem}.csv", per_policy, prov)
-    write_result(results / f"{cfg.stem}_summary.csv", summary, prov)
-    plot(per_policy, summary, read_races(results, cfg.race_agents), cfg.race_agents,
-         figures / cfg.stem, title(cfg, args.scale))
+    sources = [write_result(results / f"{cfg.stem}.csv", per_policy, prov),
+               write_result(results / f"{cfg.stem}_summary.csv", summary, prov)]
+    races = read_races(results, cfg.race_agents)
+    plot(per_policy, summary, races, cfg.race_agents, figures / cfg.stem, title(cfg, args.scale),
+         sources + ([] if races is None else [results / RACES]))
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high"]]
           .to_string(index=False))
     return 0
