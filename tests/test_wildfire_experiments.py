@@ -219,8 +219,36 @@ def test_a_dask_sweep_whose_workers_go_away_stops_after_the_silence(tmp_path, mo
         with pytest.raises(UsageError, match="--scheduler") as caught:
             run_sweep(jobs, tmp_path / "runs", scheduler=cluster.scheduler_address)
         assert 3 <= time.perf_counter() - t0 < 60
-    assert "no epoch finished within 3 s" in str(caught.value)
+    assert "no task finished within 3 s" in str(caught.value)
     assert epochs_done(tmp_path / "runs" / jobs[0].name) == 1
+
+
+def _sleep_then(seconds: float, value: int) -> int:
+    time.sleep(seconds)
+    return value
+
+
+def test_map_tasks_on_dask_keeps_the_order_and_stops_when_the_workers_go_away(monkeypatch):
+    """Evaluation tasks on Dask come back in the tasks' order; when the only worker leaves with
+    tasks pending, the call stops (UsageError naming --scheduler) once CLUSTER_SILENCE has
+    passed, here 3 s: it waited in client.gather for ever."""
+    from repro.core.errors import UsageError
+    from repro.experiments import sweep
+
+    distributed = pytest.importorskip("dask.distributed")
+    with _cluster(distributed) as cluster:
+        tasks = [(0.3 - 0.1 * i, i) for i in range(3)]  # the last submitted finishes first
+        assert sweep.map_tasks(_sleep_then, tasks, scheduler=cluster.scheduler_address) == [0, 1, 2]
+        monkeypatch.setattr(sweep, "CLUSTER_SILENCE", 3.0)
+        cluster.scale(0)
+        deadline = time.monotonic() + 20
+        while cluster.scheduler.workers and time.monotonic() < deadline:
+            time.sleep(0.05)
+        t0 = time.perf_counter()
+        with pytest.raises(UsageError, match="--scheduler") as caught:
+            sweep.map_tasks(_sleep_then, tasks, scheduler=cluster.scheduler_address)
+        assert 3 <= time.perf_counter() - t0 < 60
+    assert "no task finished within 3 s" in str(caught.value)
 
 
 def _main(argv: list[str]) -> int:

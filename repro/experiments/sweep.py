@@ -121,11 +121,12 @@ def _write_files(folder: Path, files: dict[str, bytes]) -> None:
 
 
 CLUSTER_SILENCE = 30 * 60.0
-"""Seconds a Dask sweep waits for the next of its epochs to finish before it takes the cluster
-for gone (its scheduler or every worker went away, or the network to them). One epoch task takes
-well under a minute at paper scale, so half an hour without one is silence by a wide margin, also
-behind workers that start slowly or a cluster busy with other work; and it is short enough that
-a sweep left running overnight does not wait the night for a cluster that is gone."""
+"""Seconds a Dask sweep waits for the next of its tasks (a training epoch, or a policy's test
+episodes) to finish before it takes the cluster for gone (its scheduler or every worker went
+away, or the network to them). One such task takes well under a minute at paper scale, so half
+an hour without one is silence by a wide margin, also behind workers that start slowly or a
+cluster busy with other work; and it is short enough that a sweep left running overnight does
+not wait the night for a cluster that is gone."""
 _POLL = 0.2
 """Seconds between two looks at a Dask sweep's tasks and its client while none has finished."""
 
@@ -145,7 +146,7 @@ def _next_finished(done: Any, client: Any, scheduler: str) -> Any:
         if client.status != "running":
             raise _cluster_gone(scheduler, "the client lost the scheduler")
         if time.monotonic() > deadline:
-            raise _cluster_gone(scheduler, f"no epoch finished within {CLUSTER_SILENCE:g} s")
+            raise _cluster_gone(scheduler, f"no task finished within {CLUSTER_SILENCE:g} s")
         time.sleep(_POLL)
     future = next(done)
     if future.status == "cancelled":
@@ -236,10 +237,20 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
 def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None = None,
               scheduler: str | None = None) -> list[Any]:
     """``[fn(*task) for task in tasks]`` on joblib worker processes, or on the Dask scheduler
-    named; the tasks carry everything they need (no shared disk)."""
+    named; the tasks carry everything they need (no shared disk). On Dask, a cluster that stops
+    answering stops the call (:func:`_next_finished`)."""
     if scheduler:
+        from dask.distributed import as_completed
+
         with _dask_client(scheduler) as client:
-            return client.gather([client.submit(fn, *task, pure=False) for task in tasks])
+            futures = [client.submit(fn, *task, pure=False) for task in tasks]
+            place = {future.key: i for i, future in enumerate(futures)}
+            out: list[Any] = [None] * len(futures)
+            done = as_completed(futures)
+            for _ in futures:
+                future = _next_finished(done, client, scheduler)
+                out[place[future.key]] = future.result()
+            return out
     from joblib import Parallel, delayed
 
     workers = max(1, min(len(tasks), n_jobs or os.cpu_count() or 1))
