@@ -12,9 +12,9 @@ SimPy schedules them, or run at once when they would be the next event anyway. A
 process no longer waits for (its wait was interrupted, or its fire re-planned) is stale and
 skipped, as SimPy skips a triggered event without callbacks.
 
-Processes. ``_run`` hands each event to the process it resumes, as SimPy does: ``_uav_event``
-(the reference's ``_uav`` and ``_macro_action``), ``_fire_event`` (``_fire`` and ``_burn``) and
-``_end_event`` (``_clock``, or the released order's end condition). Each ``yield`` of the model, and
+Processes. ``_advance``'s event loop hands each event to the process it resumes, as SimPy does:
+``_uav_event`` (the reference's ``_uav`` and ``_macro_action``), ``_fire_event`` (``_fire`` and
+``_burn``) and ``_end_event`` (``_clock``, or the released order's end condition). Each ``yield`` of the model, and
 the event kinds it is here ("released": only in the released order; hops are zero-delay):
 
 =====================================================  =============================================
@@ -112,8 +112,10 @@ def queue_capacity(cfg: WildfireConfig) -> int:
 # ``j`` fires.
 jit = njit(cache=True)
 dispatch = njit(cache=True, inline="always")
-"""The event loop's dispatcher and handlers: inlined into the loop, as one body (each call of a
-compiled function that takes an array costs reference-count updates, once per event here)."""
+"""The event loop's handlers: inlined into the loop, as one body (each call of a compiled function
+that takes an array costs reference-count updates, once per event here). The loop itself is
+written in :func:`_advance`: as a function of its own, even inlined, it made the engine about 8%
+slower (CHANGELOG, 2026-11-26)."""
 
 rank_key_nb = jit(rank_key)
 
@@ -725,17 +727,12 @@ def _setup(states, log, used, params_array, starts, slots):
 
 
 @jit
-def _advance(states, live, log, used, params_array, holds, actions, first):
-    """Record the actions of log rows first, first + 1, ...; then run every live episode until it is
-    blocked (its next event is the end of a decision latency whose action is still -1) or over, or
-    until the log or a heap is full. Returns the status and the first row now without an action.
-    BAD_ACTION, and nothing changed, if an action is out of range (checked here: numpy's checks cost
-    more than a small round's simulation). ``live[0]`` episodes are live, ``live[1:]`` (in order);
-    those that end leave the list, so later rounds do not visit them."""
-    params = params_array[0]
+def _record_actions(states, log, params, actions, first):
+    """Record the actions of log rows first, first + 1, ...; False, and nothing changed, if one is
+    out of range (checked here: numpy's checks cost more than a small round's simulation)."""
     for k in range(len(actions)):
         if actions[k] < 0 or actions[k] > params.n_observed:  # the actions are 0..n_observed
-            return BAD_ACTION, first
+            return False
     for k in range(len(actions)):
         record = log[first + k]
         record.act = actions[k]
@@ -743,13 +740,52 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
         # else superseded: the end of its latency is stale
         if state.running_row[record.agent] == first + k:
             state.act[record.agent] = actions[k]
-    row = used[0]
-    status = OK
-    n_live = 0
+    return True
+
+
+@jit
+def _advance(states, live, log, used, params_array, holds, actions, first):
+    """Record the round's actions (:func:`_record_actions`; BAD_ACTION if one is out of range),
+    then run every live episode until it is blocked (its next event is the end of a decision
+    latency whose action is still -1) or over, or until the log (GROW_LOG) or a queue (HEAP_FULL)
+    might overflow. Each event goes to the process it resumes (kinds are numbered by process).
+    Returns the status and the first row now without an action. ``live[0]`` episodes are live,
+    ``live[1:]`` (in order); those that end leave the list, so later rounds do not visit them."""
+    params = params_array[0]
+    if not _record_actions(states, log, params, actions, first):
+        return BAD_ACTION, first
+    row, status, n_live = used[0], OK, 0
+    room = params.n_agents + 3  # what one event may push, at most
     for q in range(live[0]):
         e = live[1 + q]
-        status, row = _run(states[e], log, params, holds, e, row)
-        if not states[e].done:
+        state = states[e]
+        while not state.done:
+            seq, kind, who = key_fields(_next_key(state))
+            if kind == LATENCY and seq == state.uav_wait[who] and state.act[who] < 0:
+                break  # the policy has not decided yet
+            if row >= len(log):
+                status = GROW_LOG
+                break
+            if (state.heap_size + room > state.heap_key.shape[0]
+                    or state.urgent_size + room > state.urgent_queue.shape[0]
+                    or state.normal_size + room > state.normal_queue.shape[0]):
+                status = HEAP_FULL
+                break
+            t, key = _pop(state)
+            seq, kind, who = key_fields(key)
+            state.now = t
+            state.events += 1
+            if params.count_races:
+                _count_races(state, seq, kind, who)
+            if kind < EXTINGUISH:
+                row = _uav_event(state, log, params, holds, e, row, seq, kind, who)
+            elif kind < CLOCK:
+                _fire_event(state, params, seq, kind, who)
+            else:
+                _end_event(state, params, kind, who)
+        if state.done:
+            _close_running(state, log, params)
+        else:
             live[1 + n_live] = e
             n_live += 1
         if status != OK:  # keep the episodes not visited
@@ -760,38 +796,6 @@ def _advance(states, live, log, used, params_array, holds, actions, first):
     live[0] = n_live
     used[0] = row
     return status, first + len(actions)
-
-
-@dispatch
-def _run(state, log, params, holds, e, row):
-    """Process episode e's events until it is blocked or over (OK), or its next event might not
-    fit (GROW_LOG: the log is full; HEAP_FULL: a queue might overflow). Each event goes to the
-    process it resumes (kinds are numbered by process). Returns the status and the next free row."""
-    while not state.done:
-        seq, kind, who = key_fields(_next_key(state))
-        if kind == LATENCY and seq == state.uav_wait[who] and state.act[who] < 0:
-            return OK, row  # the policy has not decided yet
-        if row >= len(log):
-            return GROW_LOG, row
-        room = params.n_agents + 3  # what one event may push, at most
-        if (state.heap_size + room > state.heap_key.shape[0]
-                or state.urgent_size + room > state.urgent_queue.shape[0]
-                or state.normal_size + room > state.normal_queue.shape[0]):
-            return HEAP_FULL, row
-        t, key = _pop(state)
-        seq, kind, who = key_fields(key)
-        state.now = t
-        state.events += 1
-        if params.count_races:
-            _count_races(state, seq, kind, who)
-        if kind < EXTINGUISH:
-            row = _uav_event(state, log, params, holds, e, row, seq, kind, who)
-        elif kind < CLOCK:
-            _fire_event(state, params, seq, kind, who)
-        else:
-            _end_event(state, params, kind, who)
-    _close_running(state, log, params)
-    return OK, row
 
 
 @dispatch
