@@ -14,8 +14,9 @@ skipped, as SimPy skips a triggered event without callbacks.
 
 Processes. ``_advance``'s event loop hands each event to the process it resumes, as SimPy does:
 ``_uav_event`` (the reference's ``_uav`` and ``_macro_action``), ``_fire_event`` (``_fire`` and
-``_burn``) and ``_end_event`` (``_clock``, or the released order's end condition). Each ``yield`` of the model, and
-the event kinds it is here ("released": only in the released order; hops are zero-delay):
+``_burn``) and ``_end_event`` (``_clock``, or the released order's end condition). Each ``yield``
+of the model, and the event kinds it is here ("released": only in the released order; hops are
+zero-delay):
 
 =====================================================  =============================================
 SimPy model (``reference.py``)                         event kinds here
