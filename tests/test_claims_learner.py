@@ -79,7 +79,7 @@ def test_committed_results_name_the_learner_their_sidecars_record():
     assert checked >= 20
 
 
-PREDATES_PIN = ("beyond_mgae", "bus_arrivals_suite", "bus_batch_suite", "bus_lambda_suite",
+PREDATES_PIN = ("beyond_mgae_suite", "bus_arrivals_suite", "bus_batch_suite", "bus_lambda_suite",
                 "bus_load_suite", "bus_load_mlp_runs_suite", "learner_ablation",
                 "order_reversal_suite", "transfer_corrected_suite", "transfer_dt_grid",
                 "transfer_no_q3_suite", "transfer_suite", "wildfire_behaviour_suite",
