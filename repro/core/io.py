@@ -216,7 +216,7 @@ def save_figure(fig: Any, stem: str | Path, sources: Sequence[str | Path], *,
     """Lay ``fig`` out, write ``stem.png`` and ``stem.pdf`` atomically (PDF without a timestamp, so
     it is stable), close it, and write its sidecar ``stem.provenance.json``: the files' hashes,
     the result CSVs ``sources`` it was drawn from (:func:`source_records`, the first the result it
-    shows), its scale (its first source's), the command, argv, commit and versions.
+    shows), its scale (its first source's), the command, and the process's :func:`run_record`.
 
     Refused (UsageError naming --figures-dir) if ``stem`` is a figure whose sidecar records a larger
     scale, unless ``overwrite`` or its folder was opened with it (:func:`open_figures`). As for a
@@ -245,13 +245,10 @@ def save_figure(fig: Any, stem: str | Path, sources: Sequence[str | Path], *,
         write_bytes(dest, data)
     write_json(figure_sidecar(stem), {
         "command": records[0]["command"] if records else None,
-        "argv": sys.argv,
         "scale": mine,
         "figures": {dest.name: hashlib.sha256(data).hexdigest() for dest, data in files.items()},
         "sources": records,
-        "git_commit": git_commit(),
-        "versions": versions(),
-        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        **run_record(),
     })
     return list(files)
 
@@ -322,19 +319,27 @@ def provenance(config: Any, *, command: str, scale: str | None, seed: int | None
 
     rec = {
         "command": command,
-        "argv": sys.argv,
         "scale": scale,
         "seed": seed,
         "config": to_dict(config) if hasattr(config, "__dataclass_fields__") else config,
-        "git_commit": git_commit(),
-        "versions": versions(),
-        "machine": machine(),
         "wall_seconds": round(wall_seconds, 3),
-        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        **run_record(),
     }
     if extra:
         rec.update(extra)
     return rec
+
+
+def run_record() -> dict[str, Any]:
+    """What every sidecar (a result's, a figure's) records of the process that wrote it: its
+    command line, the commit, the versions, the machine and the time it finished."""
+    return {
+        "argv": sys.argv,
+        "git_commit": git_commit(),
+        "versions": versions(),
+        "machine": machine(),
+        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
 
 
 def sidecar_path(result: str | Path) -> Path:
