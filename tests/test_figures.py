@@ -15,9 +15,11 @@ from pathlib import Path
 import pytest
 
 from repro.claims.race import PAPER_BETA
+import repro.core.io as io_module
 from repro.core.errors import UsageError
-from repro.core.io import (CSV_HASH, figure_sidecar, open_figures, read_provenance, read_result,
-                           release_results, save_figure)
+from repro.core.io import (CSV_HASH, FIGURES_LOCK, figure_sidecar, open_figures, read_provenance,
+                           read_result, release_results, save_figure)
+from repro.core.locks import folder_lock
 from repro.experiments import (beyond_mgae, beyond_order, fig_bus_arrivals, fig_bus_load,
                                learner_ablation, race, transfer)
 from tests.conftest import ROOT, run_cli, tree_snapshot
@@ -251,6 +253,32 @@ def test_save_figure_keeps_a_larger_figure_unless_its_folder_was_opened_to_repla
     finally:
         release_results()
     assert_sidecar_describes(fig / "race_dt_vs_n", [csv], "quick")
+
+
+def test_a_second_writer_of_a_figures_folder_is_refused(tmp_path, capsys, monkeypatch):
+    """A driver holds its figures folder from the start (one line naming --figures-dir and the
+    holder's lock, nothing written); a figure saved outside a driver waits for the holder, then
+    is refused too."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from repro.cli import main
+
+    monkeypatch.setenv("REPRO_QUIET", "1")
+    monkeypatch.setattr(io_module, "PAIR_WAIT", 0.1)
+    res, fig = tmp_path / "res", tmp_path / "fig"
+    with folder_lock(fig, FIGURES_LOCK, "--figures-dir", "a figures folder"):
+        capsys.readouterr()
+        assert main([*RACE, "--results-dir", str(res), "--figures-dir", str(fig)]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "--figures-dir" in lines[0] and FIGURES_LOCK in lines[0]
+        with pytest.raises(UsageError, match="--figures-dir.*figures.lock"):
+            save_figure(plt.figure(), fig / "race_dt_vs_n", [])
+        assert [p.name for p in fig.iterdir()] == [FIGURES_LOCK] and not res.exists()
+    assert main([*RACE, "--results-dir", str(res), "--figures-dir", str(fig)]) == 0
+    assert not (fig / FIGURES_LOCK).exists()
 
 
 def test_a_figures_folder_that_is_the_results_folder_is_refused(cli, tmp_path):

@@ -17,6 +17,7 @@ import torch
 
 import repro.learn.run_folder as run_folder
 import repro.learn.trainer as trainer
+from repro.core import kernels
 from repro.core.errors import UsageError
 from repro.cli import main
 from repro.core.io import atomic_path
@@ -217,6 +218,7 @@ DAMAGE = {
     "empty checkpoint": (CHECKPOINT, lambda p: p.write_bytes(b"")),
     "checkpoint is a folder": (CHECKPOINT, lambda p: (p.unlink(), p.mkdir())),
     "truncated config": ("config.json", _truncate),
+    "truncated kernels record": (run_folder.KERNELS, _truncate),
 }
 
 
@@ -263,6 +265,51 @@ def test_a_corrupt_config_in_a_sweep_is_one_line(tmp_path):
     _truncate(tmp_path / "a" / "config.json")
     with pytest.raises(UsageError, match="--runs-dir.*config.json"):
         run_sweep(jobs, tmp_path)
+
+
+# --- one set of kernels --------------------------------------------------------------------------
+
+def test_a_run_records_its_kernels(whole):
+    assert run_folder.recorded_kernels(whole) == kernels.record()
+
+
+def test_the_record_names_the_cpu_where_the_pin_does_not_apply(monkeypatch):
+    assert "cpu" not in kernels.record() or not kernels.state()["pinned"]
+    monkeypatch.setattr(kernels, "state", lambda: {"pinned": False, "torch": "AVX512"})
+    assert set(kernels.record()) == {"pinned", "torch", "cpu"}
+
+
+def test_resuming_under_other_kernels_is_refused_and_nothing_changes(tmp_path, whole, capsys,
+                                                                     monkeypatch):
+    run = tmp_path / "run"
+    shutil.copytree(whole, run)
+    other = {**kernels.record(), "pinned": False, "torch": "AVX512", "cpu": "elsewhere"}
+    monkeypatch.setattr(run_folder, "kernel_record", lambda: other)
+    before = tree_snapshot(run)
+    capsys.readouterr()
+    assert train(run, 4) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--out" in err and "kernels.json" in err
+    assert "pinned" in err and "AVX512" in err
+    assert tree_snapshot(run) == before
+
+
+def test_a_run_from_before_the_record_is_taken_at_its_provenance(tmp_path, whole, monkeypatch):
+    """A finished run without kernels.json is checked against its sidecar's kernels (and refused
+    where they differ); one whose sidecar has none resumes with a warning."""
+    run = tmp_path / "run"
+    shutil.copytree(whole, run)
+    (run / run_folder.KERNELS).unlink()
+    assert run_folder.recorded_kernels(run) == kernels.record()
+    with monkeypatch.context() as patch:
+        patch.setattr(run_folder, "kernel_record", lambda: {"pinned": False, "cpu": "elsewhere"})
+        assert train(run, 4) == 2
+    side = run / run_folder.PROVENANCE
+    side.write_text(side.read_text().replace('"kernels"', '"kernels_unrecorded"'))
+    assert run_folder.recorded_kernels(run) is None
+    with pytest.warns(kernels.KernelWarning, match="not recorded"):
+        assert train(run, 4) == 0
+    assert pd.read_csv(run / PROGRESS).shape[0] == 4
 
 
 def test_atomic_path_leaves_nothing_on_failure(tmp_path):

@@ -219,20 +219,15 @@ def save_figure(fig: Any, stem: str | Path, sources: Sequence[str | Path], *,
     shows), its scale (its first source's), the command, and the process's :func:`run_record`.
 
     Refused (UsageError naming --figures-dir) if ``stem`` is a figure whose sidecar records a larger
-    scale, unless ``overwrite`` or its folder was opened with it (:func:`open_figures`). As for a
-    result, the old sidecar goes first, so that a sidecar never describes files it was not written
-    with."""
+    scale, unless ``overwrite`` or its folder was opened with it (:func:`open_figures`), and if
+    another process holds the folder (a folder this process did not open is locked for the write,
+    waiting up to :data:`PAIR_WAIT`). As for a result, the old sidecar goes first, so that a
+    sidecar never describes files it was not written with."""
     import matplotlib.pyplot as plt  # loaded already by the caller that drew ``fig``
 
     records = source_records(sources)
     mine = figure_scale(records)
     folder = Path(stem).parent
-    theirs = _recorded_figure_scale(figure_sidecar(stem))
-    if scale_rank(theirs) > scale_rank(mine) and not (
-            overwrite or _figures_held.get(folder.resolve())):
-        plt.close(fig)
-        _refuse_larger([(Path(str(stem) + FIGURE_FORMATS[0]).name, theirs)], mine,
-                       "--figures-dir", folder, "figures")
     fig.tight_layout()
     files = {}
     for ext, kw in zip(FIGURE_FORMATS, ({"dpi": 150}, {"metadata": {"CreationDate": None}})):
@@ -240,16 +235,25 @@ def save_figure(fig: Any, stem: str | Path, sources: Sequence[str | Path], *,
         fig.savefig(buf, format=ext[1:], bbox_inches="tight", **kw)
         files[Path(str(stem) + ext)] = buf.getvalue()
     plt.close(fig)
-    figure_sidecar(stem).unlink(missing_ok=True)
-    for dest, data in files.items():
-        write_bytes(dest, data)
-    write_json(figure_sidecar(stem), {
-        "command": records[0]["command"] if records else None,
-        "scale": mine,
-        "figures": {dest.name: hashlib.sha256(data).hexdigest() for dest, data in files.items()},
-        "sources": records,
-        **run_record(),
-    })
+    held = folder.resolve() in _figures_held
+    with (nullcontext() if held else folder_lock(folder, FIGURES_LOCK, "--figures-dir",
+                                                  "a figures folder", wait=PAIR_WAIT)):
+        theirs = _recorded_figure_scale(figure_sidecar(stem))
+        if scale_rank(theirs) > scale_rank(mine) and not (
+                overwrite or _figures_held.get(folder.resolve())):
+            _refuse_larger([(Path(str(stem) + FIGURE_FORMATS[0]).name, theirs)], mine,
+                           "--figures-dir", folder, "figures")
+        figure_sidecar(stem).unlink(missing_ok=True)
+        for dest, data in files.items():
+            write_bytes(dest, data)
+        write_json(figure_sidecar(stem), {
+            "command": records[0]["command"] if records else None,
+            "scale": mine,
+            "figures": {dest.name: hashlib.sha256(data).hexdigest()
+                        for dest, data in files.items()},
+            "sources": records,
+            **run_record(),
+        })
     return list(files)
 
 
@@ -352,6 +356,8 @@ CSV_HASH = "csv_sha256"
 """The sidecar's record of its CSV: the SHA-256 of the CSV's bytes (hex)."""
 RESULTS_LOCK = "results.lock"
 """Held in a results folder by the process writing into it."""
+FIGURES_LOCK = "figures.lock"
+"""Held in a figures folder by the process drawing into it."""
 PAIR_WAIT = 10.0
 """Seconds a pair written outside a driver waits for its folder's lock (another pair's write
 takes milliseconds; a driver holding the folder, its whole run)."""
@@ -426,17 +432,23 @@ def open_figures(path: str | Path, param: str, *, scale: str | None, overwrite: 
                  results: str | Path | None = None) -> Path:
     """The figures folder ``path`` of a driver at ``scale``, before any work: refused (UsageError
     naming ``param``) if it cannot be written, if it is the results folder ``results`` (a
-    figure's sidecar has the name of its result's), or if it holds figures of a larger scale than
-    ``scale`` and ``overwrite`` is not given. Its figures may replace larger-scale ones from then
-    on if ``overwrite`` (:func:`save_figure`), until :func:`release_results`."""
+    figure's sidecar has the name of its result's), if another process holds it (its
+    :data:`FIGURES_LOCK`, held from here until :func:`release_results`), or if it holds figures
+    of a larger scale than ``scale`` and ``overwrite`` is not given. Its figures may replace
+    larger-scale ones from then on if ``overwrite`` (:func:`save_figure`)."""
     folder = check_writable_dir(path, param)
     if results is not None:
         require(folder.resolve() != Path(results).resolve(), param, "a folder other than "
                 "--results-dir (a figure's sidecar, <stem>.provenance.json, has the name of its "
                 "result's)", str(path))
-    if not overwrite:
-        _refuse_larger(larger_figures(folder, scale), scale, param, path, "figures")
     key = folder.resolve()
+    with ExitStack() as stack:
+        if key not in _figures_held:
+            stack.callback(_remove_empty, _missing(folder))  # after the lock file is gone
+            stack.enter_context(folder_lock(folder, FIGURES_LOCK, param, "a figures folder"))
+        if not overwrite:
+            _refuse_larger(larger_figures(folder, scale), scale, param, path, "figures")
+        _session.push(stack.pop_all())
     _figures_held[key] = _figures_held.get(key, False) or overwrite
     return folder
 

@@ -130,6 +130,16 @@ def state() -> dict[str, Any]:
             "mkl": mkl_branch(), "numpy": numpy_level()}
 
 
+def record() -> dict[str, Any]:
+    """What decides the bits of training here: :func:`state`, and where the pin does not apply
+    the CPU too, whose own kernels then sum in their own order (a run folder keeps it, so that a
+    resumed run is not continued under other kernels). Imports torch and numpy."""
+    from repro.core.io import cpu_model
+
+    now = dict(state())
+    return now if now["pinned"] else {**now, "cpu": cpu_model()}
+
+
 def problems(now: dict[str, Any] | None = None) -> list[str]:
     """What differs from the pin where it applies (nothing where it does not)."""
     now = state() if now is None else now

@@ -3,9 +3,10 @@
 A run folder holds ``config.json`` (the settings that determine the run), ``progress.csv`` (one row
 per finished epoch), ``checkpoint.pt`` (everything needed to go on), ``policies/epochNNNN.pt`` (the
 policy after each of the run's last :data:`KEPT_POLICIES` epochs, a checkpoint holding what acting
-needs) and, while a process trains in it, ``run.lock``. A trainer starts or resumes its run with
-:func:`start`, hands each epoch to :func:`record_epoch` and ends with :func:`finish`; it writes
-nothing itself.
+needs), ``kernels.json`` (the CPU kernels its epochs are trained with,
+:func:`repro.core.kernels.record`) and, while a process trains in it, ``run.lock``. A trainer
+starts or resumes its run with :func:`start`, hands each epoch to :func:`record_epoch` and ends
+with :func:`finish`; it writes nothing itself.
 
 - **Safe to load.** A checkpoint holds only tensors, numbers and strings (the run's config and the
   sampler's generator state as JSON) and is read with ``torch.load(weights_only=True)``, which
@@ -21,6 +22,12 @@ nothing itself.
   of it when there is no checkpoint yet). So whichever write a kill interrupts, running the same
   command again ends with the files of an uninterrupted run. Temporary files of interrupted atomic
   writes are removed then too.
+- **One set of kernels.** A run is resumed only under the kernels its epochs were trained with:
+  resuming under others (a machine without the pin, ``REPRO_NATIVE_KERNELS`` set or unset) is
+  refused, because the epochs after the resume would carry other bits than an uninterrupted run's.
+  A run from before the folder recorded its kernels is taken at its finished call's record
+  (``progress.provenance.json``), and with a :class:`~repro.core.kernels.KernelWarning` when it
+  has none.
 - **Damage is one line.** An unreadable ``config.json`` or checkpoint, a checkpoint of another run,
   or a progress table missing checkpointed rows is refused (exit status 2) naming the file and what
   to do, before anything in the folder is changed.
@@ -31,6 +38,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
+import warnings
 from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
@@ -42,6 +50,8 @@ import torch
 from repro.core.config import saved_defaults, to_dict
 from repro.core.errors import UsageError, require
 from repro.core.io import append_csv, provenance, write_bytes, write_csv, write_json, write_text
+from repro.core.kernels import KernelWarning
+from repro.core.kernels import record as kernel_record
 from repro.core.locks import folder_lock, is_locked
 from repro.learn.config import TrainConfig
 
@@ -49,6 +59,7 @@ CONFIG = "config.json"
 PROGRESS = "progress.csv"
 PROVENANCE = "progress.provenance.json"
 CHECKPOINT = "checkpoint.pt"
+KERNELS = "kernels.json"
 LOCK = "run.lock"
 KEPT = "policies"
 KEPT_POLICIES = 40
@@ -228,7 +239,12 @@ def check_run_folder(out: Path, cfg: TrainConfig, env_config: Any, env_name: str
 
 def read_config(folder: Path, param: str = "--out") -> dict[str, Any] | None:
     """The run's ``config.json`` (None if it has none); an unreadable one is a UsageError."""
-    path = folder / CONFIG
+    return _read_object(folder / CONFIG, param)
+
+
+def _read_object(path: Path, param: str) -> dict[str, Any] | None:
+    """The JSON object in ``path`` (None if there is no such file); an unreadable one is a
+    UsageError naming ``param`` and the file."""
     if not path.exists():
         return None
     try:
@@ -237,7 +253,7 @@ def read_config(folder: Path, param: str = "--out") -> dict[str, Any] | None:
             raise ValueError(saved)
         return saved
     except (OSError, ValueError):
-        raise UsageError(param, f"a run folder with a readable {CONFIG} (repair or delete it)",
+        raise UsageError(param, f"a run folder with a readable {path.name} (repair or delete it)",
                          str(path)) from None
 
 
@@ -329,7 +345,38 @@ def resume_state(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
     epochs = int(state["epoch"])
     require(rows >= epochs, param, f"a run folder whose {PROGRESS} holds the {epochs} epochs of "
             f"its {CHECKPOINT} (it holds {rows}; delete {CHECKPOINT} to start again)", str(folder))
+    check_kernels(folder, param)
     return state
+
+
+def recorded_kernels(folder: Path, param: str = "--out") -> dict[str, Any] | None:
+    """The kernels the run in ``folder`` was trained with: its kernels.json, else (a run from
+    before the folder kept one) what its last finished call recorded, else None."""
+    kept = _read_object(folder / KERNELS, param)
+    if kept is not None:
+        return kept
+    machine = (_read_object(folder / PROVENANCE, param) or {}).get("machine", {})
+    kernels = machine.get("kernels") if isinstance(machine, dict) else None
+    if not isinstance(kernels, dict):
+        return None
+    return kernels if kernels.get("pinned") else {**kernels, "cpu": machine.get("cpu")}
+
+
+def check_kernels(folder: Path, param: str = "--out") -> None:
+    """Refuse (UsageError naming ``param``) resuming the run in ``folder`` under other kernels than
+    its epochs were trained with; warn where they are not recorded."""
+    earlier, now = recorded_kernels(folder, param), kernel_record()
+    if earlier is None:
+        warnings.warn(f"{folder}: the kernels its epochs were trained with are not recorded (a run "
+                      "from before the pin); resuming it may mix kernels", KernelWarning,
+                      stacklevel=2)
+        return
+    changed = ", ".join(f"{key} {earlier.get(key)} -> {now.get(key)}"
+                        for key in sorted(earlier.keys() | now.keys())
+                        if earlier.get(key) != now.get(key))
+    require(not changed, param, f"a run folder trained under the kernels it is resumed with "
+            f"({KERNELS}: {changed}; resume it where and as it was trained, or train into a new "
+            "folder)", str(folder))
 
 
 def _rows(path: Path) -> int:
@@ -376,7 +423,10 @@ def start(folder: Path, config: dict[str, Any], defaults: dict[str, Any], column
         saved = state["run_config"]["train"].get("epochs", 0)
         config = {**config, "train": {**config["train"],
                                       "epochs": max(saved, config["train"]["epochs"])}}
-    return state, restore(folder, epochs, config, columns)
+    rows = restore(folder, epochs, config, columns)
+    if state is None:
+        write_json(folder / KERNELS, kernel_record())
+    return state, rows
 
 
 def record_epoch(folder: Path, row: dict[str, Any], columns: list[str], state: dict[str, Any],
