@@ -13,7 +13,7 @@ import sys
 from typing import Any
 
 from repro.core.config import flat_settings, read_config_file
-from repro.core.errors import UsageError, require
+from repro.core.errors import UsageError, WorkerDied, require
 from repro.core.io import check_names, release_results
 from repro.experiments.options import default_folders
 
@@ -192,6 +192,9 @@ def main(argv: list[str] | None = None) -> int:
             err = UsageError(keys[err.param], err.allowed, err.got)
         print(f"repro {name}: error: {err}", file=sys.stderr)
         return 2
+    except WorkerDied as err:
+        print(f"repro {name}: error: {err}", file=sys.stderr)
+        return 1
     except OSError as err:
         # a full or read-only disk, or a folder without permission: the system's reason, one line
         if err.errno not in DISK_ERRORS:

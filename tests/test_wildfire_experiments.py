@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from pathlib import Path
 
@@ -249,6 +250,43 @@ def test_map_tasks_on_dask_keeps_the_order_and_stops_when_the_workers_go_away(mo
             sweep.map_tasks(_sleep_then, tasks, scheduler=cluster.scheduler_address)
         assert 3 <= time.perf_counter() - t0 < 60
     assert "no task finished within 3 s" in str(caught.value)
+
+
+def _die(value: int) -> int:
+    """A task whose worker process dies (as one the system kills for want of memory)."""
+    os._exit(9)
+
+
+def test_a_worker_that_dies_is_one_line_on_joblib_and_on_dask(monkeypatch, capsys, tmp_path):
+    """joblib's TerminatedWorkerError and Dask's KilledWorker become WorkerDied, which the command
+    line prints as one line (exit 1)."""
+    from repro.core.errors import WorkerDied
+    from repro.experiments import race, sweep
+
+    with pytest.raises(WorkerDied, match="joblib: exit codes.*--n-jobs") as caught:
+        sweep.map_tasks(_die, [(0,), (1,)], n_jobs=2)
+    assert "\n" not in str(caught.value) and "runs these tasks again" in str(caught.value)
+    distributed = pytest.importorskip("dask.distributed")
+    import dask
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                     protocol="tcp://", host="127.0.0.1",
+                                     dashboard_address=None) as cluster:
+        with pytest.raises(WorkerDied, match="Dask: every worker that ran one task died") as caught:
+            sweep.map_tasks(_die, [(0,)], scheduler=cluster.scheduler_address)
+    assert "\n" not in str(caught.value)
+
+    def dies(*args, **kwargs):
+        raise caught.value
+
+    monkeypatch.setattr(race, "run_study", dies)
+    monkeypatch.setenv("REPRO_QUIET", "1")
+    capsys.readouterr()
+    assert _main(["race", "--scale", "smoke", "--results-dir", str(tmp_path / "r"),
+                  "--no-figure"]) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "a worker process died" in lines[0]
 
 
 def _main(argv: list[str]) -> int:

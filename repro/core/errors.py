@@ -1,4 +1,5 @@
-"""Bad input is reported as one line naming the parameter and what is allowed (exit status 2)."""
+"""Bad input is reported as one line naming the parameter and what is allowed (exit status 2); a
+worker process that dies under a sweep, as one line saying so (exit status 1)."""
 
 
 class UsageError(ValueError):
@@ -25,3 +26,9 @@ def require(condition: bool, param: str, allowed: str, got: object = None) -> No
     """Raise :class:`UsageError` unless ``condition`` holds."""
     if not condition:
         raise UsageError(param, allowed, got)
+
+
+class WorkerDied(RuntimeError):
+    """A worker process (joblib's, or a Dask cluster's) died while it ran a task: the system killed
+    it (for want of memory, or a signal) or it crashed. ``str(err)`` is the whole one-line
+    message; the CLI prints it and exits with status 1."""

@@ -16,7 +16,8 @@ most the epoch in progress; the next sweep resumes from the client's folders. Ea
 building the environment and loading the checkpoint on the worker, tens of milliseconds. A cluster
 that stops answering mid-sweep (its scheduler lost, or no epoch finished for
 :data:`CLUSTER_SILENCE` seconds) ends the sweep in one line naming --scheduler; the same command
-run again resumes.
+run again resumes. So does a worker that dies, joblib's or Dask's (the system killed it, most
+often for want of memory), in one line that says so (:class:`~repro.core.errors.WorkerDied`).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from repro.core.config import add_config_arguments
-from repro.core.errors import UsageError, require
+from repro.core.errors import UsageError, WorkerDied, require
 from repro.core.io import write_bytes
 from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
@@ -154,6 +155,45 @@ def _next_finished(done: Any, client: Any, scheduler: str) -> Any:
     return future
 
 
+def _died(doing: str, why: str, then: str) -> WorkerDied:
+    return WorkerDied(f"a worker process died while {doing} ({why}); {then}")
+
+
+_RESUMES = ("every finished epoch is kept in the run folders, and the same command resumes "
+            "from them")
+"""What a sweep whose worker died keeps."""
+
+
+def _dask_result(future: Any, doing: str, then: str) -> Any:
+    """``future``'s result; :class:`WorkerDied` where the workers running it died (Dask retries a
+    task on another worker, and gives up once as many as its ``allowed-failures`` died)."""
+    from dask.distributed import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker as err:
+        worker = getattr(err.last_worker, "address", err.last_worker)
+        raise _died(doing, f"Dask: every worker that ran one task died ({err.allowed_failures + 1} "
+                    f"of them), the last {worker}; its log says why", then) from None
+
+
+def _on_joblib(fn: Callable[..., Any], tasks: list[tuple], workers: int, doing: str,
+               then: str) -> list[Any]:
+    """``[fn(*task) for task in tasks]`` on ``workers`` joblib (loky) worker processes;
+    :class:`WorkerDied` where one of them dies (the system killed it, most often for want of
+    memory)."""
+    from joblib import Parallel, delayed
+    from joblib.externals.loky.process_executor import TerminatedWorkerError
+
+    try:
+        return Parallel(n_jobs=workers, backend="loky")(delayed(fn)(*task) for task in tasks)
+    except TerminatedWorkerError as err:
+        codes = re.search(r"exit codes of the workers are (\{[^}]*\})", str(err))
+        why = ("exit codes " + codes.group(1) if codes else "killed")
+        raise _died(doing, f"joblib: {why}; a signal such as SIGKILL is most often the system "
+                    f"out of memory, and fewer --n-jobs need less", then) from None
+
+
 def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
     """Train ``pending`` on the Dask scheduler ``scheduler``, one epoch per task, into their run
     folders under ``root``; stops (UsageError naming --scheduler) when the cluster stops answering
@@ -179,7 +219,8 @@ def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
         while not done.is_empty():
             future = _next_finished(done, client, scheduler)
             job = running.pop(future)
-            folder, files = run_dir(root, job), future.result()
+            folder = run_dir(root, job)
+            files = _dask_result(future, f"training {job.name}", _RESUMES)
             for stale in set(folder_files(folder)) - set(files):  # e.g. a killed write's leftovers
                 (folder / stale).unlink()
             _write_files(folder, files)
@@ -227,10 +268,8 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
         if scheduler:
             _run_on_dask(pending, Path(root), scheduler)
         else:
-            from joblib import Parallel, delayed
-
-            Parallel(n_jobs=workers, backend="loky")(delayed(run_job)(j, Path(root))
-                                                     for j in pending)
+            _on_joblib(run_job, [(j, Path(root)) for j in pending], workers,
+                       "training the sweep's runs", _RESUMES)
     return [run_dir(root, j) for j in jobs]
 
 
@@ -238,7 +277,8 @@ def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None 
               scheduler: str | None = None) -> list[Any]:
     """``[fn(*task) for task in tasks]`` on joblib worker processes, or on the Dask scheduler
     named; the tasks carry everything they need (no shared disk). On Dask, a cluster that stops
-    answering stops the call (:func:`_next_finished`)."""
+    answering stops the call (:func:`_next_finished`); a worker that dies stops it with
+    :class:`~repro.core.errors.WorkerDied`."""
     if scheduler:
         from dask.distributed import as_completed
 
@@ -249,12 +289,16 @@ def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None 
             done = as_completed(futures)
             for _ in futures:
                 future = _next_finished(done, client, scheduler)
-                out[place[future.key]] = future.result()
+                out[place[future.key]] = _dask_result(future, "running its tasks", _RUNS_AGAIN)
             return out
-    from joblib import Parallel, delayed
-
     workers = max(1, min(len(tasks), n_jobs or os.cpu_count() or 1))
-    return Parallel(n_jobs=workers, backend="loky")(delayed(fn)(*task) for task in tasks)
+    return _on_joblib(fn, tasks, workers, "running its tasks", _RUNS_AGAIN)
+
+
+_RUNS_AGAIN = ("the same command runs these tasks again, and trains nothing again that its run "
+               "folders hold")
+"""What :func:`map_tasks` whose worker died keeps (its tasks, policy tests or Monte Carlo cells,
+train nothing)."""
 
 
 SCHEDULER_DEADLINE = 30.0
