@@ -3,6 +3,7 @@ across-seed intervals; bad input is one line, exit 2, nothing written."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 
@@ -38,6 +39,11 @@ def test_plots_two_runs_as_one_setting_with_their_interval(two_runs, tmp_path):
     np.testing.assert_allclose(c["mean"], values.mean(axis=0))
     np.testing.assert_allclose(c["half"], values.std(axis=0, ddof=1) / np.sqrt(2)
                                * sps.t.ppf(0.975, 1))
+    side = json.loads((tmp_path / "curves.provenance.json").read_text())
+    assert side["figures"] == {"curves.png": hashlib.sha256(out.read_bytes()).hexdigest()}
+    assert [s["csv"] for s in side["sources"]] == [str(run / "progress.csv") for run in two_runs]
+    assert [s["csv_sha256"] for s in side["sources"]] == [
+        hashlib.sha256((run / "progress.csv").read_bytes()).hexdigest() for run in two_runs]
     pdf = tmp_path / "curves.pdf"
     assert run_cli("plot-runs", str(two_runs[0]), "--out", str(pdf), "--metric",
                    "entropy").returncode == 0
@@ -58,6 +64,7 @@ def test_groups_by_setting_and_names_the_difference(two_runs, tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["{missing}"], "RUN_DIR: must be run folders"),
     (["{run}", "--out", "{tmp}/curves.svg"], "--out: must be a file name ending in .png or .pdf"),
+    (["{run}", "--out", "{run}/progress.csv/curves.png"], "--out: must be a writable folder"),
     (["{run}", "--metric", "loss"], "--metric: must be one of"),
     (["{tmp}"], "RUN_DIR: must be run folders"),
 ])

@@ -1,6 +1,10 @@
-"""render: a GIF of one episode, for both environments; bad input is one line, exit 2, no file."""
+"""render: a GIF of one episode, for both environments, with a sidecar naming what it pictures; bad
+input is one line, exit 2, no file."""
 
 from __future__ import annotations
+
+import hashlib
+import json
 
 import pytest
 from PIL import Image
@@ -13,7 +17,25 @@ def test_render_writes_an_animation(cli, tmp_path, env, policy):
     assert res.returncode == 0, res.stderr
     with Image.open(out) as gif:
         assert gif.n_frames >= 2 and gif.size[0] > 300
-    assert [p.name for p in tmp_path.iterdir()] == ["episode.gif"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["episode.gif",
+                                                         "episode.provenance.json"]
+    side = json.loads((tmp_path / "episode.provenance.json").read_text())
+    assert side["figures"] == {"episode.gif": hashlib.sha256(out.read_bytes()).hexdigest()}
+    assert side["policy"] == policy and "--frames" in side["argv"] and side["git_commit"]
+
+
+def test_the_sidecar_names_the_checkpoint_it_pictures(cli, tmp_path):
+    run = tmp_path / "run"
+    assert cli("train", "--env", "wildfire", "--scale", "smoke", "--epochs", "1",
+               "--out", str(run)).returncode == 0
+    out = tmp_path / "episode.gif"
+    checkpoint = run / "checkpoint.pt"
+    res = cli("render", "--policy", "checkpoint", str(checkpoint), "--frames", "3",
+              "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    side = json.loads((tmp_path / "episode.provenance.json").read_text())
+    assert side["policy_file"] == {"path": str(checkpoint), "sha256": hashlib.sha256(
+        checkpoint.read_bytes()).hexdigest()}
 
 
 @pytest.mark.parametrize("args, param", [

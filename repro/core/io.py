@@ -180,6 +180,8 @@ def append_csv(dest: str | Path, frame: pd.DataFrame) -> None:
 
 FIGURE_FORMATS = (".png", ".pdf")
 """The files of a figure, each ``<stem><format>``."""
+FIGURE_OPTIONS = {".png": {"dpi": 150}, ".pdf": {"metadata": {"CreationDate": None}}}
+"""How each format is drawn (matplotlib's savefig)."""
 
 
 def figure_sidecar(stem: str | Path) -> Path:
@@ -212,37 +214,47 @@ def figure_scale(records: list[dict[str, Any]]) -> Any:
 
 
 def save_figure(fig: Any, stem: str | Path, sources: Sequence[str | Path], *,
-                overwrite: bool = False) -> list[Path]:
-    """Lay ``fig`` out, write ``stem.png`` and ``stem.pdf`` atomically (PDF without a timestamp, so
-    it is stable), close it, and write its sidecar ``stem.provenance.json``: the files' hashes,
-    the result CSVs ``sources`` it was drawn from (:func:`source_records`, the first the result it
-    shows), its scale (its first source's), the command, and the process's :func:`run_record`.
+                overwrite: bool = False, formats: Sequence[str] = FIGURE_FORMATS,
+                param: str = "--figures-dir") -> list[Path]:
+    """Lay ``fig`` out, draw it as ``stem.png`` and ``stem.pdf`` (or ``formats``; the PDF without
+    a timestamp, so it is stable), close it, and write the files with their sidecar
+    (:func:`write_figure`)."""
+    import matplotlib.pyplot as plt  # loaded already by the caller that drew ``fig``
 
-    Refused (UsageError naming --figures-dir) if ``stem`` is a figure whose sidecar records a larger
-    scale, unless ``overwrite`` or its folder was opened with it (:func:`open_figures`), and if
+    fig.tight_layout()
+    files = {}
+    for ext in formats:
+        buf = io.BytesIO()
+        fig.savefig(buf, format=ext[1:], bbox_inches="tight", **FIGURE_OPTIONS[ext])
+        files[Path(str(stem) + ext)] = buf.getvalue()
+    plt.close(fig)
+    return write_figure(stem, files, sources, overwrite=overwrite, param=param)
+
+
+def write_figure(stem: str | Path, files: dict[Path, bytes], sources: Sequence[str | Path], *,
+                 overwrite: bool = False, extra: dict[str, Any] | None = None,
+                 param: str = "--figures-dir") -> list[Path]:
+    """Write a figure's ``files`` (path -> bytes; ``stem`` and a suffix each) atomically, then
+    their sidecar ``stem.provenance.json``: the files' hashes, the CSVs they were drawn from
+    (``sources``, :func:`source_records`; the first is the result the figure shows), its scale
+    (its first source's), the command, the process's :func:`run_record`, and ``extra``.
+
+    Refused (UsageError naming ``param``, the option that named the folder) if ``stem`` is a
+    figure whose sidecar records a larger scale, unless ``overwrite`` or its folder was opened
+    with it (:func:`open_figures`), and if
     another process holds the folder (a folder this process did not open is locked for the write,
     waiting up to :data:`PAIR_WAIT`). As for a result, the old sidecar goes first, so that a
     sidecar never describes files it was not written with."""
-    import matplotlib.pyplot as plt  # loaded already by the caller that drew ``fig``
-
     records = source_records(sources)
     mine = figure_scale(records)
     folder = Path(stem).parent
-    fig.tight_layout()
-    files = {}
-    for ext, kw in zip(FIGURE_FORMATS, ({"dpi": 150}, {"metadata": {"CreationDate": None}})):
-        buf = io.BytesIO()
-        fig.savefig(buf, format=ext[1:], bbox_inches="tight", **kw)
-        files[Path(str(stem) + ext)] = buf.getvalue()
-    plt.close(fig)
     held = folder.resolve() in _figures_held
-    with (nullcontext() if held else folder_lock(folder, FIGURES_LOCK, "--figures-dir",
-                                                  "a figures folder", wait=PAIR_WAIT)):
+    with (nullcontext() if held else folder_lock(folder, FIGURES_LOCK, param, "a figures folder",
+                                                  wait=PAIR_WAIT)):
         theirs = _recorded_figure_scale(figure_sidecar(stem))
         if scale_rank(theirs) > scale_rank(mine) and not (
                 overwrite or _figures_held.get(folder.resolve())):
-            _refuse_larger([(Path(str(stem) + FIGURE_FORMATS[0]).name, theirs)], mine,
-                           "--figures-dir", folder, "figures")
+            _refuse_larger([(next(iter(files)).name, theirs)], mine, param, folder, "figures")
         figure_sidecar(stem).unlink(missing_ok=True)
         for dest, data in files.items():
             write_bytes(dest, data)
@@ -253,6 +265,7 @@ def save_figure(fig: Any, stem: str | Path, sources: Sequence[str | Path], *,
                         for dest, data in files.items()},
             "sources": records,
             **run_record(),
+            **(extra or {}),
         })
     return list(files)
 

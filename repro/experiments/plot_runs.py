@@ -6,7 +6,9 @@ one group: a line of their mean per epoch, with a band of the 95% t-interval of 
 the group's seeds (over the epochs all of them reached; none with one run). The legend names each
 group by the settings in which the groups differ, and its number of runs. ``--metric`` picks the
 column (default: average_return for the bus, the paper's measure, else
-average_discounted_return, ADR); the figure is PNG or PDF by the suffix of ``--out``.
+average_discounted_return, ADR); the figure is PNG or PDF by the suffix of ``--out``, and its
+sidecar (``runs.provenance.json`` beside ``runs.png``) names the progress tables it was drawn from,
+with their hashes.
 """
 
 from __future__ import annotations
@@ -21,13 +23,12 @@ import pandas as pd
 import scipy.stats as sps
 
 from repro.core.errors import UsageError, require
-from repro.core.io import atomic_path
+from repro.core.io import FIGURE_FORMATS, check_writable_dir, save_figure
 from repro.learn.run_folder import CONFIG, PROGRESS, read_config
 from repro.learn.trainer import PROGRESS_COLUMNS
 
 METRICS = [c for c in PROGRESS_COLUMNS if c != "epoch"]
 """The progress.csv columns that can be drawn."""
-FORMATS = (".png", ".pdf")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -99,7 +100,9 @@ def curve(tables: list[pd.DataFrame], metric: str) -> pd.DataFrame:
 
 
 def plot(labelled: list[tuple[str, list[pd.DataFrame]]], metric: str, env_name: str,
-         out: Path) -> None:
+         out: Path, sources: list[Path]) -> None:
+    """Draw the groups' curves into ``out``, with a sidecar naming the progress tables
+    ``sources`` (:func:`repro.core.io.save_figure`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -118,17 +121,14 @@ def plot(labelled: list[tuple[str, list[pd.DataFrame]]], metric: str, env_name: 
     ax.tick_params(labelsize=7)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=6)
-    fig.tight_layout()
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, format=out.suffix[1:], dpi=200, bbox_inches="tight",
-                    **({"metadata": {"CreationDate": None}} if out.suffix == ".pdf" else {}))
-    plt.close(fig)
+    save_figure(fig, out.with_suffix(""), sources, formats=(out.suffix,), param="--out")
 
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
-    require(out.suffix in FORMATS, "--out", "a file name ending in " + " or ".join(FORMATS),
-            args.out)
+    require(out.suffix in FIGURE_FORMATS, "--out",
+            "a file name ending in " + " or ".join(FIGURE_FORMATS), args.out)
+    check_writable_dir(out.parent, "--out")
     require(args.metric is None or args.metric in METRICS, "--metric",
             "one of " + ", ".join(METRICS), args.metric)
     runs = read_runs(args.runs)
@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     require(not missing, "RUN_DIR", f"runs whose {PROGRESS} has a {metric} column",
             ", ".join(missing))
     labelled = groups(runs)
-    plot(labelled, metric, " and ".join(envs), out)
+    plot(labelled, metric, " and ".join(envs), out, [Path(r) / PROGRESS for r in args.runs])
     for label, tables in labelled:
         c = curve(tables, metric)
         print(f"{label}: {metric} {c['mean'].iloc[-1]:.4g} at epoch {int(c['epoch'].iloc[-1])}")

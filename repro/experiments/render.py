@@ -6,19 +6,24 @@ spaced in simulated time (the last one the episode's end). Wildfire policies: ``
 ``nearest``, ``flowchart`` (``repro.envs.wildfire.policies``), ``checkpoint PATH`` (a training
 run's ``checkpoint.pt``, on that run's environment settings); bus policies: ``nohold``,
 ``authors``, ``thresholds``, ``mlp [RUN]`` (``repro.experiments.bus_policies``, reading
-``--results-dir`` as ``bus-eval`` does) and ``checkpoint PATH``. Bad input is one line, exit
+``--results-dir`` as ``bus-eval`` does) and ``checkpoint PATH``. The GIF's sidecar
+(``episode.provenance.json`` beside ``episode.gif``) records the command, the policy, the hash of
+the policy's file where one is named, the commit and the versions. Bad input is one line, exit
 status 2, and nothing is written.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import tempfile
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from repro.core.errors import require
-from repro.core.io import check_names, check_writable_dir
+from repro.core.io import check_names, check_writable_dir, write_figure
 from repro.experiments import bus_policies
 from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
                                         trained_env_config)
@@ -67,10 +72,21 @@ def run(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(args.seed)
     episode = _wildfire if args.env == "wildfire" else _bus
     times, pictures, draw = episode(name, path[0] if path else None, args, rng)
-    shown = _animate(times, pictures, draw, args.frames, args.fps, out)
+    gif = _animate(times, pictures, draw, args.frames, args.fps)
+    write_figure(out.with_suffix(""), {out: gif.data}, [], param="--out",
+                 extra={"policy": name, "policy_file": _file_record(path[0] if path else None)})
+    shown = gif.pictures
     print(f"wrote {out}: {shown} pictures of an episode of "
           f"{times[-1]:.1f} s ({args.env}, {name})")
     return 0
+
+
+def _file_record(path: str | None) -> dict[str, str] | None:
+    """The path and SHA-256 of a policy's file (a checkpoint), None where the policy names no file
+    (a run folder's is the one its config picks)."""
+    if path is None or not Path(path).is_file():
+        return None
+    return {"path": path, "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest()}
 
 
 def _trained(path: str, env_name: str, config_type: type, rng: np.random.Generator):
@@ -139,9 +155,15 @@ def _run(frame, now, spacing, pending, act) -> list:
     return frames
 
 
-def _animate(times: list[float], frames: list, draw, n: int, fps: int, out: Path) -> int:
-    """``n`` of ``frames`` evenly spaced in time (each the latest at its instant), as a GIF;
-    returns how many it shows."""
+class Animation(NamedTuple):
+    data: bytes
+    """The GIF's bytes."""
+    pictures: int
+    """How many pictures it shows."""
+
+
+def _animate(times: list[float], frames: list, draw, n: int, fps: int) -> Animation:
+    """``n`` of ``frames`` evenly spaced in time (each the latest at its instant), as a GIF."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -152,10 +174,7 @@ def _animate(times: list[float], frames: list, draw, n: int, fps: int, out: Path
     at = np.unique(at)  # a long round holds the picture; no repeats
     fig = Figure(figsize=(9, 4.5), dpi=80)
     animation = FuncAnimation(fig, lambda k: draw(fig, frames[at[k]]), frames=len(at))
-    part = out.with_name(out.name + ".part.gif")  # the GIF appears whole, or not at all
-    try:
+    with tempfile.TemporaryDirectory() as folder:  # Pillow writes to a file name
+        part = Path(folder) / "animation.gif"
         animation.save(part, writer=PillowWriter(fps=fps))
-        part.replace(out)
-    finally:
-        part.unlink(missing_ok=True)
-    return len(at)
+        return Animation(part.read_bytes(), len(at))
