@@ -170,6 +170,9 @@ def test_git_commit_is_dirty_for_code_changes_not_for_outputs(tmp_path):
     assert git_commit(tmp_path) == clean
     (tmp_path / "code.py").write_text("x = 2\n")
     assert git_commit(tmp_path) == clean + "+dirty"
+    copy = tmp_path / "exported"  # a copy of the code inside another repository's tree
+    copy.mkdir()
+    assert git_commit(copy) == "unknown"
 
 
 # --- each scale has its own folders --------------------------------------------------------------

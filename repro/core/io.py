@@ -277,9 +277,15 @@ OUTPUTS = ("results", "figures", "paper_claims.md")
 def git_commit(root: Path | None = None) -> str:
     """The commit of the working tree at ``root`` (default: this suite's), with ``+dirty`` if it has
     uncommitted changes outside :data:`OUTPUTS` (otherwise the second driver run after a commit
-    would already be "dirty")."""
-    root = root or Path(__file__).resolve().parents[2]
+    would already be "dirty"); "unknown" where ``root`` is not the top of a git working tree (an
+    exported or installed copy of the suite, which git would take for part of an enclosing
+    repository, whose commit says nothing of this code)."""
+    root = (root or Path(__file__).resolve().parents[2]).resolve()
     try:
+        top = subprocess.run(["git", "rev-parse", "--show-toplevel"], cwd=root,
+                             capture_output=True, text=True, check=True).stdout.strip()
+        if Path(top).resolve() != root:
+            return "unknown"
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
                              check=True).stdout.strip()
         dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
