@@ -4,6 +4,7 @@ refusals of damaged or foreign folders, and the same bytes for the same run."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -310,6 +311,30 @@ def test_a_run_from_before_the_record_is_taken_at_its_provenance(tmp_path, whole
     with pytest.warns(kernels.KernelWarning, match="not recorded"):
         assert train(run, 4) == 0
     assert pd.read_csv(run / PROGRESS).shape[0] == 4
+
+
+def test_a_sweeps_sidecars_name_the_kernels_its_runs_were_trained_under(tmp_path):
+    """Every run's kernels go into the command's sidecars (``trained_under``), with a warning
+    where some are not this process's, until the command ends."""
+    from repro.core.io import provenance, release_results
+
+    jobs = [TrainJob(name, train_config("quick", "toy", epochs=1, batch_episodes=6, seed=seed),
+                     toy.ToyConfig()) for seed, name in enumerate("ab")]
+    try:
+        run_sweep(jobs, tmp_path)
+        assert provenance({}, command="x", scale=None, seed=None, wall_seconds=0)[
+            "trained_under"] == [kernels.record()]
+        other = {**kernels.record(), "pinned": False, "cpu": "elsewhere"}
+        (tmp_path / "b" / run_folder.KERNELS).write_text(json.dumps(other))
+        with pytest.warns(kernels.KernelWarning, match="1 of the 2 runs"):
+            run_sweep(jobs, tmp_path)
+        recorded = provenance({}, command="x", scale=None, seed=None, wall_seconds=0)
+        assert sorted(json.dumps(k, sort_keys=True) for k in recorded["trained_under"]) == sorted(
+            json.dumps(k, sort_keys=True) for k in (kernels.record(), other))
+    finally:
+        release_results()
+    assert "trained_under" not in provenance({}, command="x", scale=None, seed=None,
+                                             wall_seconds=0)
 
 
 def test_atomic_path_leaves_nothing_on_failure(tmp_path):

@@ -336,8 +336,9 @@ def cpu_model() -> str:
 
 def provenance(config: Any, *, command: str, scale: str | None, seed: int | None,
                wall_seconds: float, extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The sidecar content: what was run, on what, from which commit, and how long it took
-    (``scale`` None where the config alone says what was run, as for a training run)."""
+    """The sidecar content: what was run, on what, from which commit, how long it took (``scale``
+    None where the config alone says what was run, as for a training run), and the kernels of the
+    training runs it rests on (:func:`note_trained_under`)."""
     from repro.core.config import to_dict
 
     rec = {
@@ -348,9 +349,23 @@ def provenance(config: Any, *, command: str, scale: str | None, seed: int | None
         "wall_seconds": round(wall_seconds, 3),
         **run_record(),
     }
+    if _trained_under:
+        rec["trained_under"] = [_trained_under[key] for key in sorted(_trained_under)]
     if extra:
         rec.update(extra)
     return rec
+
+
+_trained_under: dict[str, Any] = {}
+"""The kernels that the training runs this command's results rest on were trained with (each
+distinct record once, by its JSON text; None for runs that recorded none), as the sweeps note
+them (:func:`note_trained_under`); a result's sidecar names them as ``trained_under``."""
+
+
+def note_trained_under(kernels: dict[str, Any] | None) -> None:
+    """Note that a result of this command rests on a run trained under ``kernels``
+    (:func:`repro.learn.run_folder.recorded_kernels`) until :func:`release_results`."""
+    _trained_under[json.dumps(kernels, sort_keys=True)] = kernels
 
 
 def run_record() -> dict[str, Any]:
@@ -496,9 +511,11 @@ def open_results(path: str | Path, param: str, *, scale: str | None,
 
 def release_results() -> None:
     """Let go of every results folder this process holds (:func:`open_results`), and forget the
-    figures folders it opened (:func:`open_figures`)."""
+    figures folders it opened (:func:`open_figures`) and the kernels its runs were trained under
+    (:func:`note_trained_under`)."""
     _held.clear()
     _figures_held.clear()
+    _trained_under.clear()
     _session.close()
 
 

@@ -31,6 +31,7 @@ import socket
 import tempfile
 import threading
 import time
+import warnings
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,13 +39,15 @@ from typing import Any, Callable
 
 from repro.core.config import add_config_arguments
 from repro.core.errors import UsageError, WorkerDied, require
-from repro.core.io import write_bytes
+from repro.core.io import note_trained_under, write_bytes
+from repro.core.kernels import KernelWarning
+from repro.core.kernels import record as kernel_record
 from repro.core.locks import folder_lock
 from repro.core.workers import die_with_parent
 from repro.experiments.options import add_common, figures_folder, results_folder
 from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PROVENANCE,
                                     check_run_folder, epochs_done, is_finished, locked_by,
-                                    writer_lock)
+                                    recorded_kernels, writer_lock)
 from repro.envs import env_package
 from repro.learn.process import configure_process
 from repro.learn.sizes import check_training_size, training_bytes
@@ -251,11 +254,37 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
     A sweep that has runs to train holds ``root``'s sweep.lock meanwhile: a second sweep over the
     same runs (two identical commands started together) is refused in one line naming
     --runs-dir, as is one that finds a run of its own being trained by another process (a
-    ``train`` in it), before any worker starts."""
+    ``train`` in it), before any worker starts. The kernels every run was trained under go into
+    the command's sidecars (:func:`_note_kernels`)."""
     check_jobs(jobs, root)
     pending = [j for j in jobs if not is_done(root, j)]
-    if not pending:
-        return [run_dir(root, j) for j in jobs]
+    if pending:
+        _train(pending, Path(root), n_jobs, scheduler)
+    folders = [run_dir(root, j) for j in jobs]
+    _note_kernels(folders)
+    return folders
+
+
+def _note_kernels(folders: list[Path]) -> None:
+    """Note the kernels each run was trained under in the command's sidecars
+    (:func:`repro.core.io.note_trained_under`), warning (:class:`KernelWarning`) where they are not
+    this process's: such results are not regenerated bit for bit on a machine of the pin."""
+    now = kernel_record()
+    others = 0
+    for folder in folders:
+        kernels = recorded_kernels(folder, "--runs-dir")
+        note_trained_under(kernels)
+        others += kernels != now
+    if others:
+        warnings.warn(f"{others} of the {len(folders)} runs were trained under other CPU kernels "
+                      "than this process's, or before runs recorded theirs (their sidecars say "
+                      "which: trained_under); results from them are regenerated bit for bit only "
+                      "under those kernels", KernelWarning, stacklevel=3)
+
+
+def _train(pending: list[TrainJob], root: Path, n_jobs: int | None,
+           scheduler: str | None) -> None:
+    """Train the runs ``pending`` under ``root``, holding its sweep.lock (:func:`run_sweep`)."""
     workers = min(len(pending), n_jobs or os.cpu_count() or 1)
     if not scheduler:  # the runs train on this machine, ``workers`` at a time
         largest = max(pending, key=lambda j: sum(training_bytes(j.train, _env(j))))
@@ -266,11 +295,10 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
             require(holder is None, "--runs-dir", f"a folder of runs no other process is "
                     f"writing to ({holder} holds {job.name}/{LOCK})", str(root))
         if scheduler:
-            _run_on_dask(pending, Path(root), scheduler)
+            _run_on_dask(pending, root, scheduler)
         else:
-            _on_joblib(run_job, [(j, Path(root)) for j in pending], workers,
+            _on_joblib(run_job, [(j, root) for j in pending], workers,
                        "training the sweep's runs", _RESUMES)
-    return [run_dir(root, j) for j in jobs]
 
 
 def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None = None,
