@@ -337,6 +337,20 @@ def test_a_sweeps_sidecars_name_the_kernels_its_runs_were_trained_under(tmp_path
                                              wall_seconds=0)
 
 
+def test_a_loaded_policy_names_the_kernels_of_its_run(whole):
+    """A checkpoint (or kept policy) of a run folder, loaded to act, puts its run's kernels into
+    the command's sidecars."""
+    from repro.core.io import provenance, release_results
+
+    for path in (whole / CHECKPOINT, sorted((whole / run_folder.KEPT).iterdir())[-1]):
+        try:
+            load_trained_run(path, "toy")
+            assert provenance({}, command="x", scale=None, seed=None, wall_seconds=0)[
+                "trained_under"] == [kernels.record()]
+        finally:
+            release_results()
+
+
 def test_atomic_path_leaves_nothing_on_failure(tmp_path):
     with pytest.raises(RuntimeError), atomic_path(tmp_path / "x.csv"):
         raise RuntimeError

@@ -9,7 +9,9 @@ import numpy as np
 
 from repro.core.errors import UsageError, require
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
-from repro.learn.run_folder import CHECKPOINT, load_checkpoint, state_problem
+from repro.core.io import note_trained_under
+from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, load_checkpoint, recorded_kernels,
+                                    state_problem)
 from repro.core.config import saved_defaults
 
 C = TypeVar("C")
@@ -18,11 +20,17 @@ C = TypeVar("C")
 def load_trained_run(path: str | Path, env_name: str,
                      param: str = "--checkpoint") -> dict[str, Any]:
     """The checkpoint at ``path`` of a training run on ``env_name``; a UsageError naming ``param``
-    if it is none (missing, not a checkpoint, or a run on another environment)."""
+    if it is none (missing, not a checkpoint, or a run on another environment). The kernels its
+    run was trained under go into the command's sidecars
+    (:func:`repro.core.io.note_trained_under`) where the checkpoint is in a run folder."""
     allowed = f"the {CHECKPOINT} of a {env_name} training run"
     require(Path(path).is_file(), param, allowed, str(path))
     state = load_checkpoint(path, param, allowed)
     require(state.get("run_config", {}).get("env_name") == env_name, param, allowed, str(path))
+    folder = Path(path).parent
+    folder = folder.parent if folder.name == KEPT else folder  # a kept policy's run folder
+    if (folder / CONFIG).is_file():
+        note_trained_under(recorded_kernels(folder, param))
     return state
 
 
