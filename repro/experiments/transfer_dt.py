@@ -29,8 +29,9 @@ from typing import ClassVar
 import pandas as pd
 
 from repro.core.config import Validated, for_scale, given_fields
-from repro.core.io import provenance, read_result, save_figure, write_result
+from repro.core.io import provenance, read_provenance, read_result, save_figure, write_result
 from repro.experiments import beyond_races, transfer
+from repro.experiments.options import add_replot, read_for_replot, replot_figures
 from repro.experiments.sweep import add_study_arguments, check_study_arguments
 from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
                                 learner_stem)
@@ -139,22 +140,40 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, races: pd.DataFrame | 
     save_figure(fig, stem, sources)
 
 
-def title(cfg: TransferDtConfig, scale: str) -> str:
-    """The figure's title: the learner and the study's sizes at ``scale``."""
-    study = cfg.study(scale)
-    return (f"X3: transfer to ED against the training step, {learner_label(cfg.learner)}; {scale} "
-            f"scale: {study.seeds} policies x {study.epochs} epochs x "
+def title(study: transfer.TransferConfig, scale: str) -> str:
+    """The figure's title: the learner and the sizes of the transfer study on the grid."""
+    return (f"X3: transfer to ED against the training step, {learner_label(study.learner)}; "
+            f"{scale} scale: {study.seeds} policies x {study.epochs} epochs x "
             f"{transfer.batch_label(study)} per simulator")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, TransferDtConfig)
     add_learner_option(p, "transfer_dt_grid_suite*")
+    add_replot(p)
+
+
+def replot(cfg: TransferDtConfig, args: argparse.Namespace) -> int:
+    """``--replot``: the figure of ``cfg``'s learner from its CSVs (and X2's race rates where
+    they are in --results-dir), titled with the sizes its sidecar records."""
+    names = [f"{cfg.stem}.csv", f"{cfg.stem}_summary.csv"]
+    per_policy, summary = read_for_replot(args, *names)
+    results = Path(args.results_dir)
+    prov = read_provenance(results / names[0])
+    races = read_races(results, cfg.race_agents)
+    figures, sources = replot_figures(args, *names, *([] if races is None else [RACES]))
+    study = transfer.recorded_config({"config": prov["config"]["study"]})
+    plot(per_policy, summary, races, cfg.race_agents, figures / cfg.stem,
+         title(study, prov["scale"]), sources)
+    print(f"wrote {figures / cfg.stem}.png/.pdf")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(TransferDtConfig, args.scale, learner=args.learner,
                     **given_fields(args, TransferDtConfig, ("seeds",)))
+    if args.replot:
+        return replot(cfg, args)
     study = cfg.study(args.scale)
     results, figures = check_study_arguments(args)
     t0 = time.perf_counter()
@@ -169,7 +188,7 @@ def run(args: argparse.Namespace) -> int:
     sources = [write_result(results / f"{cfg.stem}.csv", per_policy, prov),
                write_result(results / f"{cfg.stem}_summary.csv", summary, prov)]
     races = read_races(results, cfg.race_agents)
-    plot(per_policy, summary, races, cfg.race_agents, figures / cfg.stem, title(cfg, args.scale),
+    plot(per_policy, summary, races, cfg.race_agents, figures / cfg.stem, title(study, args.scale),
          sources + ([] if races is None else [results / RACES]))
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high"]]
           .to_string(index=False))
