@@ -132,7 +132,9 @@ def assert_sidecar_describes(stem: Path, sources: list[Path], scale: str) -> dic
     ("learner-ablation", [], "learner_ablation", ["learner_ablation_summary"]),
     ("beyond-order", [], "order_reversal", ["order_reversal", "order_reversal_summary"]),
     ("beyond-transfer-dt", [], "transfer_dt_grid",
-     ["transfer_dt_grid", "transfer_dt_grid_summary", "races"])])
+     ["transfer_dt_grid", "transfer_dt_grid_summary", "races"]),
+    ("fig-bus-lambda", ["--learner", "suite"], "bus_lambda_suite",
+     ["bus_lambda_suite", "bus_lambda_suite_summary"])])
 def test_replot_draws_from_the_csvs_and_writes_only_the_figure(tmp_path, command, extra, figure,
                                                                sources):
     before = tree_snapshot(PAPER)

@@ -67,6 +67,18 @@ def to_dict(cfg: Any) -> dict[str, Any]:
     return dataclasses.asdict(cfg)
 
 
+def from_recorded(cls: type[C], values: dict[str, Any]) -> C:
+    """The config ``cls`` that a sidecar records as ``values`` (:func:`to_dict`, through JSON):
+    its fields, with JSON's lists as the tuples a config holds; other keys are ignored (a study
+    built on the config records more beside its fields)."""
+    fields = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    return cls(**{k: _as_tuples(v) for k, v in values.items() if k in fields})
+
+
+def _as_tuples(value: Any) -> Any:
+    return tuple(_as_tuples(v) for v in value) if isinstance(value, list) else value
+
+
 def saved_defaults(config_type: type) -> dict[str, Any]:
     """What a run recorded before a setting existed held for it: its default, unless the config
     class names another value in ``BEFORE_ADDED`` (e.g. a switch whose default changed when it

@@ -37,7 +37,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.core.config import Validated, for_scale, given_fields
+from repro.core.config import Validated, for_scale, from_recorded, given_fields
 from repro.core.io import (check_writable_dir, provenance, read_provenance, save_figure,
                            write_result)
 from repro.core.stats import bootstrap_ci, ci_side, iqm, sem
@@ -224,8 +224,7 @@ def replot(cfg: MgaeStudyConfig, args: argparse.Namespace) -> int:
     names = (f"{cfg.stem}.csv", f"{cfg.stem}_summary.csv")
     runs, summary = read_for_replot(args, *names)
     prov = read_provenance(Path(args.results_dir) / f"{cfg.stem}.csv")
-    recorded = MgaeStudyConfig(**{k: transfer.as_tuples(v)
-                                  for k, v in prov["config"]["study"].items()})
+    recorded = from_recorded(MgaeStudyConfig, prov["config"]["study"])
     figures, sources = replot_figures(args, *names)
     stem = figures / cfg.stem
     plot(runs, summary, stem, title(recorded, prov["scale"]), sources)

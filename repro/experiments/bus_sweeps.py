@@ -34,12 +34,14 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from repro.core.config import Validated, for_scale, given_fields
-from repro.core.io import check_writable_dir, provenance, save_figure, write_result
+from repro.core.config import Validated, for_scale, from_recorded, given_fields
+from repro.core.io import (check_writable_dir, provenance, read_provenance, save_figure,
+                           write_result)
 from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.experiments.bus_policies import read_thresholds
+from repro.experiments.options import add_replot, read_for_replot, replot_figures
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      run_dir, run_sweep)
 from repro.learn.config import (LEARNERS, add_learner_option, learner_label, learner_stem,
@@ -228,10 +230,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_arguments(p, BusSweepConfig, FLAGS)
     add_learner_option(p, "bus_<sweep>_suite*")
     add_switch_arguments(p)
+    add_replot(p)
+
+
+def replot(sweep: str, cfg: BusSweepConfig, args: argparse.Namespace) -> int:
+    """``--replot``: ``sweep``'s figure from its CSVs in --results-dir, the baselines from its
+    summary, titled with the sweep's settings as its sidecar records them."""
+    names = [f"{cfg.stem(sweep)}.csv", f"{cfg.stem(sweep)}_summary.csv"]
+    table, summ = read_for_replot(args, *names)
+    prov = read_provenance(Path(args.results_dir) / names[0])
+    cfg = from_recorded(BusSweepConfig, prov["config"])
+    baselines = {name: float(summ[summ.policy == name].final_iqm.iloc[0])
+                 for name in ("nohold", "thresholds")}
+    figures, sources = replot_figures(args, *names)
+    plot(cfg, sweep, table, baselines, figures / cfg.stem(sweep), sources)
+    print(f"wrote {figures / cfg.stem(sweep)}.png/.pdf")
+    return 0
 
 
 def run_named(sweep: str, args: argparse.Namespace) -> int:
     cfg = sweep_config(args.scale, args.learner, **given_fields(args, BusSweepConfig, FLAGS))
+    if args.replot:
+        return replot(sweep, cfg, args)
     results, figures = check_study_arguments(args)
     bus = config_from_args(args)
     root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")

@@ -38,7 +38,8 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
+from repro.core.config import (Validated, add_config_arguments, for_scale, from_recorded,
+                               given_fields)
 from repro.core.errors import require
 from repro.core.io import (check_writable_dir, provenance, read_provenance, save_figure,
                            write_result)
@@ -457,15 +458,8 @@ def replot(cfg: TransferConfig, args: argparse.Namespace) -> int:
 
 
 def recorded_config(prov: dict[str, Any]) -> TransferConfig:
-    """The transfer study's config that a result's sidecar records (a study built on it records
-    more keys beside its fields)."""
-    fields = {f.name for f in dataclasses.fields(TransferConfig)}
-    return TransferConfig(**{k: as_tuples(v) for k, v in prov["config"].items() if k in fields})
-
-
-def as_tuples(value: Any) -> Any:
-    """A JSON value with its lists as tuples (a config's sequences are tuples)."""
-    return tuple(as_tuples(v) for v in value) if isinstance(value, list) else value
+    """The transfer study's config that a result's sidecar records."""
+    return from_recorded(TransferConfig, prov["config"])
 
 
 def run(args: argparse.Namespace) -> int:

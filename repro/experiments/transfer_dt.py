@@ -28,7 +28,7 @@ from typing import ClassVar
 
 import pandas as pd
 
-from repro.core.config import Validated, for_scale, given_fields
+from repro.core.config import Validated, for_scale, from_recorded, given_fields
 from repro.core.io import provenance, read_provenance, read_result, save_figure, write_result
 from repro.experiments import beyond_races, transfer
 from repro.experiments.options import add_replot, read_for_replot, replot_figures
@@ -162,7 +162,7 @@ def replot(cfg: TransferDtConfig, args: argparse.Namespace) -> int:
     prov = read_provenance(results / names[0])
     races = read_races(results, cfg.race_agents)
     figures, sources = replot_figures(args, *names, *([] if races is None else [RACES]))
-    study = transfer.recorded_config({"config": prov["config"]["study"]})
+    study = from_recorded(transfer.TransferConfig, prov["config"]["study"])
     plot(per_policy, summary, races, cfg.race_agents, figures / cfg.stem,
          title(study, prov["scale"]), sources)
     print(f"wrote {figures / cfg.stem}.png/.pdf")
