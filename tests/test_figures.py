@@ -134,7 +134,9 @@ def assert_sidecar_describes(stem: Path, sources: list[Path], scale: str) -> dic
     ("beyond-transfer-dt", [], "transfer_dt_grid",
      ["transfer_dt_grid", "transfer_dt_grid_summary", "races"]),
     ("fig-bus-lambda", ["--learner", "suite"], "bus_lambda_suite",
-     ["bus_lambda_suite", "bus_lambda_suite_summary"])])
+     ["bus_lambda_suite", "bus_lambda_suite_summary"]),
+    ("beyond-races", [], "races", ["races", "races_fit"]),
+    ("scaling", [], "scaling", ["scaling", "scaling_wall", "scaling_fit"])])
 def test_replot_draws_from_the_csvs_and_writes_only_the_figure(tmp_path, command, extra, figure,
                                                                sources):
     before = tree_snapshot(PAPER)
@@ -297,10 +299,11 @@ def test_a_figures_folder_that_is_the_results_folder_is_refused(cli, tmp_path):
 
 
 def test_the_committed_figures_sidecars_describe_them():
-    """Every committed figure that has a sidecar is the figure it describes, drawn from the
+    """Every committed figure has a sidecar, and is the figure it describes, drawn from the
     committed results it names."""
     sidecars = sorted((ROOT / "figures" / "paper").glob("*.provenance.json"))
-    assert sidecars
+    drawn = {p.stem for p in (ROOT / "figures" / "paper").glob("*.png")}
+    assert drawn and drawn == {side.name.removesuffix(".provenance.json") for side in sidecars}
     for side in sidecars:
         stem = side.with_name(side.name.removesuffix(".provenance.json"))
         prov = json.loads(side.read_text())

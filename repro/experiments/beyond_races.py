@@ -30,7 +30,8 @@ from repro.core.config import Validated, add_config_arguments, for_scale, given_
 from repro.core.io import provenance, read_result, save_figure, write_result
 from repro.envs.wildfire import WildfireConfig, make_env
 from repro.envs.wildfire.policies import POLICIES
-from repro.experiments.options import add_common, figures_folder, results_folder
+from repro.experiments.options import (add_common, add_replot, figures_folder, read_for_replot,
+                                       replot_figures, results_folder)
 from repro.experiments.race import fit_power_law
 from repro.experiments.sweep import check_sweep_arguments, map_tasks
 from repro.experiments.wildfire_eval import evaluate
@@ -204,10 +205,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
     add_config_arguments(p, BeyondRacesConfig)
     p.add_argument("--n-jobs", type=int, help="worker processes (default: all cores)")
+    add_replot(p)
+
+
+def replot(args: argparse.Namespace) -> int:
+    """``--replot``: the figure from the race table and its fits in --results-dir."""
+    names = [f"{RACES}.csv", f"{FIT}.csv"]
+    table, fits = read_for_replot(args, *names)
+    figures, sources = replot_figures(args, *names)
+    plot(table, fits, figures / RACES, sources)
+    print(f"wrote {figures / RACES}.png/.pdf")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = for_scale(BeyondRacesConfig, args.scale, **given_fields(args, BeyondRacesConfig))
+    if args.replot:
+        return replot(args)
     check_sweep_arguments(args)
     figures = figures_folder(args)
     results = results_folder(args)

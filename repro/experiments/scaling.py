@@ -33,7 +33,8 @@ import numpy as np
 import pandas as pd
 from scipy import special
 
-from repro.experiments.options import add_common, figures_folder, results_folder
+from repro.experiments.options import (add_common, add_replot, figures_folder, read_for_replot,
+                                       replot_figures, results_folder)
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.errors import require
 from repro.core.memory import require_memory
@@ -246,9 +247,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
     add_config_arguments(p, ScalingConfig)
     p.add_argument("--no-figure", action="store_true", help="write the CSVs only")
+    add_replot(p)
+
+
+TABLES = ("scaling", "scaling_wall", "scaling_fit")
+"""The result tables of the study, each ``<name>.csv``."""
+
+
+def replot(args: argparse.Namespace) -> int:
+    """``--replot``: the figure from the study's tables in --results-dir."""
+    names = [f"{name}.csv" for name in TABLES]
+    tables = dict(zip(TABLES, read_for_replot(args, *names)))
+    figures, sources = replot_figures(args, *names)
+    plot(tables, figures / "scaling", sources)
+    print(f"wrote {figures / 'scaling'}.png/.pdf")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.replot:
+        return replot(args)
     given = given_fields(args, ScalingConfig)
     if given.get("n_agents"):
         given["n_agents"] = tuple(sorted(given["n_agents"]))  # the fits read them in order
