@@ -79,7 +79,7 @@ def test_committed_results_name_the_learner_their_sidecars_record():
     assert checked >= 20
 
 
-PREDATES_PIN = ("beyond_mgae_suite", "order_reversal_suite", "transfer_corrected_suite",
+PREDATES_PIN = ("order_reversal_suite", "transfer_corrected_suite",
                 "transfer_dt_grid_suite", "transfer_no_q3_suite", "transfer_suite",
                 "wildfire_behaviour_suite")
 """Stems of the committed results of trained policies made before the CPU kernels were pinned
