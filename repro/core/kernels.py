@@ -131,13 +131,18 @@ def state() -> dict[str, Any]:
 
 
 def record() -> dict[str, Any]:
-    """What decides the bits of training here: :func:`state`, and where the pin does not apply
-    the CPU too, whose own kernels then sum in their own order (a run folder keeps it, so that a
-    resumed run is not continued under other kernels). Imports torch and numpy."""
+    """What decides the bits of training here (:func:`describe` of this process and CPU): a run
+    folder keeps it, so that a resumed run is not continued under other kernels. Imports torch
+    and numpy."""
     from repro.core.io import cpu_model
 
-    now = dict(state())
-    return now if now["pinned"] else {**now, "cpu": cpu_model()}
+    return describe(state(), cpu_model())
+
+
+def describe(now: dict[str, Any], cpu: str) -> dict[str, Any]:
+    """The kernel state ``now`` and, where the pin does not apply, the ``cpu``, whose own kernels
+    then sum in their own order."""
+    return dict(now) if now.get("pinned") else {**now, "cpu": cpu}
 
 
 def problems(now: dict[str, Any] | None = None) -> list[str]:

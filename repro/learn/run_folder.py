@@ -51,6 +51,7 @@ from repro.core.config import saved_defaults, to_dict
 from repro.core.errors import UsageError, require
 from repro.core.io import append_csv, provenance, write_bytes, write_csv, write_json, write_text
 from repro.core.kernels import KernelWarning
+from repro.core.kernels import describe as describe_kernels
 from repro.core.kernels import record as kernel_record
 from repro.core.locks import folder_lock, is_locked
 from repro.learn.config import TrainConfig
@@ -359,7 +360,7 @@ def recorded_kernels(folder: Path, param: str = "--out") -> dict[str, Any] | Non
     kernels = machine.get("kernels") if isinstance(machine, dict) else None
     if not isinstance(kernels, dict):
         return None
-    return kernels if kernels.get("pinned") else {**kernels, "cpu": machine.get("cpu")}
+    return describe_kernels(kernels, machine.get("cpu", "unknown"))
 
 
 def check_kernels(folder: Path, param: str = "--out") -> None:
