@@ -15,6 +15,7 @@ import pytest
 import torch
 
 from repro.cli import main
+from repro.core.io import read_provenance
 from tests.conftest import tree_snapshot
 from repro.envs import toy
 from repro.learn.policy import Sampler
@@ -289,6 +290,15 @@ def test_bench_learn_smoke(tmp_path):
     assert np.allclose(pieces.seconds_per_epoch, pieces.calls * pieces.seconds)
     assert pieces.calls[pieces.piece == "line-search trial"].item() >= 1
     assert (tmp_path / "bench_learn_pieces.provenance.json").exists()
+
+
+def test_bench_learn_names_the_suite_learners_tables_apart(tmp_path):
+    assert main(["bench-learn", "--scale", "smoke", "--learner", "suite",
+                 "--results-dir", str(tmp_path)]) == 0
+    assert sorted(p.name for p in tmp_path.glob("*.csv")) == [
+        "bench_learn_suite.csv", "bench_learn_suite_pieces.csv"]
+    recorded = read_provenance(tmp_path / "bench_learn_suite.csv")["config"]["train"]
+    assert recorded["hidden"] == [32, 32]
 
 
 @pytest.mark.slow

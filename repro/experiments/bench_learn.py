@@ -1,11 +1,13 @@
 """``bench-learn``: seconds per training epoch split into simulation and update (TRPO + baseline),
-at about 1,000 episodes per epoch: where an epoch's time goes, and which part bounds training (the
-README's Speed section gives the measured balance).
+at about 1,000 episodes per epoch: where an epoch's time goes, and which part bounds training
+(docs/performance.md gives the measured balance).
 
 Two tables: ``bench_learn.csv``, the trainer's own timing of each epoch (wall seconds, as in a run's
 progress.csv), and ``bench_learn_pieces.csv``, what each piece of an epoch costs: after the timed
 epochs, one batch of the next epoch is sampled and every piece of the epoch is repeated on it
 (median thread CPU seconds over ``repeats`` rounds of calls), with the TRPO step also taken apart.
+The suite's learner (``--learner suite``) writes ``bench_learn_suite.csv`` and
+``bench_learn_suite_pieces.csv``, so both learners' tables stand side by side.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from repro.core.io import provenance, write_result
 from repro.envs import BUILT_IN, env_package
 from repro.experiments import train
 from repro.learn import trainer
-from repro.learn.config import DEFAULT_LEARNER, LEARNERS, train_config
+from repro.learn.config import DEFAULT_LEARNER, LEARNERS, learner_stem, train_config
 from repro.learn.m_gae import m_gae_paths
 from repro.learn.network import TanhMLP, log_softmax
 from repro.learn.policy import DTYPE, Sampler
@@ -173,8 +175,9 @@ def run(args: argparse.Namespace) -> int:
     prov = provenance({"bench": to_dict(cfg), "train": to_dict(train_cfg),
                        "env": config_dict(env_cfg)},
                       command="bench-learn", scale=args.scale, seed=args.seed, wall_seconds=wall)
-    write_result(results / "bench_learn.csv", table, prov)
-    write_result(results / "bench_learn_pieces.csv", pieces, prov)
+    stem = learner_stem("bench_learn", args.learner)
+    write_result(results / f"{stem}.csv", table, prov)
+    write_result(results / f"{stem}_pieces.csv", pieces, prov)
     print(table.to_string(index=False))
     print(pieces.to_string(index=False))
     return 0
