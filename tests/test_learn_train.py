@@ -285,7 +285,8 @@ def test_bench_learn_smoke(tmp_path):
     assert (table.seconds_sim > 0).all() and (table.seconds_update > 0).all()
     assert (tmp_path / "bench_learn.provenance.json").exists()
     pieces = pd.read_csv(tmp_path / "bench_learn_pieces.csv")
-    assert pieces.part.tolist() == ["simulation"] + ["update"] * 6 + ["trpo"] * 5
+    assert pieces.part.tolist() == ["simulation"] + ["update"] * 5 + ["trpo"] * 5
+    assert "normaliser update" not in pieces.piece.tolist()  # the authors' learner has none
     assert (pieces.seconds > 0).all() and pieces.vs_simulation[0] == 1
     assert np.allclose(pieces.seconds_per_epoch, pieces.calls * pieces.seconds)
     assert pieces.calls[pieces.piece == "line-search trial"].item() >= 1
@@ -299,6 +300,8 @@ def test_bench_learn_names_the_suite_learners_tables_apart(tmp_path):
         "bench_learn_suite.csv", "bench_learn_suite_pieces.csv"]
     recorded = read_provenance(tmp_path / "bench_learn_suite.csv")["config"]["train"]
     assert recorded["hidden"] == [32, 32]
+    pieces = pd.read_csv(tmp_path / "bench_learn_suite_pieces.csv")
+    assert "normaliser update" in pieces.piece.tolist()
 
 
 @pytest.mark.slow

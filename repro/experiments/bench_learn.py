@@ -79,6 +79,9 @@ def median_cpu_seconds(fns: list[Callable[[], Any]], repeats: int) -> list[float
 def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
     """What each piece of the run's next epoch costs (the run itself is left as it was).
 
+    A learner that does not normalise observations standardises them all the same (with mean 0
+    and variance 1), so it has that piece but no normaliser update.
+
     Columns: ``part`` (simulation; update, whose rows add up to the epoch's update; or trpo, the
     TRPO step's parts), ``piece``, ``calls`` per epoch, ``seconds`` per call, ``seconds_per_epoch``,
     ``us_per_decision`` and ``vs_simulation`` (seconds per epoch over the simulation's)."""
@@ -118,7 +121,8 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
         ("update", "M-GAE", 1, lambda: m_gae_paths(ro.rewards, ro.durations, values,
                                                    ro.path_start, env.gamma, cfg.lam)),
         ("update", "TRPO step", 1, step),
-        ("update", "normaliser update", 1, lambda: copy.deepcopy(tr.normalizer).update(ro.obs)),
+        *([("update", "normaliser update", 1,
+            lambda: copy.deepcopy(tr.normalizer).update(ro.obs))] if cfg.normalize_obs else []),
         ("update", "baseline fit", 1, lambda: copy.deepcopy(tr.baseline).fit(z, index, ret)),
         ("trpo", "forward pass and log-probabilities", 1,
          lambda: log_softmax(net.forward(obs).logits)),
