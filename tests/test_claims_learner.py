@@ -79,7 +79,7 @@ def test_committed_results_name_the_learner_their_sidecars_record():
     assert checked >= 20
 
 
-PREDATES_PIN = ("transfer_dt_grid_suite", "wildfire_behaviour_suite")
+PREDATES_PIN = ("transfer_dt_grid_suite",)
 """Stems of the committed results of trained policies made before the CPU kernels were pinned
 (their sidecars record no ``machine.kernels``): made with this project's machine's native
 kernels, they are regenerated bit for bit only on such a CPU (README, "What it found")."""
