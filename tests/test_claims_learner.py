@@ -3,6 +3,8 @@ and which learner trained a result."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pandas as pd
 
 from repro.claims import NOT_RUN, Reading, Verdict, learner_of, side_by_side
@@ -61,16 +63,18 @@ UNTRAINED = ("bus_load_switches",)
 """Results among them made without a trained policy."""
 
 
+def trained_results() -> list[Path]:
+    """The committed paper-scale CSVs made of trained policies."""
+    paper = Path(__file__).resolve().parents[1] / "results" / "paper"
+    return [csv for csv in sorted(paper.rglob("*.csv"))
+            if csv.stem.startswith(TRAINED) and csv.stem not in UNTRAINED]
+
+
 def test_committed_results_name_the_learner_their_sidecars_record():
     """A committed result of trained policies is the suite learner's exactly when its stem says
     ``_suite``: the claims read the two learners' results by name."""
-    from pathlib import Path
-
-    paper = Path(__file__).resolve().parents[1] / "results" / "paper"
     checked = 0
-    for csv in sorted(paper.rglob("*.csv")):
-        if not csv.stem.startswith(TRAINED) or csv.stem in UNTRAINED:
-            continue
+    for csv in trained_results():
         if "mlp" not in read_provenance(csv).get("policies", ["mlp"]):
             continue  # a bus picture without the trained policy's panel
         suite = "_suite" in csv.stem
@@ -79,27 +83,11 @@ def test_committed_results_name_the_learner_their_sidecars_record():
     assert checked >= 20
 
 
-PREDATES_PIN = ("transfer_dt_grid_suite",)
-"""Stems of the committed results of trained policies made before the CPU kernels were pinned
-(their sidecars record no ``machine.kernels``): made with this project's machine's native
-kernels, they are regenerated bit for bit only on such a CPU (README, "What it found")."""
-
-
-def test_the_results_made_before_the_kernel_pin_are_the_listed_ones():
-    """Every committed result of trained policies was made under the pinned kernels, unless its
-    stem is listed in PREDATES_PIN (and every listed one is still unpinned): the list, and the
-    README's sentence that names it, shrink as the studies are rerun."""
-    from pathlib import Path
-
-    paper = Path(__file__).resolve().parents[1] / "results" / "paper"
-    unpinned, pinned = set(), set()
-    for csv in sorted(paper.rglob("*.csv")):
-        if not csv.stem.startswith(TRAINED) or csv.stem in UNTRAINED:
-            continue
-        name = csv.relative_to(paper).with_suffix("").as_posix()
-        stem = max((s for s in PREDATES_PIN if name.startswith(s)), key=len, default=name)
-        kernels = read_provenance(csv).get("machine", {}).get("kernels", {})
-        (pinned if kernels.get("pinned") else unpinned).add((stem, csv.name))
-    assert {name for stem, name in unpinned if stem not in PREDATES_PIN} == set()
-    assert {stem for stem, _ in pinned} & set(PREDATES_PIN) == set()
-    assert {stem for stem, _ in unpinned} == set(PREDATES_PIN)
+def test_every_result_of_trained_policies_was_made_under_the_pinned_kernels():
+    """Every committed result of trained policies records pinned kernels in its sidecar, so it is
+    regenerated bit for bit on any x86-64 CPU with AVX2 (README, "What it found")."""
+    results = trained_results()
+    unpinned = [csv.name for csv in results
+                if not read_provenance(csv).get("machine", {}).get("kernels", {}).get("pinned")]
+    assert unpinned == []
+    assert len(results) >= 20
