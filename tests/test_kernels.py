@@ -4,6 +4,7 @@ alone, and that the pin takes in the processes the suite starts."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -31,7 +32,7 @@ REPORT = ("import json, os, repro; from repro.core import kernels; "
 
 
 def report(prelude: str = "", **env: str) -> dict:
-    names = [*SET_BY_PIN, "OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE"]
+    names = [*SET_BY_PIN, *kernels.MKL_OVERRIDES, "OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE"]
     return json.loads(python(prelude + REPORT % names, **env).splitlines()[-1])
 
 
@@ -40,24 +41,27 @@ def test_this_process_runs_the_pinned_kernels():
     """conftest imports repro first, so the tests themselves compute with the pinned kernels."""
     state = kernels.state()
     assert kernels.problems() == []
-    assert state["pinned"] and state["torch"] == "AVX2" and state["mkl"] in ("AVX2", None)
+    assert state["pinned"] and state["torch"] == "AVX2" and state["mkl"] in ("COMPATIBLE", None)
     assert state["numpy"] in ("X86_V3", "other")
+    assert state["arithmetic"] == kernels.ARITHMETIC
 
 
 @needs_pin
 def test_import_pins_torch_and_mkl_over_what_the_environment_says():
-    r = report(ATEN_CPU_CAPABILITY="default", MKL_ENABLE_INSTRUCTIONS="AVX512",
+    """MKL's COMPATIBLE branch is the one it honours on every vendor's CPU (on AMD it ran AUTO
+    under MKL_CBWR=AVX2); an instruction level named in the environment would override it."""
+    r = report("import os; ", ATEN_CPU_CAPABILITY="default", MKL_ENABLE_INSTRUCTIONS="AVX512",
                MKL_CBWR="AUTO")
     assert r["env"]["ATEN_CPU_CAPABILITY"] == "avx2"
-    assert r["env"]["MKL_CBWR"] == r["env"]["MKL_ENABLE_INSTRUCTIONS"] == "AVX2"
-    assert r["state"]["torch"] == "AVX2" and r["state"]["mkl"] in ("AVX2", None)
+    assert r["env"]["MKL_CBWR"] == "COMPATIBLE" and r["env"]["MKL_ENABLE_INSTRUCTIONS"] is None
+    assert r["state"]["torch"] == "AVX2" and r["state"]["mkl"] in ("COMPATIBLE", None)
     assert r["problems"] == []
 
 
 @needs_pin
 def test_openblas_settings_are_never_touched():
     """Machines set these against crashes and wrong results of older OpenBLAS builds."""
-    assert report()["env"]["OPENBLAS_CORETYPE"] is None
+    assert report()["env"]["OPENBLAS_CORETYPE"] == os.environ.get("OPENBLAS_CORETYPE")
     r = report(OPENBLAS_CORETYPE="Haswell", OPENBLAS_L2_SIZE="262144")
     assert (r["env"]["OPENBLAS_CORETYPE"], r["env"]["OPENBLAS_L2_SIZE"]) == ("Haswell", "262144")
 

@@ -31,26 +31,31 @@ def tiny_problem(seed: int, n: int = 64, obs_dim: int = 3, n_actions: int = 4, h
     return policy, obs, actions, adv
 
 
-def logp_of(policy: CategoricalPolicy, obs: torch.Tensor) -> torch.Tensor:
-    """The module's log-probabilities, action-major like the step's."""
+def logp_of(policy: CategoricalPolicy, obs: torch.Tensor) -> np.ndarray:
+    """The module's log-probabilities, (N, n_actions) like the step's."""
     with torch.no_grad():
-        return policy(obs).T
+        return policy(obs).numpy()
+
+
+def flat(policy: CategoricalPolicy) -> np.ndarray:
+    return parameters_to_vector(policy.parameters()).detach().numpy().copy()
 
 
 def step(policy, obs, actions, adv, **kw):
-    return trpo_step(TanhMLP(policy.net), obs, actions, adv, **{**TRPO_KW, **kw})
+    return trpo_step(TanhMLP(policy.net), obs.numpy(), actions.numpy(), adv.numpy(),
+                     **{**TRPO_KW, **kw})
 
 
 def test_conjugate_gradient_solves_spd_system():
     rng = np.random.default_rng(0)
     m = rng.normal(size=(12, 12))
-    a = torch.as_tensor(m @ m.T + 0.5 * np.eye(12))
-    b = torch.as_tensor(rng.normal(size=12))
+    a = m @ m.T + 0.5 * np.eye(12)
+    b = rng.normal(size=12)
     x = conjugate_gradient(lambda v: a @ v, b, iters=40, residual_tol=1e-24)
-    np.testing.assert_allclose((a @ x).numpy(), b.numpy(), atol=1e-8)
+    np.testing.assert_allclose(a @ x, b, atol=1e-8)
     # fewer iterations: an approximation whose residual is smaller than b's
     x3 = conjugate_gradient(lambda v: a @ v, b, iters=3)
-    assert torch.linalg.norm(a @ x3 - b) < torch.linalg.norm(b)
+    assert np.linalg.norm(a @ x3 - b) < np.linalg.norm(b)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -73,10 +78,10 @@ def test_fvp_matches_explicit_hessian_of_mean_kl(seed):
     assert torch.linalg.norm(hessian) > 1e-3  # the comparison is not trivially 0 == 0
     damping = 0.1
     net = TanhMLP(policy.net)
-    fvp = fisher_vector_product(net, net.forward(obs), damping)
-    eye = torch.eye(len(theta0), dtype=DTYPE)
-    fisher = torch.stack([fvp(e) for e in eye], dim=1)
-    np.testing.assert_allclose(fisher.numpy(), (hessian + damping * eye).numpy(), atol=1e-10)
+    fvp = fisher_vector_product(net, net.forward(obs.numpy()), damping)
+    eye = np.eye(len(theta0))
+    fisher = np.stack([fvp(e) for e in eye], axis=1)
+    np.testing.assert_allclose(fisher, hessian.numpy() + damping * eye, atol=1e-10)
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -96,14 +101,14 @@ def test_accepted_steps_respect_kl_bound(seed):
 def test_line_search_rejects_kl_violation_and_restores_parameters():
     policy, obs, actions, adv = tiny_problem(3)
     net = TanhMLP(policy.net)
-    theta0 = parameters_to_vector(policy.parameters()).detach().clone()
+    theta0 = flat(policy)
     logp_old = logp_of(policy, obs)
-    grad_dir = torch.randn(len(theta0), generator=torch.Generator().manual_seed(1), dtype=DTYPE)
-    columns = torch.arange(len(actions))
+    grad_dir = np.random.default_rng(1).normal(size=len(theta0))
+    rows = np.arange(len(actions))
 
     def evaluate():
         logp = logp_of(policy, obs)
-        surr = torch.exp(logp[actions, columns] - logp_old[actions, columns]) * adv
+        surr = np.exp(logp[rows, actions] - logp_old[rows, actions]) * adv.numpy()
         return float(surr.mean()), mean_kl(logp_old, logp)
 
     surr0 = evaluate()[0]
@@ -119,12 +124,12 @@ def test_line_search_rejects_kl_violation_and_restores_parameters():
                                               surr0 - 1e9, 0.01, 0.8, 3)
     assert not accepted and backtracks == 3 and kl == 0.0
     assert min(seen) > 0.01  # every try violated the bound ...
-    assert torch.equal(parameters_to_vector(policy.parameters()), theta0)  # ... and nothing moved
+    np.testing.assert_array_equal(flat(policy), theta0)  # ... and nothing moved
     # the same step, allowed to shrink far enough, is accepted inside the bound
     accepted, backtracks, _, kl = line_search(net, evaluate, 1e3 * grad_dir, surr0 - 1e9,
                                               0.01, 0.5, 60)
     assert accepted and backtracks > 3 and kl <= 0.01
-    vector_to_parameters(theta0, policy.parameters())
+    vector_to_parameters(torch.from_numpy(theta0), policy.parameters())
 
 
 def test_surrogate_and_kl_are_the_modules():
@@ -133,25 +138,26 @@ def test_surrogate_and_kl_are_the_modules():
     policy, obs, actions, adv = tiny_problem(7)
     net = TanhMLP(policy.net)
     logp_old = logp_of(policy, obs)
+    obs, actions, adv = obs.numpy(), actions.numpy(), adv.numpy()
     surr, kl = surrogate_and_kl(net, obs, actions, adv, logp_old)
     assert surr == pytest.approx(float(adv.mean()), abs=1e-12) and kl == pytest.approx(0, abs=1e-12)
-    net.set_flat(net.get_flat() + 0.01 * torch.randn(len(net.get_flat()), dtype=DTYPE))
-    logp = logp_of(policy, obs)
-    taken = (logp[actions, torch.arange(len(actions))]
-             - logp_old[actions, torch.arange(len(actions))])
+    net.set_flat(net.get_flat() + 0.01 * np.random.default_rng(7).normal(size=net.size))
+    logp = logp_of(policy, torch.from_numpy(obs))
+    rows = np.arange(len(actions))
+    taken = logp[rows, actions] - logp_old[rows, actions]
     surr, kl = surrogate_and_kl(net, obs, actions, adv, logp_old)
-    assert surr == pytest.approx(float((torch.exp(taken) * adv).mean()), rel=1e-12)
-    expected_kl = float((logp_old.exp() * (logp_old - logp)).sum(dim=0).mean())
+    assert surr == pytest.approx(float((np.exp(taken) * adv).mean()), rel=1e-12)
+    expected_kl = float((np.exp(logp_old) * (logp_old - logp)).sum(axis=1).mean())
     assert kl == pytest.approx(expected_kl, rel=1e-9) and kl > 0
 
 
 def test_line_search_rejects_step_that_lowers_surrogate():
     policy, obs, actions, adv = tiny_problem(4)
-    theta0 = parameters_to_vector(policy.parameters()).detach().clone()
+    theta0 = flat(policy)
     accepted, _, _, _ = line_search(TanhMLP(policy.net), lambda: (0.0, 0.0),
-                                    torch.ones_like(theta0), 1.0, 0.01, 0.8, 5)
+                                    np.ones_like(theta0), 1.0, 0.01, 0.8, 5)
     assert not accepted
-    assert torch.equal(parameters_to_vector(policy.parameters()), theta0)
+    np.testing.assert_array_equal(flat(policy), theta0)
 
 
 def test_step_improves_surrogate_along_natural_gradient():
@@ -167,19 +173,18 @@ def test_fvp_subsample_all_rows_is_the_full_step_and_a_subsample_keeps_the_kl_bo
     """fvp_rows = every row reproduces the full-batch update exactly; a subsample changes the step
     (so the option is live) yet the line search still enforces the KL bound on the whole batch."""
     results = {}
-    for name, rows in (("none", None), ("all", torch.arange(64)), ("half", torch.arange(0, 64, 2))):
+    for name, rows in (("none", None), ("all", np.arange(64)), ("half", np.arange(0, 64, 2))):
         policy, obs, actions, adv = tiny_problem(3)
         logp_old = logp_of(policy, obs)
         stats = step(policy, obs, actions, adv, fvp_rows=rows)
         assert mean_kl(logp_old, logp_of(policy, obs)) <= TRPO_KW["max_kl"] + 1e-12
-        results[name] = (parameters_to_vector(policy.parameters()).detach(), stats.accepted)
+        results[name] = (flat(policy), stats.accepted)
     assert all(accepted for _, accepted in results.values())
-    assert torch.equal(results["none"][0], results["all"][0])
-    assert not torch.allclose(results["none"][0], results["half"][0])
+    np.testing.assert_array_equal(results["none"][0], results["all"][0])
+    assert not np.allclose(results["none"][0], results["half"][0])
 
 
 def test_surrogate_gradient_is_autograds():
-    from repro.learn.network import log_softmax
     from repro.learn.trpo import surrogate_gradient
 
     policy, obs, actions, adv = tiny_problem(6)
@@ -189,7 +194,7 @@ def test_surrogate_gradient_is_autograds():
     grads = torch.autograd.grad(surrogate, list(policy.parameters()))
     expected = torch.cat([g.reshape(-1) for g in grads])
     net = TanhMLP(policy.net)
-    fwd = net.forward(obs)
-    got = surrogate_gradient(net, fwd, log_softmax(fwd.logits).exp(), actions, adv)
+    fwd = net.forward(obs.numpy())
+    got = surrogate_gradient(net, fwd, fwd.log_probs(), actions.numpy(), adv.numpy())
     assert torch.linalg.norm(expected) > 1e-3
-    torch.testing.assert_close(got, expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(got, expected.numpy(), rtol=1e-10, atol=1e-12)

@@ -81,11 +81,12 @@ def test_the_derivative_products_forward_pass_is_the_spec_layer_by_layer(hidden,
     policy, _, _, x = network(hidden, init, seed=2)
     policy = policy.double()  # float64: the spec's arithmetic up to summation order
     pre = spec(parameters(policy), x.astype(np.float64))
-    fwd = TanhMLP(policy.net).forward(torch.as_tensor(x, dtype=torch.float64))
+    fwd = TanhMLP(policy.net).forward(x.astype(np.float64))
     assert len(fwd.hidden) == len(hidden)
-    for k, h in enumerate(fwd.hidden):
-        np.testing.assert_allclose(h.numpy(), np.tanh(pre[k]), rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(fwd.logits.T.numpy(), pre[-1], rtol=1e-12, atol=1e-12)
+    n = len(x)
+    for k, h in enumerate(fwd.hidden):  # feature-major
+        np.testing.assert_allclose(h[:, :n].T, np.tanh(pre[k]), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(fwd.logits[:, :n].T, pre[-1], rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("hidden, init", CASES)

@@ -1,37 +1,43 @@
-"""The CPU kernels torch and numpy compute with, pinned to the AVX2 level so that training gives the
-same bits on every x86-64 CPU with AVX2 (and FMA, which every such CPU has).
+"""The arithmetic of training, made the same bits on every x86-64 CPU with AVX2 and FMA, Intel or
+AMD, by construction.
 
-torch, its BLAS (MKL) and numpy each pick their vectorised kernels by what the CPU supports, and
-kernels of different widths sum in different orders: on an AVX-512 machine a 3-epoch wildfire run
-changed its parameters in the last bits when any one of them was made to run its AVX2 kernels
-(``ATEN_CPU_CAPABILITY=avx2``, ``MKL_ENABLE_INSTRUCTIONS=AVX2``, ``OPENBLAS_CORETYPE=Haswell``,
-numpy's ufuncs at X86_V3). :func:`pin`, run when ``repro`` is imported and so before torch or numpy
-compute anything, sets:
+Libraries pick their vectorised kernels by what the CPU supports, and kernels of different widths
+sum in different orders; MKL (torch's BLAS and LAPACK) also picks them by the CPU's vendor: its
+reproducibility branches (``MKL_CBWR=AVX2``) hold on Intel CPUs only, and on AMD it ran its own
+choice, so a run gave other bits there. So the learner keeps every vendor-dependent library out of
+its arithmetic:
 
-- ``ATEN_CPU_CAPABILITY=avx2``: torch's own kernels (reductions, tanh, exp, softmax) at AVX2;
-- ``MKL_CBWR=AVX2`` and ``MKL_ENABLE_INSTRUCTIONS=AVX2``: MKL's conditional numerical
-  reproducibility at its AVX2 branch, for torch's matrix products and the linear baseline's solve
-  (MKL documents the same results for Intel CPUs with AVX2; on other vendors' CPUs it may run
-  another branch);
+- the policy network's forward pass and derivative products, the TRPO step's sums, the linear
+  baseline's normal equations and solve, and the orthogonal initialisation are compiled loops
+  (:mod:`repro.learn.network`, :mod:`repro.learn.trpo`, :mod:`repro.learn.baseline`,
+  :mod:`repro.learn.policy`). Without fast-math, LLVM neither reorders their sums nor fuses their
+  multiply-adds, so they give the same bits whatever CPU they are compiled for (a run compiled for
+  ``NUMBA_CPU_NAME=generic``, ``haswell`` and the AVX-512 hosts gave the same bytes);
+- libm's exp, log and tanh, which they call, choose one code path on every CPU with FMA;
+- torch keeps the parameters, draws the initial weights from its generator and saves checkpoints.
+
+:func:`pin`, run when ``repro`` is imported and so before torch or numpy compute anything, pins
+what still depends on the CPU around that arithmetic:
+
+- ``ATEN_CPU_CAPABILITY=avx2``: torch's own kernels (its vectorised normal draws) at AVX2;
+- ``MKL_CBWR=COMPATIBLE``: MKL's cross-vendor branch, the one branch it documents as giving the
+  same results on Intel and other vendors' CPUs, for what still runs in torch's MKL outside the
+  learner's arithmetic (the optional "mlp" baseline's fit, a user's own torch code);
 - ``NPY_DISABLE_CPU_FEATURES``: numpy's ufuncs at X86_V3 (AVX2) on an AVX-512 machine, unless the
   environment says which numpy features to use itself.
 
-torch and MKL read their variables when they first compute, numpy when it is imported: torch
-may be imported before ``repro`` as long as it has run no operation, numpy may not. torch's and
-MKL's variables are overridden where set; numpy's are left alone where the environment sets either
-of them. numpy's BLAS is not pinned: some machines set ``OPENBLAS_CORETYPE`` (and
-``OPENBLAS_L2_SIZE``) themselves, because older OpenBLAS builds compute wrong results or crash on
-their processors, so the learner keeps numpy's BLAS out of its arithmetic instead (compiled loops in
-a fixed order, or torch's pinned MKL: :mod:`repro.learn.policy`, :mod:`repro.learn.baseline`) and
-never touches those variables. numba's loops need no pin: without fast-math, LLVM neither reorders
-their sums nor fuses their multiply-adds, so they give the same bits whatever CPU they are compiled
-for (a run compiled for ``NUMBA_CPU_NAME=generic``, ``haswell`` and this AVX-512 host gave the same
-bytes).
+torch and MKL read their variables when they first compute, numpy when it is imported: torch may be
+imported before ``repro`` as long as it has run no operation, numpy may not. torch's and MKL's
+variables are overridden where set; numpy's are left alone where the environment sets either of
+them. numpy's BLAS is never used in training, and its variables are never touched (some machines
+set ``OPENBLAS_CORETYPE`` and ``OPENBLAS_L2_SIZE`` because older OpenBLAS builds compute wrong
+results or crash on their processors).
 
-``REPRO_NATIVE_KERNELS=1`` leaves every variable as it is (each library's fastest kernels for this
-CPU; results then differ across CPUs). :func:`state` says which kernels are in use, and
-:func:`check` warns where the pin did not take. This module imports only the standard library at
-its top, so that it runs before numpy.
+:data:`ARITHMETIC` names this construction; a run folder records it with the kernels, so a run is
+never resumed under another. ``REPRO_NATIVE_KERNELS=1`` leaves every variable as it is.
+:func:`state` says which kernels are in use, and :func:`check` warns, in one accurate line per
+cause, where the pin did not take. This module imports only the standard library at its top, so
+that it runs before numpy.
 """
 
 from __future__ import annotations
@@ -45,9 +51,14 @@ from typing import Any
 
 OPT_OUT = "REPRO_NATIVE_KERNELS"
 """Set to 1 to run every library's own choice of kernels for this CPU."""
-TORCH_PINS = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "AVX2", "MKL_ENABLE_INSTRUCTIONS": "AVX2"}
-"""torch's kernel level and its MKL's code branch (MKL_ENABLE_INSTRUCTIONS too, because where it
-names a higher level MKL runs that level's kernels whatever MKL_CBWR says)."""
+ARITHMETIC = "compiled-fixed-order-1"
+"""The learner's arithmetic: its version changes whenever a change to the code changes the bits
+of training (the earlier one, torch and MKL's AVX2 branch, is recorded as runs without it)."""
+TORCH_PINS = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "COMPATIBLE"}
+"""torch's kernel level and its MKL's code branch."""
+MKL_OVERRIDES = ("MKL_ENABLE_INSTRUCTIONS",)
+"""Removed by the pin: where it names an instruction level MKL runs that level's kernels whatever
+MKL_CBWR says."""
 NUMPY_ABOVE_AVX2 = "X86_V4 AVX512_ICL AVX512_SPR"
 """numpy's dispatch targets above X86_V3 (numpy 2.4 on x86-64), switched off on AVX-512 CPUs."""
 NUMPY_VARIABLES = ("NPY_DISABLE_CPU_FEATURES", "NPY_ENABLE_CPU_FEATURES")
@@ -84,6 +95,8 @@ def pin() -> bool:
     if not pinnable(flags):
         return False
     os.environ.update(TORCH_PINS)
+    for name in MKL_OVERRIDES:
+        os.environ.pop(name, None)
     if ("avx512f" in flags and "numpy" not in sys.modules
             and not any(v in os.environ for v in NUMPY_VARIABLES)):
         os.environ["NPY_DISABLE_CPU_FEATURES"] = NUMPY_ABOVE_AVX2
@@ -91,8 +104,8 @@ def pin() -> bool:
 
 
 def mkl_branch() -> str | None:
-    """The code branch torch's MKL runs (``AVX2`` when pinned, ``off`` when MKL picks by CPU), or
-    None where torch has no MKL whose settings can be read. Imports torch."""
+    """The code branch torch's MKL runs (``COMPATIBLE`` when pinned, ``off`` or ``AUTO`` when MKL
+    picks by CPU), or None where torch has no MKL whose settings can be read. Imports torch."""
     import ctypes
 
     import torch
@@ -121,13 +134,14 @@ def numpy_level() -> str:
 
 @functools.lru_cache(maxsize=1)
 def state() -> dict[str, Any]:
-    """Which kernels are in use: whether the pin applies here, torch's level, MKL's branch,
-    numpy's level (fixed once the libraries have computed, so computed once). Imports torch and
-    numpy."""
+    """Which arithmetic and kernels are in use: the learner's arithmetic, whether the pin applies
+    here, torch's level, MKL's branch, numpy's level (fixed once the libraries have computed, so
+    computed once). Imports torch and numpy."""
     import torch
 
-    return {"pinned": pinnable(), "torch": torch.backends.cpu.get_cpu_capability(),
-            "mkl": mkl_branch(), "numpy": numpy_level()}
+    return {"arithmetic": ARITHMETIC, "pinned": pinnable(),
+            "torch": torch.backends.cpu.get_cpu_capability(), "mkl": mkl_branch(),
+            "numpy": numpy_level()}
 
 
 def record() -> dict[str, Any]:
@@ -154,9 +168,10 @@ def problems(now: dict[str, Any] | None = None) -> list[str]:
     if now["torch"] != "AVX2":
         found.append(f"torch runs its {now['torch']} kernels, not AVX2 (it computed before "
                      "repro was imported, which sets ATEN_CPU_CAPABILITY)")
-    if now["mkl"] not in (None, "AVX2"):
-        found.append(f"torch's MKL picks its code branch by CPU ({now['mkl']}), not AVX2 (it "
-                     "computed before repro was imported, which sets MKL_CBWR)")
+    if now["mkl"] not in (None, "COMPATIBLE"):
+        found.append(f"torch's MKL runs its {now['mkl']} branch, not COMPATIBLE (it computed "
+                     "before repro was imported, which sets MKL_CBWR); only the mlp baseline's "
+                     "fit uses it")
     if now["numpy"] not in ("X86_V3", "other"):
         found.append(f"numpy runs its {now['numpy']} ufunc loops, not X86_V3 (it was imported "
                      "before repro, which sets NPY_DISABLE_CPU_FEATURES)")

@@ -21,7 +21,6 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 import pandas as pd
-import torch
 
 from repro.experiments.options import add_common, results_folder
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields, to_dict
@@ -31,8 +30,8 @@ from repro.experiments import train
 from repro.learn import trainer
 from repro.learn.config import DEFAULT_LEARNER, LEARNERS, learner_stem, train_config
 from repro.learn.m_gae import m_gae_paths
-from repro.learn.network import TanhMLP, log_softmax
-from repro.learn.policy import DTYPE, Sampler
+from repro.learn.network import TanhMLP
+from repro.learn.policy import Sampler
 from repro.learn.process import configure_process
 from repro.learn.run_folder import config_dict
 from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, normalize,
@@ -97,13 +96,12 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
     values = tr.baseline.predict(z, index)
     adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
     net = TanhMLP(tr.policy.net)
-    theta = net.get_flat().clone()
-    obs, actions = torch.as_tensor(z, dtype=DTYPE), torch.as_tensor(ro.actions)
-    adv_n = torch.as_tensor(normalize(adv), dtype=DTYPE)
+    theta = net.get_flat()
+    obs, actions, adv_n = z, ro.actions, normalize(adv)
     rows = tr.fvp_rows(ro.n_decisions)
     fwd = net.forward(obs)
-    logp_old = log_softmax(fwd.logits)
-    grad = surrogate_gradient(net, fwd, logp_old.exp(), actions, adv_n)
+    logp_old = fwd.log_probs()
+    grad = surrogate_gradient(net, fwd, logp_old, actions, adv_n)
     fvp = fisher_vector_product(net, fwd if rows is None else fwd.rows(rows), cfg.cg_damping)
 
     def step():
@@ -125,9 +123,9 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
             lambda: copy.deepcopy(tr.normalizer).update(ro.obs))] if cfg.normalize_obs else []),
         ("update", "baseline fit", 1, lambda: copy.deepcopy(tr.baseline).fit(z, index, ret)),
         ("trpo", "forward pass and log-probabilities", 1,
-         lambda: log_softmax(net.forward(obs).logits)),
+         lambda: net.forward(obs).log_probs()),
         ("trpo", "surrogate gradient", 1,
-         lambda: surrogate_gradient(net, fwd, logp_old.exp(), actions, adv_n)),
+         lambda: surrogate_gradient(net, fwd, logp_old, actions, adv_n)),
         ("trpo", f"conjugate gradient ({cfg.cg_iters} Fisher-vector products)", 1,
          lambda: conjugate_gradient(fvp, grad, cfg.cg_iters)),
         ("trpo", "Fisher-vector product (for the step size)", 1, lambda: fvp(grad)),

@@ -25,6 +25,7 @@ from torch import nn
 from repro.learn.policy import DTYPE, mlp
 
 BASELINES = ("linear", "mlp")
+_EPS = float(np.finfo(np.float64).eps)
 
 
 class Baseline(Protocol):
@@ -42,10 +43,10 @@ class Baseline(Protocol):
 
 
 class LinearFeatureBaseline:
-    """rllab's linear feature baseline. numpy's BLAS and LAPACK, whose kernels depend on the CPU,
-    are kept out of it (:mod:`repro.core.kernels`): the features and the prediction are compiled
-    loops whose sums run in a fixed order, and the regression's matrix products and solve are
-    torch's, whose MKL runs its pinned AVX2 branch."""
+    """rllab's linear feature baseline. BLAS and LAPACK, whose kernels depend on the CPU (numpy's
+    OpenBLAS) or its vendor (torch's MKL), are kept out of it (:mod:`repro.core.kernels`): the
+    features, the normal equations, their solve and the prediction are compiled loops whose sums
+    run in a fixed order."""
 
     def __init__(self, obs_dim: int, reg_coeff: float = 1e-5):
         self.coeffs = np.zeros(2 * obs_dim + 4)
@@ -63,24 +64,22 @@ class LinearFeatureBaseline:
 
     def fit(self, obs: np.ndarray, index: np.ndarray, returns: np.ndarray) -> float:
         """Ridge regression: the normal equations X'X + reg I, solved as ``numpy.linalg.lstsq``
-        solves them (LAPACK's gelsd, singular values below n eps of the largest dropped), reg
-        raised tenfold while the solution has a NaN. A system with a NaN or infinity (from NaN
-        observations or returns) has NaN coefficients: LAPACK would refuse it (torch's raises,
-        numpy's OpenBLAS hangs)."""
+        solves them (the minimum-norm solution, singular values below n eps of the largest
+        dropped: :func:`_solve_symmetric`), reg raised tenfold while the solution has a NaN. A
+        system with a NaN or infinity (from NaN observations or returns) has NaN coefficients."""
         obs, index = _inputs(obs, index)
-        x = torch.from_numpy(_features(obs, index))
-        gram, rhs = x.T @ x, x.T @ torch.from_numpy(np.ascontiguousarray(returns, np.float64))
+        gram, rhs = _normal_equations(obs, index, np.ascontiguousarray(returns, np.float64))
         reg = self.reg_coeff
         for _ in range(5):
-            system = gram + reg * torch.eye(len(gram), dtype=torch.float64)
-            if not (torch.isfinite(system).all() and torch.isfinite(rhs).all()):
-                coeffs = torch.full_like(rhs, float("nan"))
+            system = gram + reg * np.eye(len(gram))
+            if not (np.isfinite(system).all() and np.isfinite(rhs).all()):
+                coeffs = np.full_like(rhs, np.nan)
             else:
-                coeffs = torch.linalg.lstsq(system, rhs[:, None], driver="gelsd").solution[:, 0]
-            if not torch.any(torch.isnan(coeffs)):
+                coeffs = _solve_symmetric(system, rhs)
+            if not np.any(np.isnan(coeffs)):
                 break
             reg *= 10
-        self.coeffs = coeffs.numpy()
+        self.coeffs = coeffs
         return _relative_error(_predict(obs, index, self.coeffs), returns)
 
     def state_dict(self) -> dict[str, Any]:
@@ -152,6 +151,74 @@ def _feature_row(obs, k, out):
     out[2 * d + 1] = t * t
     out[2 * d + 2] = math.pow(t, 3.0)
     out[2 * d + 3] = 1.0
+
+
+@njit(cache=True)
+def _normal_equations(obs, index, returns):
+    """X'X and X'y of the features X of ``obs`` and ``index``, row by row in batch order: each
+    row's outer product added along contiguous rows of the Gram matrix, which vectorises."""
+    f = np.empty(2 * obs.shape[1] + 4)
+    gram, rhs = np.zeros((len(f), len(f))), np.zeros(len(f))
+    for n in range(obs.shape[0]):
+        _feature_row(obs[n], index[n], f)
+        for a in range(len(f)):
+            fa, row = f[a], gram[a]
+            for b in range(len(f)):
+                row[b] += fa * f[b]
+            rhs[a] += fa * returns[n]
+    return gram, rhs
+
+
+@njit(cache=True)
+def _solve_symmetric(a, b):
+    """The minimum-norm least-squares solution of a x = b for a symmetric ``a``, as LAPACK's
+    gelsd gives it: with a = V diag(lam) V' (cyclic Jacobi rotations, in a fixed order, until
+    every off-diagonal entry is negligible), x = sum over |lam_i| > n eps max|lam| of
+    v_i (v_i' b) / lam_i, the singular values of a symmetric matrix being its |lam_i|."""
+    n = a.shape[0]
+    a = a.copy()
+    v = np.eye(n)
+    for _ in range(100):
+        off = 0.0
+        for p in range(n):
+            for q in range(p + 1, n):
+                off += a[p, q] * a[p, q]
+        scale = 0.0
+        for p in range(n):
+            scale += a[p, p] * a[p, p]
+        if off <= 1e-32 * scale:
+            break
+        for p in range(n):
+            for q in range(p + 1, n):
+                if a[p, q] == 0.0:
+                    continue
+                theta = (a[q, q] - a[p, p]) / (2.0 * a[p, q])
+                t = math.copysign(1.0, theta) / (abs(theta) + math.sqrt(theta * theta + 1.0))
+                c = 1.0 / math.sqrt(t * t + 1.0)
+                s = t * c
+                for k in range(n):  # columns p and q of a, then rows p and q
+                    akp, akq = a[k, p], a[k, q]
+                    a[k, p], a[k, q] = c * akp - s * akq, s * akp + c * akq
+                for k in range(n):
+                    apk, aqk = a[p, k], a[q, k]
+                    a[p, k], a[q, k] = c * apk - s * aqk, s * apk + c * aqk
+                for k in range(n):
+                    vkp, vkq = v[k, p], v[k, q]
+                    v[k, p], v[k, q] = c * vkp - s * vkq, s * vkp + c * vkq
+    top = 0.0
+    for i in range(n):
+        top = max(top, abs(a[i, i]))
+    cutoff = n * _EPS * top
+    x = np.zeros(n)
+    for i in range(n):
+        if abs(a[i, i]) > cutoff:
+            proj = 0.0
+            for k in range(n):
+                proj += v[k, i] * b[k]
+            proj /= a[i, i]
+            for k in range(n):
+                x[k] += proj * v[k, i]
+    return x
 
 
 @njit(cache=True)

@@ -1,114 +1,416 @@
-"""The policy network's derivatives written out: a forward pass that keeps what they need, and the
-two Jacobian products a TRPO step is made of, for the tanh MLP of :func:`repro.learn.policy.mlp`.
+"""The policy network's arithmetic in training: a forward pass that keeps what the derivatives
+need, and the Jacobian products a TRPO step is made of, for the tanh MLP of
+:func:`repro.learn.policy.mlp`, as compiled loops whose every sum runs in a fixed order.
 
-Why not autograd: on the paper's wildfire batch (25,000-35,000 decisions, a 2x32 network) the
-Fisher-vector products through autograd's double backward, and log_softmax along rows of a few
-entries, made the TRPO step about twice the simulation. Written out, a Fisher-vector product is
-half the work; tests check every product against autograd on the same module, and the forward
-pass layer by layer against the network's spec (tests/test_policy_network.py).
+Why compiled loops, and not torch: torch's matrix products run in MKL, which picks its kernels by
+the CPU's vendor as well as its instruction set (its reproducibility modes hold across vendors only
+on its slowest, SSE2 path), so the same run gave other bits on an AMD CPU than on an Intel one.
+These loops call no library: without fast-math, LLVM neither reorders their sums nor fuses their
+multiply-adds, so they give the same bits on every CPU, whatever width it vectorises them to
+(:mod:`repro.core.kernels`). A Fisher-vector product is one pass over the batch (forward-mode
+product, KL weighting, backward product, weight gradient) while each chunk of it is in the cache.
 
-Layout: inputs and hidden activations are sample-major, (N, units), as torch's ``Linear`` computes
-them; the logits are action-major, (n_actions, N), because a softmax over a few long rows is one
-vectorised operation per row, ten times faster than over N rows of a few entries. Everything runs
-under ``torch.no_grad`` in the network's dtype (float32 in training).
+The order of the sums. Decisions are computed a block at a time, side by side: within a
+decision, a layer's sum runs in input order, then adds the bias (the sampler's order,
+:func:`repro.core.policy_kernel.logits_into`, so the step differentiates the logits the batch was
+sampled with). A sum over decisions (a weight's gradient) keeps :data:`LANES` partial sums, adds
+each chunk's terms to them in decision order, and adds the lanes in order at the end.
+
+Arithmetic: a decision's products run in the network's dtype (float32 in training), as torch's
+did; a sum over decisions adds chunks of those in that dtype to float64 per-lane sums; the KL
+weighting, log-probabilities, the surrogate and the KL are float64. tests/test_learn_network.py
+checks every product against autograd on a float64 module, and the forward pass against the
+sampler bit for bit.
+
+Layout: inputs, activations and logits are feature-major, (units, N rounded up to a whole
+:data:`CHUNK`); the padding columns hold zero inputs, whose terms are never used or weigh 0. A
+layer's weights are (outputs, inputs), as torch keeps them; flat parameter vectors follow torch's
+``parameters_to_vector`` order (per layer: the weight row by row, then the bias).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass
 
+import numpy as np
 import torch
+from numba import njit, types
+from numba.extending import overload
 from torch import nn
+
+from repro.core.policy_kernel import tanh32
+
+BLOCK = 128
+"""Decisions computed side by side (a block's sums are each decision's own: any block size gives
+the same bits)."""
+LANES = 64
+"""The partial sums that a sum over decisions keeps: with :data:`CHUNK`, this, not the CPU, fixes
+the order in which a weight's gradient is summed."""
+CHUNK = 1024
+"""Decisions whose backward products are computed, then accumulated, together (their rows stay in
+the cache); a multiple of BLOCK and LANES."""
+
+
+def activation(v):
+    """tanh in the dtype of ``v``: the sampler's :func:`~repro.core.policy_kernel.tanh32` for a
+    float32, libm's tanh for a float64 (the tests' networks). Compiled code only."""
+    raise NotImplementedError("activation is compiled in; call it from njit code")
+
+
+@overload(activation, inline="always")
+def _activation(v):
+    if isinstance(v, types.Float) and v.bitwidth == 32:
+        return lambda v: tanh32(v)
+    return lambda v: math.tanh(v)
+
+
+def padded(n: int) -> int:
+    """``n`` decisions rounded up to whole chunks."""
+    return -(-n // CHUNK) * CHUNK
 
 
 @dataclass
 class Forward:
-    """One forward pass over a batch, with what the Jacobian products reuse."""
+    """One forward pass over a batch of ``n`` decisions, feature-major, with what the Jacobian
+    products reuse."""
 
-    x: torch.Tensor
-    """Inputs, (N, in_dim)."""
-    hidden: list[torch.Tensor]
-    """tanh activations of each hidden layer, (N, units)."""
-    logits: torch.Tensor
-    """Outputs, action-major: (n_actions, N)."""
-    _slopes: list[torch.Tensor] | None = field(default=None, repr=False)
+    n: int
+    x: np.ndarray
+    """Inputs, (in_dim, padded n), in the network's dtype."""
+    hidden: tuple[np.ndarray, ...]
+    """tanh activations of each hidden layer, (units, padded n)."""
+    slopes: tuple[np.ndarray, ...]
+    """tanh' = 1 - h^2 of each hidden layer, (units, padded n), computed in float64."""
+    logits: np.ndarray
+    """Outputs, (n_actions, padded n)."""
 
-    @property
-    def slopes(self) -> list[torch.Tensor]:
-        """tanh' = 1 - h^2 of each hidden layer (computed once: every product needs them)."""
-        if self._slopes is None:
-            self._slopes = [1.0 - h * h for h in self.hidden]
-        return self._slopes
+    def log_probs(self) -> np.ndarray:
+        """log pi(. | o), (n, n_actions), float64."""
+        out = np.empty((self.n, len(self.logits)))
+        _log_softmax(self.logits, out)
+        return out
 
-    def rows(self, index: torch.Tensor) -> Forward:
+    def rows(self, index: np.ndarray) -> Forward:
         """The same pass restricted to the batch entries ``index``."""
-        return Forward(self.x[index], [h[index] for h in self.hidden], self.logits[:, index])
+        return Forward(len(index), _columns(self.x, index),
+                       tuple(_columns(h, index) for h in self.hidden),
+                       tuple(_columns(s, index) for s in self.slopes),
+                       _columns(self.logits, index))
+
+
+def _columns(a: np.ndarray, index: np.ndarray) -> np.ndarray:
+    out = np.zeros((len(a), padded(len(index))), a.dtype)
+    out[:, :len(index)] = a[:, index]
+    return out
+
+
+def _padded_rows(a: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """(N, k) rows as a feature-major (k, padded N) array of ``dtype``, zero-padded."""
+    out = np.zeros((a.shape[1], padded(len(a))), dtype)
+    out[:, :len(a)] = a.T
+    return out
 
 
 class TanhMLP:
-    """The ``Linear`` layers of a tanh MLP, their parameters also seen as one flat vector in
-    ``parameters_to_vector`` order (per layer: weight rows, then bias)."""
+    """The ``Linear`` layers of a tanh MLP as arrays for the compiled loops, their parameters also
+    seen as one flat float64 vector in ``parameters_to_vector`` order. The torch module stays the
+    parameters' owner (checkpoints save it): :meth:`set_flat` writes both."""
 
     def __init__(self, net: nn.Sequential):
-        self.layers = [(m.weight, m.bias) for m in net if isinstance(m, nn.Linear)]
-        self.sizes = [t.numel() for layer in self.layers for t in layer]
-        self.dtype = self.layers[0][0].dtype
+        self.linears = [m for m in net if isinstance(m, nn.Linear)]
+        self.dtype = self.linears[0].weight.detach().numpy().dtype
+        self.shapes = [(m.out_features, m.in_features) for m in self.linears]
+        self.size = sum(o * i + o for o, i in self.shapes)
+        self._read()
 
-    @torch.no_grad()
-    def get_flat(self) -> torch.Tensor:
-        return torch.cat([t.reshape(-1) for layer in self.layers for t in layer])
+    def _read(self) -> None:
+        with torch.no_grad():
+            self.weights = tuple(m.weight.numpy().copy() for m in self.linears)
+            """Per layer, the (outputs, inputs) weights."""
+            self.biases = tuple(m.bias.numpy().copy() for m in self.linears)
 
-    @torch.no_grad()
-    def set_flat(self, theta: torch.Tensor) -> None:
-        """Write ``theta`` into the parameters in place (cast to their dtype)."""
-        for t, piece in zip((t for layer in self.layers for t in layer), self._pieces(theta)):
-            t.copy_(piece)
+    def get_flat(self) -> np.ndarray:
+        return np.concatenate([np.concatenate([w.ravel(), b]) for w, b
+                               in zip(self.weights, self.biases)]).astype(np.float64)
 
-    def _pieces(self, v: torch.Tensor) -> list[torch.Tensor]:
-        flat = torch.split(v.to(self.dtype), self.sizes)
-        return [p.view_as(t) for p, t in zip(flat, (t for layer in self.layers for t in layer))]
+    def set_flat(self, theta: np.ndarray) -> None:
+        """Write ``theta`` into the parameters (cast to their dtype)."""
+        with torch.no_grad():
+            for m, w, b in zip(self.linears, *self.split(theta)):
+                m.weight.copy_(torch.from_numpy(w))
+                m.bias.copy_(torch.from_numpy(b))
+        self._read()
 
-    @torch.no_grad()
-    def forward(self, x: torch.Tensor) -> Forward:
-        """The pass over inputs ``x`` (N, in_dim)."""
-        a, hidden = x, []
-        for w, b in self.layers[:-1]:
-            a = torch.tanh(torch.addmm(b, a, w.T))
-            hidden.append(a)
-        w, b = self.layers[-1]
-        return Forward(x, hidden, torch.addmm(b[:, None], w, a.T))
+    def split(self, v: np.ndarray) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """A flat vector as per-layer (weights, biases) pieces, in its dtype."""
+        weights, biases, at = [], [], 0
+        for out, inp in self.shapes:
+            weights.append(np.ascontiguousarray(v[at:at + out * inp].reshape(out, inp)))
+            biases.append(np.ascontiguousarray(v[at + out * inp:at + out * inp + out]))
+            at += out * inp + out
+        return tuple(weights), tuple(biases)
 
-    @torch.no_grad()
-    def jvp(self, fwd: Forward, v: torch.Tensor) -> torch.Tensor:
-        """J v: the change of the logits (n_actions, N) along the parameter direction ``v``."""
-        pieces = self._pieces(v)
-        inputs = [fwd.x, *fwd.hidden]
-        da = None  # the inputs do not depend on the parameters
-        for i, (w, _) in enumerate(self.layers[:-1]):
-            dw, db = pieces[2 * i], pieces[2 * i + 1]
-            dy = torch.addmm(db, inputs[i], dw.T)
-            if da is not None:
-                dy.addmm_(da, w.T)
-            da = dy.mul_(fwd.slopes[i])
-        w = self.layers[-1][0]
-        dz = torch.addmm(pieces[-1][:, None], pieces[-2], inputs[-1].T)
-        return dz if da is None else dz.addmm_(w, da.T)
+    def forward(self, x: np.ndarray | Forward) -> Forward:
+        """The pass over inputs ``x`` (N, in_dim), or over the inputs of an earlier pass ``x``
+        (a line search's trials)."""
+        n, xt = (x.n, x.x) if isinstance(x, Forward) else (len(x), _padded_rows(x, self.dtype))
+        cols = xt.shape[1]
+        hidden = tuple(np.empty((o, cols), self.dtype) for o, _ in self.shapes[:-1])
+        slopes = tuple(np.empty((o, cols), self.dtype) for o, _ in self.shapes[:-1])
+        logits = np.empty((self.shapes[-1][0], cols), self.dtype)
+        _forward(xt, self.weights, self.biases, hidden, slopes, logits)
+        return Forward(n, xt, hidden, slopes, logits)
 
-    @torch.no_grad()
-    def vjp(self, fwd: Forward, g: torch.Tensor) -> torch.Tensor:
-        """J' g: the gradient of sum(g * logits), g (n_actions, N), as a flat vector."""
-        inputs = [fwd.x, *fwd.hidden]
-        g = g.to(self.dtype)
-        pieces = [g.sum(dim=1), g @ inputs[-1]]  # built from the last parameter backwards
-        delta = (g.T @ self.layers[-1][0]) if len(self.layers) > 1 else None
-        for i in range(len(self.layers) - 2, -1, -1):
-            delta.mul_(fwd.slopes[i])
-            pieces += [delta.sum(dim=0), delta.T @ inputs[i]]
-            if i > 0:
-                delta = delta @ self.layers[i][0]
-        return torch.cat([p.reshape(-1) for p in reversed(pieces)])
+    def _accumulators(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """Zeroed per-lane gradient sums: weights (outputs, inputs, LANES), biases."""
+        return (tuple(np.zeros((o, i, LANES)) for o, i in self.shapes),
+                tuple(np.zeros((o, LANES)) for o, _ in self.shapes))
+
+    def _flat(self, gw: tuple[np.ndarray, ...], gb: tuple[np.ndarray, ...]) -> np.ndarray:
+        """Per-lane sums added in lane order, as one flat vector."""
+        out = np.empty(self.size)
+        _flatten(gw, gb, out)
+        return out
+
+    def jvp(self, fwd: Forward, v: np.ndarray) -> np.ndarray:
+        """J v: the change of the logits (N, n_actions) along the direction ``v``."""
+        vw, vb = self.split(np.asarray(v, dtype=self.dtype))
+        out = np.empty((len(self.biases[-1]), fwd.x.shape[1]), self.dtype)
+        _jvp(fwd.x, fwd.hidden, fwd.slopes, self.weights, vw, vb, out)
+        return out[:, :fwd.n].T
+
+    def vjp(self, fwd: Forward, g: np.ndarray) -> np.ndarray:
+        """J' g: the gradient of sum(g * logits), g (N, n_actions), as a flat float64 vector."""
+        gw, gb = self._accumulators()
+        _vjp(fwd.x, fwd.hidden, fwd.slopes, _padded_rows(g, self.dtype), self.weights, gw, gb)
+        return self._flat(gw, gb)
+
+    def fisher_product(self, fwd: Forward, probs: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """J' M J v / N, M = diag(p) - p p' per decision: the Hessian of the mean KL in the
+        parameters applied to ``v``, in one pass over the batch. ``probs``: pi(. | o) as
+        :func:`probabilities` gives it for the batch's decisions."""
+        vw, vb = self.split(np.asarray(v, dtype=self.dtype))
+        gw, gb = self._accumulators()
+        _fisher(fwd.x, fwd.hidden, fwd.slopes, probs, self.weights, vw, vb, 1.0 / fwd.n, gw, gb)
+        return self._flat(gw, gb)
 
 
-def log_softmax(logits: torch.Tensor) -> torch.Tensor:
-    """Log-probabilities of action-major logits (n_actions, N)."""
-    return torch.log_softmax(logits, dim=0)
+def probabilities(logp: np.ndarray) -> np.ndarray:
+    """pi(. | o), feature-major and zero-padded as the batch, from log-probabilities (N,
+    n_actions): exp by libm (numpy's own exp has CPU-specific kernels)."""
+    out = np.zeros((logp.shape[1], padded(len(logp))))
+    _exp_rows(np.ascontiguousarray(logp, dtype=np.float64), out)
+    return out
+
+
+# --- compiled loops ---------------------------------------------------------------------------
+# A block's decisions are columns n0 .. n0 + BLOCK (u counts them) and a chunk's are n0 .. n0 +
+# CHUNK. Every loop over u has its length from an array's shape, so that LLVM vectorises it (it
+# would unroll a loop of constant length into scalar code); none of them sums across u.
+
+@njit(cache=True, error_model="numpy")
+def _forward(x, weights, biases, hidden, slopes, logits):
+    last = len(weights) - 1
+    for n0 in range(0, x.shape[1], BLOCK):
+        for k in range(last + 1):
+            w, b = weights[k], biases[k]
+            src = x if k == 0 else hidden[k - 1]
+            dst = logits if k == last else hidden[k]
+            for j in range(w.shape[0]):
+                out = dst[j, n0:n0 + BLOCK]
+                out[:] = 0.0
+                for i in range(w.shape[1]):
+                    wji = w[j, i]
+                    s = src[i, n0:n0 + BLOCK]
+                    for u in range(out.shape[0]):
+                        out[u] += s[u] * wji
+                for u in range(out.shape[0]):
+                    out[u] += b[j]
+                if k < last:
+                    slope = slopes[k][j, n0:n0 + BLOCK]
+                    for u in range(out.shape[0]):
+                        out[u] = activation(out[u])
+                        slope[u] = 1.0 - np.float64(out[u]) * out[u]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _jvp_block(n0, x, hidden, slopes, weights, vw, vb, da, dy):
+    """J v for the block of decisions at ``n0``: rows [:n_actions] of ``dy`` (width, BLOCK);
+    ``da`` is scratch of the same shape."""
+    last = len(weights) - 1
+    for k in range(last + 1):
+        w, dw, db = weights[k], vw[k], vb[k]
+        src = x if k == 0 else hidden[k - 1]
+        for j in range(w.shape[0]):
+            out = dy[j]
+            out[:] = db[j]
+            for i in range(w.shape[1]):
+                dwji = dw[j, i]
+                s = src[i, n0:n0 + BLOCK]
+                for u in range(out.shape[0]):
+                    out[u] += s[u] * dwji
+            if k > 0:
+                for i in range(w.shape[1]):
+                    wji = w[j, i]
+                    a = da[i]
+                    for u in range(out.shape[0]):
+                        out[u] += a[u] * wji
+        if k < last:
+            for j in range(w.shape[0]):
+                s, out, a = slopes[k][j, n0:n0 + BLOCK], dy[j], da[j]
+                for u in range(out.shape[0]):
+                    a[u] = out[u] * s[u]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _backward_block(n0, c, slopes, weights, deltas):
+    """Carry the output cotangent in ``deltas[-1][:, c:c + BLOCK]`` (the block of decisions at
+    ``n0``) back to every hidden layer's ``deltas[k]``."""
+    for k in range(len(weights) - 1, 0, -1):
+        w, d = weights[k], deltas[k]
+        for i in range(w.shape[1]):
+            prev = deltas[k - 1][i, c:c + BLOCK]
+            prev[:] = 0.0
+            for j in range(w.shape[0]):
+                wji = w[j, i]
+                dj = d[j, c:c + BLOCK]
+                for u in range(prev.shape[0]):
+                    prev[u] += dj[u] * wji
+            s = slopes[k - 1][i, n0:n0 + BLOCK]
+            for u in range(prev.shape[0]):
+                prev[u] *= s[u]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _accumulate(n0, x, hidden, deltas, gw, gb):
+    """Add the terms of the chunk at ``n0`` to every layer's per-lane gradient sums ``gw``
+    ((outputs, inputs, LANES)) and ``gb`` ((outputs, LANES)): lane u of a weight's sum gets
+    delta_j x_i of the chunk's decisions u, u + LANES, u + 2 LANES, ... in that order, summed in the
+    network's dtype, then added in float64."""
+    acc = np.empty(gb[0].shape[1], x.dtype)
+    lanes = acc.shape[0]
+    for k in range(len(gw)):
+        src = x if k == 0 else hidden[k - 1]
+        d, g, gbk = deltas[k], gw[k], gb[k]
+        for j in range(g.shape[0]):
+            acc[:] = 0.0
+            for c in range(0, CHUNK, lanes):
+                dj = d[j, c:c + lanes]
+                for u in range(lanes):
+                    acc[u] += dj[u]
+            for u in range(lanes):
+                gbk[j, u] += acc[u]
+            for i in range(g.shape[1]):
+                acc[:] = 0.0
+                for c in range(0, CHUNK, lanes):
+                    dj, s = d[j, c:c + lanes], src[i, n0 + c:n0 + c + lanes]
+                    for u in range(lanes):
+                        acc[u] += dj[u] * s[u]
+                gji = g[j, i]
+                for u in range(lanes):
+                    gji[u] += acc[u]
+
+
+@njit(cache=True, error_model="numpy")
+def _chunk_deltas(weights):
+    """Per layer, a (units, CHUNK) buffer of cotangents in the network's dtype."""
+    return [np.empty((w.shape[0], CHUNK), w.dtype) for w in weights]
+
+
+@njit(cache=True, error_model="numpy")
+def _width(weights):
+    out = 0
+    for w in weights:
+        out = max(out, w.shape[0], w.shape[1])
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _jvp(x, hidden, slopes, weights, vw, vb, out):
+    width = _width(weights)
+    da, dy = np.empty((width, BLOCK), x.dtype), np.empty((width, BLOCK), x.dtype)
+    for n0 in range(0, x.shape[1], BLOCK):
+        _jvp_block(n0, x, hidden, slopes, weights, vw, vb, da, dy)
+        out[:, n0:n0 + BLOCK] = dy[:out.shape[0]]
+
+
+@njit(cache=True, error_model="numpy")
+def _vjp(x, hidden, slopes, g, weights, gw, gb):
+    deltas = _chunk_deltas(weights)
+    for n0 in range(0, x.shape[1], CHUNK):
+        deltas[-1][:, :] = g[:, n0:n0 + CHUNK]
+        for c in range(0, CHUNK, BLOCK):
+            _backward_block(n0 + c, c, slopes, weights, deltas)
+        _accumulate(n0, x, hidden, deltas, gw, gb)
+
+
+@njit(cache=True, error_model="numpy")
+def _fisher(x, hidden, slopes, probs, weights, vw, vb, scale, gw, gb):
+    width = _width(weights)
+    da, dy = np.empty((width, BLOCK), x.dtype), np.empty((width, BLOCK), x.dtype)
+    deltas = _chunk_deltas(weights)
+    top = deltas[-1]
+    mean = np.empty(BLOCK)
+    for n0 in range(0, x.shape[1], CHUNK):
+        for c in range(0, CHUNK, BLOCK):
+            _jvp_block(n0 + c, x, hidden, slopes, weights, vw, vb, da, dy)
+            _kl_weighting(probs[:, n0 + c:n0 + c + BLOCK], dy, scale, mean,
+                          top[:, c:c + BLOCK])
+            _backward_block(n0 + c, c, slopes, weights, deltas)
+        _accumulate(n0, x, hidden, deltas, gw, gb)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _kl_weighting(p, jv, scale, mean, out):
+    """out = p (jv - p . jv) scale per decision (column): M J v / N of a block, in float64."""
+    mean[:] = 0.0
+    for a in range(p.shape[0]):
+        pa, ja = p[a], jv[a]
+        for u in range(mean.shape[0]):
+            mean[u] += pa[u] * ja[u]
+    for a in range(p.shape[0]):
+        pa, ja, oa = p[a], jv[a], out[a]
+        for u in range(mean.shape[0]):
+            oa[u] = pa[u] * (ja[u] - mean[u]) * scale
+
+
+@njit(cache=True, error_model="numpy")
+def _flatten(gw, gb, out):
+    at = 0
+    for k in range(len(gw)):
+        g, b = gw[k], gb[k]
+        for j in range(g.shape[0]):
+            for i in range(g.shape[1]):
+                total = 0.0
+                for u in range(LANES):
+                    total += g[j, i, u]
+                out[at] = total
+                at += 1
+        for j in range(b.shape[0]):
+            total = 0.0
+            for u in range(LANES):
+                total += b[j, u]
+            out[at] = total
+            at += 1
+
+
+@njit(cache=True, error_model="numpy")
+def _log_softmax(logits, out):
+    for n in range(out.shape[0]):
+        top = np.float64(logits[0, n])
+        for a in range(1, out.shape[1]):
+            top = max(top, np.float64(logits[a, n]))
+        total = 0.0
+        for a in range(out.shape[1]):
+            total += math.exp(np.float64(logits[a, n]) - top)
+        log_total = math.log(total)
+        for a in range(out.shape[1]):
+            out[n, a] = np.float64(logits[a, n]) - top - log_total
+
+
+@njit(cache=True, error_model="numpy")
+def _exp_rows(logp, out):
+    for n in range(logp.shape[0]):
+        for a in range(logp.shape[1]):
+            out[a, n] = math.exp(logp[n, a])

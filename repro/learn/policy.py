@@ -39,9 +39,44 @@ def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, out_gain: float,
         if init == "xavier":
             nn.init.xavier_uniform_(layer.weight)
         else:
-            nn.init.orthogonal_(layer.weight, gain=out_gain if last else np.sqrt(2.0))
+            orthogonal_(layer.weight, gain=out_gain if last else np.sqrt(2.0))
         nn.init.zeros_(layer.bias)
     return nn.Sequential(*layers)
+
+
+@torch.no_grad()
+def orthogonal_(weight: torch.Tensor, gain: float) -> None:
+    """``torch.nn.init.orthogonal_`` without LAPACK: the same normal draws from torch's generator,
+    the same factor (the Q of the QR decomposition whose R has a positive diagonal, of the draws or
+    of their transpose, whichever is tall), computed by modified Gram-Schmidt in float64
+    (:func:`_orthonormal_columns`), whose order of operations is fixed; torch's QR runs in MKL,
+    whose kernels depend on the CPU's vendor."""
+    rows, cols = weight.shape
+    draws = weight.new_empty((rows, cols)).normal_(0, 1).numpy().astype(np.float64)
+    tall = draws if rows >= cols else draws.T
+    q = _orthonormal_columns(np.ascontiguousarray(tall))
+    weight.copy_(torch.from_numpy((q if rows >= cols else q.T) * gain))
+
+
+@njit(cache=True)
+def _orthonormal_columns(a):
+    """Q of a = QR (``a`` (m, n), m >= n, full column rank), R's diagonal positive."""
+    q = a.copy()
+    m, n = q.shape
+    for j in range(n):
+        norm = 0.0
+        for i in range(m):
+            norm += q[i, j] * q[i, j]
+        norm = np.sqrt(norm)
+        for i in range(m):
+            q[i, j] /= norm
+        for k in range(j + 1, n):
+            proj = 0.0
+            for i in range(m):
+                proj += q[i, j] * q[i, k]
+            for i in range(m):
+                q[i, k] -= proj * q[i, j]
+    return q
 
 
 class ObsNormalizer:

@@ -40,7 +40,7 @@ from repro.learn.baseline import make_baseline
 from repro.learn.config import TrainConfig
 from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
-from repro.learn.policy import DTYPE, CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn import run_folder
 from repro.learn.sizes import check_training_size
 from repro.learn.trpo import normalize, trpo_step
@@ -102,8 +102,7 @@ class Trainer:
         adv, ret = advantage_paths(cfg.advantage, ro.rewards, ro.durations, values, ro.path_start,
                                    env.gamma, cfg.lam)
         explained = 1.0 - np.var(ret - values) / np.var(ret) if np.var(ret) > 0 else 0.0
-        stats = trpo_step(TanhMLP(self.policy.net), torch.as_tensor(z, dtype=DTYPE),
-                          torch.as_tensor(ro.actions), torch.as_tensor(normalize(adv), dtype=DTYPE),
+        stats = trpo_step(TanhMLP(self.policy.net), z, ro.actions, normalize(adv),
                           max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
                           backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks,
                           fvp_rows=self.fvp_rows(ro.n_decisions))
@@ -129,7 +128,7 @@ class Trainer:
         self.epoch += 1
         return row
 
-    def fvp_rows(self, n_decisions: int) -> torch.Tensor | None:
+    def fvp_rows(self, n_decisions: int) -> np.ndarray | None:
         """The decisions of this epoch's batch on which TRPO computes Fisher-vector products:
         ``fvp_subsample`` of them, drawn afresh each epoch (None: all)."""
         cfg = self.cfg
@@ -137,7 +136,7 @@ class Trainer:
             return None
         rng = np.random.default_rng(_stream(cfg.seed, _FVP_STREAM, self.epoch))
         n_rows = max(1, int(cfg.fvp_subsample * n_decisions))
-        return torch.as_tensor(np.sort(rng.choice(n_decisions, n_rows, replace=False)))
+        return np.sort(rng.choice(n_decisions, n_rows, replace=False))
 
     def train(self, on_epoch: Callable[[dict[str, Any]], None] | None = None) -> pd.DataFrame:
         """Run (or resume) up to ``cfg.epochs`` epochs; returns the progress table. A run folder

@@ -10,20 +10,22 @@ sqrt(2 max_kl / s'Fs) s would meet the KL bound exactly under the quadratic mode
 line search shrinks it until the true KL is within the bound AND the surrogate improved, and
 otherwise leaves the parameters where they were.
 
-The products with the network's Jacobian are written out (:mod:`repro.learn.network`), not taken by
-autograd. Batches: observations (N, obs_dim); log-probabilities action-major, (n_actions, N). The
-network computes in its own dtype (float32 in training); conjugate gradient runs in float64.
+The network's products are compiled loops (:mod:`repro.learn.network`), and so is every sum here
+(:func:`dot`, :func:`surrogate_and_kl`): no BLAS, whose kernels sum in an order of the CPU's
+choosing, takes part. Batches: observations (N, obs_dim) in the network's dtype; log-probabilities
+(N, n_actions) and everything else float64.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-import torch
+from numba import njit
 
-from repro.learn.network import Forward, TanhMLP, log_softmax
+from repro.learn.network import Forward, TanhMLP, probabilities
 
 
 @dataclass(frozen=True)
@@ -46,73 +48,109 @@ def normalize(adv: np.ndarray) -> np.ndarray:
     return (adv - adv.mean()) / (adv.std() + 1e-8)
 
 
-def conjugate_gradient(matvec: Callable[[torch.Tensor], torch.Tensor], b: torch.Tensor,
-                       iters: int, residual_tol: float = 1e-10) -> torch.Tensor:
+@njit(cache=True)
+def dot(a, b):
+    """a . b of two float64 vectors, summed in index order."""
+    total = 0.0
+    for i in range(a.shape[0]):
+        total += a[i] * b[i]
+    return total
+
+
+def conjugate_gradient(matvec: Callable[[np.ndarray], np.ndarray], b: np.ndarray,
+                       iters: int, residual_tol: float = 1e-10) -> np.ndarray:
     """Approximately solve A x = b for symmetric positive-definite A given only x -> A x."""
-    x = torch.zeros_like(b)
-    r = b.clone()
-    p = b.clone()
-    rr = r @ r
+    x = np.zeros_like(b)
+    r = b.copy()
+    p = b.copy()
+    rr = dot(r, r)
     for _ in range(iters):
         if rr < residual_tol:
             break
         ap = matvec(p)
-        alpha = rr / (p @ ap)
+        alpha = rr / dot(p, ap)
         x += alpha * p
         r -= alpha * ap
-        rr_new = r @ r
+        rr_new = dot(r, r)
         p = r + (rr_new / rr) * p
         rr = rr_new
     return x
 
 
-def mean_kl(logp_old: torch.Tensor, logp_new: torch.Tensor) -> float:
-    """Mean over decisions of KL(old || new), both (n_actions, N) log-probabilities."""
-    return float((logp_old.exp() * (logp_old - logp_new)).sum(dim=0).mean(dtype=torch.float64))
+def mean_kl(logp_old: np.ndarray, logp_new: np.ndarray) -> float:
+    """Mean over decisions of KL(old || new), both (N, n_actions) log-probabilities."""
+    return _mean_kl(logp_old, logp_new)
 
 
-def surrogate_gradient(net: TanhMLP, fwd: Forward, probs: torch.Tensor, actions: torch.Tensor,
-                       adv: torch.Tensor) -> torch.Tensor:
-    """grad L at theta_old = mean_k A_k grad log pi(a_k|o_k). The derivative of log pi(a|o) with
-    respect to the logits is onehot(a) - pi(.|o), so this is one backward pass of those columns."""
-    n = len(actions)
-    g = probs * (-adv / n)
-    g[actions, torch.arange(n)] += adv / n
-    return net.vjp(fwd, g).double()
+@njit(cache=True)
+def _mean_kl(logp_old, logp_new):
+    total = 0.0
+    for n in range(logp_old.shape[0]):
+        row = 0.0
+        for a in range(logp_old.shape[1]):
+            row += math.exp(logp_old[n, a]) * (logp_old[n, a] - logp_new[n, a])
+        total += row
+    return total / logp_old.shape[0]
+
+
+def surrogate_gradient(net: TanhMLP, fwd: Forward, logp: np.ndarray, actions: np.ndarray,
+                       adv: np.ndarray) -> np.ndarray:
+    """grad L at theta_old = mean_k A_k grad log pi(a_k|o_k), ``logp`` the batch's (N, n_actions)
+    log-probabilities. The derivative of log pi(a|o) with respect to the logits is onehot(a) -
+    pi(.|o), so this is one backward pass of those rows."""
+    return net.vjp(fwd, _score_rows(logp, actions, adv))
+
+
+@njit(cache=True)
+def _score_rows(logp, actions, adv):
+    """(onehot(a_k) - pi(.|o_k)) A_k / N, row by row."""
+    n = actions.shape[0]
+    out = np.empty(logp.shape)
+    for k in range(n):
+        w = adv[k] / n
+        for a in range(logp.shape[1]):
+            out[k, a] = -math.exp(logp[k, a]) * w
+        out[k, actions[k]] += w
+    return out
 
 
 def fisher_vector_product(net: TanhMLP, fwd: Forward,
-                          damping: float) -> Callable[[torch.Tensor], torch.Tensor]:
+                          damping: float) -> Callable[[np.ndarray], np.ndarray]:
     """v -> (F + damping I) v, F the Hessian of the mean KL at the parameters of ``fwd``.
 
     For a categorical policy that Hessian is J' M J / N, J the Jacobian of the logits with respect
     to the parameters and M = diag(p) - p p' the Hessian of the KL in the logits, per decision. So a
     product is a forward-mode pass (J v), a weighting, and a backward pass (J' u), no second
-    derivatives of the network.
+    derivatives of the network: :meth:`TanhMLP.fisher_product`, one pass over the batch.
     """
-    probs = log_softmax(fwd.logits).exp()
-    n = probs.shape[1]
+    probs = probabilities(fwd.log_probs())
 
-    def fvp(v: torch.Tensor) -> torch.Tensor:
-        jv = net.jvp(fwd, v)
-        u = probs * (jv - (probs * jv).sum(dim=0))
-        return net.vjp(fwd, u.div_(n)).double() + damping * v
+    def fvp(v: np.ndarray) -> np.ndarray:
+        return net.fisher_product(fwd, probs, v) + damping * v
 
     return fvp
 
 
-def surrogate_and_kl(net: TanhMLP, obs: torch.Tensor, actions: torch.Tensor, adv: torch.Tensor,
-                     logp_old: torch.Tensor) -> tuple[float, float]:
+def surrogate_and_kl(net: TanhMLP, obs: np.ndarray | Forward, actions: np.ndarray,
+                     adv: np.ndarray, logp_old: np.ndarray) -> tuple[float, float]:
     """(L, mean KL(old || current)) at the network's current parameters: one forward pass over
-    the batch, which is what each line-search trial costs."""
-    logp = log_softmax(net.forward(obs).logits)
-    taken = (actions, torch.arange(len(actions)))
-    ratio = (logp[taken] - logp_old[taken]).exp_()
-    return float((ratio * adv).mean(dtype=torch.float64)), mean_kl(logp_old, logp)
+    the batch (``obs``, or the inputs of the pass ``obs``), which is what each line-search trial
+    costs."""
+    logp = net.forward(obs).log_probs()
+    return _surrogate(logp, logp_old, actions, adv), _mean_kl(logp_old, logp)
+
+
+@njit(cache=True)
+def _surrogate(logp, logp_old, actions, adv):
+    total = 0.0
+    for n in range(actions.shape[0]):
+        a = actions[n]
+        total += math.exp(logp[n, a] - logp_old[n, a]) * adv[n]
+    return total / actions.shape[0]
 
 
 def line_search(net: TanhMLP, evaluate: Callable[[], tuple[float, float]],
-                full_step: torch.Tensor, surrogate_before: float, max_kl: float,
+                full_step: np.ndarray, surrogate_before: float, max_kl: float,
                 backtrack_ratio: float, max_backtracks: int) -> tuple[bool, int, float, float]:
     """Try theta_old + ratio^i full_step for i = 0, 1, ...; keep the first with KL <= max_kl and a
     higher surrogate. ``evaluate()`` returns (surrogate, KL) at the network's current parameters.
@@ -127,29 +165,30 @@ def line_search(net: TanhMLP, evaluate: Callable[[], tuple[float, float]],
     return False, max_backtracks, surrogate_before, 0.0
 
 
-def trpo_step(net: TanhMLP, obs: torch.Tensor, actions: torch.Tensor, adv: torch.Tensor, *,
+def trpo_step(net: TanhMLP, obs: np.ndarray, actions: np.ndarray, adv: np.ndarray, *,
               max_kl: float, cg_iters: int, cg_damping: float, backtrack_ratio: float,
-              max_backtracks: int, fvp_rows: torch.Tensor | None = None) -> TRPOStats:
-    """One constrained update of the logit network ``net`` on a batch: normalised observations
-    ``obs`` (N, obs_dim) in the network's dtype, ``actions`` (N,), ``adv`` (N,) already normalised.
-    ``fvp_rows`` (indices into the batch) restricts the Fisher-vector products, and so the step
-    size, to those decisions (rllab's ``subsample_factor``); the gradient and the line search always
-    use the whole batch."""
+              max_backtracks: int, fvp_rows: np.ndarray | None = None) -> TRPOStats:
+    """One constrained update of the logit network ``net`` on a batch: observations ``obs``
+    (N, obs_dim) as the network sees them, ``actions`` (N,), ``adv`` (N,) float64, already
+    normalised. ``fvp_rows`` (indices into the batch) restricts the Fisher-vector products, and so
+    the step size, to those decisions (rllab's ``subsample_factor``); the gradient and the line
+    search always use the whole batch."""
+    actions = np.ascontiguousarray(actions, dtype=np.int64)
+    adv = np.ascontiguousarray(adv, dtype=np.float64)
     fwd = net.forward(obs)
-    logp_old = log_softmax(fwd.logits)
-    probs = logp_old.exp()
-    entropy = -float((probs * logp_old).sum(dim=0).mean(dtype=torch.float64))
-    surr0 = float(adv.mean(dtype=torch.float64))  # the surrogate at theta_old: every ratio is 1
+    logp_old = fwd.log_probs()
+    entropy = -_mean_kl(logp_old, np.zeros_like(logp_old))  # mean of sum_a p log p, negated
+    surr0 = float(adv.mean())  # the surrogate at theta_old: every ratio is 1
 
-    grad = surrogate_gradient(net, fwd, probs, actions, adv)
+    grad = surrogate_gradient(net, fwd, logp_old, actions, adv)
     fvp = fisher_vector_product(net, fwd if fvp_rows is None else fwd.rows(fvp_rows), cg_damping)
     direction = conjugate_gradient(fvp, grad, cg_iters)
-    shs = float(direction @ fvp(direction))
+    shs = dot(direction, fvp(direction))
     if not shs > 0.0:  # zero gradient (e.g. all advantages equal): nothing to do
         return TRPOStats(0.0, entropy, surr0, surr0, 0, False)
     full_step = np.sqrt(2.0 * max_kl / shs) * direction
 
     accepted, backtracks, surr1, kl = line_search(
-        net, lambda: surrogate_and_kl(net, obs, actions, adv, logp_old), full_step, surr0, max_kl,
-        backtrack_ratio, max_backtracks)
+        net, lambda: surrogate_and_kl(net, fwd, actions, adv, logp_old), full_step, surr0,
+        max_kl, backtrack_ratio, max_backtracks)
     return TRPOStats(kl, entropy, surr0, surr1, backtracks, accepted)
