@@ -1,11 +1,15 @@
-"""Training gives the same bytes under every kernel level of an x86-64 CPU with AVX2
-(repro.core.kernels): a short wildfire run of each learner through the real entry point under two
-levels, which stand in for two machines.
+"""Training gives the same bytes whatever kernels the CPU would choose (repro.core.kernels): a
+short wildfire run of each learner through the real entry point on two set-ups that stand in for
+two machines of different vendors and instruction sets.
 
-The levels: torch's scalar kernels (``ATEN_CPU_CAPABILITY=default``) against the AVX2 ones of
-torch, its MKL and numpy's OpenBLAS (``ATEN_CPU_CAPABILITY=avx2 MKL_ENABLE_INSTRUCTIONS=AVX2
-OPENBLAS_CORETYPE=Haswell``); on an AVX-512 machine each of these changed an unpinned run's bits.
-The committed digests that every CI machine checks are tests/test_learner_fingerprint.py's.
+- pinned: the pin, and numba compiling for this CPU (on the project's machines, AVX-512);
+- elsewhere: no pin at all (``REPRO_NATIVE_KERNELS=1``: torch's and numpy's widest kernels, MKL's
+  own choice of branch) and numba compiling for a generic x86-64 (``NUMBA_CPU_NAME=generic``: SSE2,
+  no FMA), into a cache of its own.
+
+The learner's arithmetic uses neither torch's nor MKL's kernels, and its compiled loops fix the order
+of their sums, so the two agree. The committed digests that every CI machine checks are
+tests/test_learner_fingerprint.py's.
 """
 
 from __future__ import annotations
@@ -25,15 +29,17 @@ from tests.conftest import ROOT, env_without_pins
 RUN = ("train", "--env", "wildfire", "--scale", "smoke", "--epochs", "3")
 LEARNERS = ("authors", "suite")
 LEVELS = {
-    "torch scalar": dict(ATEN_CPU_CAPABILITY="default"),
-    "AVX2": dict(ATEN_CPU_CAPABILITY="avx2", MKL_ENABLE_INSTRUCTIONS="AVX2",
-                 OPENBLAS_CORETYPE="Haswell"),
+    "pinned": dict(),
+    "elsewhere": dict(REPRO_NATIVE_KERNELS="1", NUMBA_CPU_NAME="generic"),
 }
+"""Environment of each set-up (the generic one compiles into a numba cache of its own)."""
 
 
 def train(out: Path, learner: str, **env: str) -> Path:
     """Run RUN with ``learner`` into ``out`` in a fresh process."""
     cmd = [sys.executable, "-m", "repro", *RUN, "--learner", learner, "--out", str(out)]
+    if "NUMBA_CPU_NAME" in env:
+        env = {**env, "NUMBA_CACHE_DIR": str(out.parent / "numba-cache")}
     done = subprocess.run(cmd, env=env_without_pins(REPRO_QUIET="1", **env), cwd=ROOT,
                           capture_output=True, text=True, timeout=240)
     assert done.returncode == 0, done.stderr
@@ -53,7 +59,7 @@ def outputs(folder: Path) -> tuple[str, bytes]:
 @pytest.mark.skipif(not kernels.pinnable(), reason="the pin applies to x86-64 CPUs with AVX2")
 @pytest.mark.parametrize("learner", LEARNERS)
 def test_kernel_levels_give_the_same_bytes(tmp_path, learner):
-    first, second = (outputs(train(tmp_path / str(i), learner, **env))
-                     for i, env in enumerate(LEVELS.values()))
+    first, second = (outputs(train(tmp_path / name, learner, **env))
+                     for name, env in LEVELS.items())
     assert first[0] == second[0]  # the progress table
     assert first[1] == second[1]  # the checkpoint

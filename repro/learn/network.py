@@ -10,7 +10,7 @@ multiply-adds, so they give the same bits on every CPU, whatever width it vector
 (:mod:`repro.core.kernels`). A Fisher-vector product is one pass over the batch (forward-mode
 product, KL weighting, backward product, weight gradient) while each chunk of it is in the cache.
 
-The order of the sums. Decisions are computed a block at a time, side by side: within a
+The order of the sums. Decisions are computed a chunk at a time, side by side: within a
 decision, a layer's sum runs in input order, then adds the bias (the sampler's order,
 :func:`repro.core.policy_kernel.logits_into`, so the step differentiates the logits the batch was
 sampled with). A sum over decisions (a weight's gradient) keeps :data:`LANES` partial sums, adds
@@ -41,15 +41,12 @@ from torch import nn
 
 from repro.core.policy_kernel import tanh32
 
-BLOCK = 128
-"""Decisions computed side by side (a block's sums are each decision's own: any block size gives
-the same bits)."""
 LANES = 64
 """The partial sums that a sum over decisions keeps: with :data:`CHUNK`, this, not the CPU, fixes
 the order in which a weight's gradient is summed."""
 CHUNK = 1024
-"""Decisions whose backward products are computed, then accumulated, together (their rows stay in
-the cache); a multiple of BLOCK and LANES."""
+"""Decisions computed side by side, a multiple of LANES (their rows stay in the cache). Within a
+decision the sums are the decision's own, so the chunk fixes only how sums over decisions group."""
 
 
 def activation(v):
@@ -205,38 +202,38 @@ def probabilities(logp: np.ndarray) -> np.ndarray:
 
 
 # --- compiled loops ---------------------------------------------------------------------------
-# A block's decisions are columns n0 .. n0 + BLOCK (u counts them) and a chunk's are n0 .. n0 +
-# CHUNK. Every loop over u has its length from an array's shape, so that LLVM vectorises it (it
-# would unroll a loop of constant length into scalar code); none of them sums across u.
+# A chunk's decisions are columns n0 .. n0 + CHUNK (u counts them). Every loop over u has its
+# length from an array's shape, so that LLVM vectorises it (it would unroll a loop of constant
+# length into scalar code); none of them sums across u.
 
 @njit(cache=True, error_model="numpy")
 def _forward(x, weights, biases, hidden, slopes, logits):
     last = len(weights) - 1
-    for n0 in range(0, x.shape[1], BLOCK):
+    for n0 in range(0, x.shape[1], CHUNK):
         for k in range(last + 1):
             w, b = weights[k], biases[k]
             src = x if k == 0 else hidden[k - 1]
             dst = logits if k == last else hidden[k]
             for j in range(w.shape[0]):
-                out = dst[j, n0:n0 + BLOCK]
+                out = dst[j, n0:n0 + CHUNK]
                 out[:] = 0.0
                 for i in range(w.shape[1]):
                     wji = w[j, i]
-                    s = src[i, n0:n0 + BLOCK]
+                    s = src[i, n0:n0 + CHUNK]
                     for u in range(out.shape[0]):
                         out[u] += s[u] * wji
                 for u in range(out.shape[0]):
                     out[u] += b[j]
                 if k < last:
-                    slope = slopes[k][j, n0:n0 + BLOCK]
+                    slope = slopes[k][j, n0:n0 + CHUNK]
                     for u in range(out.shape[0]):
                         out[u] = activation(out[u])
                         slope[u] = 1.0 - np.float64(out[u]) * out[u]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _jvp_block(n0, x, hidden, slopes, weights, vw, vb, da, dy):
-    """J v for the block of decisions at ``n0``: rows [:n_actions] of ``dy`` (width, BLOCK);
+def _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy):
+    """J v for the chunk of decisions at ``n0``: rows [:n_actions] of ``dy`` (width, CHUNK);
     ``da`` is scratch of the same shape."""
     last = len(weights) - 1
     for k in range(last + 1):
@@ -247,7 +244,7 @@ def _jvp_block(n0, x, hidden, slopes, weights, vw, vb, da, dy):
             out[:] = db[j]
             for i in range(w.shape[1]):
                 dwji = dw[j, i]
-                s = src[i, n0:n0 + BLOCK]
+                s = src[i, n0:n0 + CHUNK]
                 for u in range(out.shape[0]):
                     out[u] += s[u] * dwji
             if k > 0:
@@ -258,26 +255,26 @@ def _jvp_block(n0, x, hidden, slopes, weights, vw, vb, da, dy):
                         out[u] += a[u] * wji
         if k < last:
             for j in range(w.shape[0]):
-                s, out, a = slopes[k][j, n0:n0 + BLOCK], dy[j], da[j]
+                s, out, a = slopes[k][j, n0:n0 + CHUNK], dy[j], da[j]
                 for u in range(out.shape[0]):
                     a[u] = out[u] * s[u]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _backward_block(n0, c, slopes, weights, deltas):
-    """Carry the output cotangent in ``deltas[-1][:, c:c + BLOCK]`` (the block of decisions at
-    ``n0``) back to every hidden layer's ``deltas[k]``."""
+def _backward_chunk(n0, slopes, weights, deltas):
+    """Carry the output cotangent in ``deltas[-1]`` (the chunk of decisions at ``n0``) back to
+    every hidden layer's ``deltas[k]``."""
     for k in range(len(weights) - 1, 0, -1):
         w, d = weights[k], deltas[k]
         for i in range(w.shape[1]):
-            prev = deltas[k - 1][i, c:c + BLOCK]
+            prev = deltas[k - 1][i]
             prev[:] = 0.0
             for j in range(w.shape[0]):
                 wji = w[j, i]
-                dj = d[j, c:c + BLOCK]
+                dj = d[j]
                 for u in range(prev.shape[0]):
                     prev[u] += dj[u] * wji
-            s = slopes[k - 1][i, n0:n0 + BLOCK]
+            s = slopes[k - 1][i, n0:n0 + CHUNK]
             for u in range(prev.shape[0]):
                 prev[u] *= s[u]
 
@@ -329,10 +326,10 @@ def _width(weights):
 @njit(cache=True, error_model="numpy")
 def _jvp(x, hidden, slopes, weights, vw, vb, out):
     width = _width(weights)
-    da, dy = np.empty((width, BLOCK), x.dtype), np.empty((width, BLOCK), x.dtype)
-    for n0 in range(0, x.shape[1], BLOCK):
-        _jvp_block(n0, x, hidden, slopes, weights, vw, vb, da, dy)
-        out[:, n0:n0 + BLOCK] = dy[:out.shape[0]]
+    da, dy = np.empty((width, CHUNK), x.dtype), np.empty((width, CHUNK), x.dtype)
+    for n0 in range(0, x.shape[1], CHUNK):
+        _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy)
+        out[:, n0:n0 + CHUNK] = dy[:out.shape[0]]
 
 
 @njit(cache=True, error_model="numpy")
@@ -340,24 +337,20 @@ def _vjp(x, hidden, slopes, g, weights, gw, gb):
     deltas = _chunk_deltas(weights)
     for n0 in range(0, x.shape[1], CHUNK):
         deltas[-1][:, :] = g[:, n0:n0 + CHUNK]
-        for c in range(0, CHUNK, BLOCK):
-            _backward_block(n0 + c, c, slopes, weights, deltas)
+        _backward_chunk(n0, slopes, weights, deltas)
         _accumulate(n0, x, hidden, deltas, gw, gb)
 
 
 @njit(cache=True, error_model="numpy")
 def _fisher(x, hidden, slopes, probs, weights, vw, vb, scale, gw, gb):
     width = _width(weights)
-    da, dy = np.empty((width, BLOCK), x.dtype), np.empty((width, BLOCK), x.dtype)
+    da, dy = np.empty((width, CHUNK), x.dtype), np.empty((width, CHUNK), x.dtype)
     deltas = _chunk_deltas(weights)
-    top = deltas[-1]
-    mean = np.empty(BLOCK)
+    mean = np.empty(CHUNK)
     for n0 in range(0, x.shape[1], CHUNK):
-        for c in range(0, CHUNK, BLOCK):
-            _jvp_block(n0 + c, x, hidden, slopes, weights, vw, vb, da, dy)
-            _kl_weighting(probs[:, n0 + c:n0 + c + BLOCK], dy, scale, mean,
-                          top[:, c:c + BLOCK])
-            _backward_block(n0 + c, c, slopes, weights, deltas)
+        _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy)
+        _kl_weighting(probs[:, n0:n0 + CHUNK], dy, scale, mean, deltas[-1])
+        _backward_chunk(n0, slopes, weights, deltas)
         _accumulate(n0, x, hidden, deltas, gw, gb)
 
 
