@@ -7,8 +7,8 @@ two machines of different vendors and instruction sets.
   own choice of branch) and numba compiling for a generic x86-64 (``NUMBA_CPU_NAME=generic``: SSE2,
   no FMA), into a cache of its own.
 
-The learner's arithmetic uses neither torch's nor MKL's kernels, and its compiled loops fix the order
-of their sums, so the two agree. The committed digests that every CI machine checks are
+The learner's arithmetic uses neither torch's nor MKL's kernels, and its compiled loops fix the
+order of their sums, so the two agree. The committed digests that every CI machine checks are
 tests/test_learner_fingerprint.py's.
 """
 

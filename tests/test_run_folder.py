@@ -295,6 +295,21 @@ def test_resuming_under_other_kernels_is_refused_and_nothing_changes(tmp_path, w
     assert tree_snapshot(run) == before
 
 
+def test_a_run_of_the_earlier_arithmetic_is_not_resumed(tmp_path, whole, capsys):
+    """A run trained under torch and MKL's AVX2 branch (its kernels.json names no arithmetic)
+    would continue with other bits: refused, naming the arithmetic."""
+    run = tmp_path / "run"
+    shutil.copytree(whole, run)
+    earlier = {k: v for k, v in kernels.record().items() if k != "arithmetic"}
+    (run / run_folder.KERNELS).write_text(json.dumps({**earlier, "mkl": "AVX2"}))
+    before = tree_snapshot(run)
+    capsys.readouterr()
+    assert train(run, 4) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and f"arithmetic None -> {kernels.ARITHMETIC}" in err
+    assert tree_snapshot(run) == before
+
+
 def test_a_run_from_before_the_record_is_taken_at_its_provenance(tmp_path, whole, monkeypatch):
     """A finished run without kernels.json is checked against its sidecar's kernels (and refused
     where they differ); one whose sidecar has none resumes with a warning."""
