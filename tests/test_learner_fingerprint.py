@@ -34,14 +34,14 @@ BATCH = {  # learner: batch size of every run, in its unit
 }
 DIGESTS = {
     "suite": {
-        "wildfire ED": "66fb2cdb97c048aa23de12ed55548734834e80e4d983a29f372ae1d871799516",
-        "wildfire FS-1": "62fc03b83585d02fd25c9144a8dd83b6ccfe7b8cdc1815a74828e2c51075f27e",
-        "bus": "62eb1bdca43d9be914e95370148c6ef13d16b44be27e1617e663be80fb1db097",
+        "wildfire ED": "29ff09df5d3d19ef45dc7be3cecee749f9a70871a97b853ae4bedc1078c5ea8d",
+        "wildfire FS-1": "ba07b78975b3930cfb807faf0b5f73870b9289821e09594f50afa9361699dd07",
+        "bus": "0091a0d5995f3c80aba7d06f6df204cba4ff67c7d9f48bfc9ecbf0ea9a01bce4",
     },
     "authors": {
-        "wildfire ED": "61ff888ede3c2fb52ea15ecc612426c99663da5903e0a5f24beb77a8be397366",
-        "wildfire FS-1": "563afcac7a8b6cfac83d10604b88dd82070a47fb2a18251a9d295733db23394f",
-        "bus": "2983133a3ee09cb407d31b96d96c14a625d5b8cbb5d32e1c652266ebf7c0e04a",
+        "wildfire ED": "2a540ad2b87b1171e45241d5e0212522f0f0de50b3075b97813bc2427684286f",
+        "wildfire FS-1": "0ea6b11784e451d87d21d36433583e4f2f58672acbf0677722228a69a2e27dcd",
+        "bus": "6cfd05b74fedc1e5dfb618fb3855f7a88e226b40afa49b2414fac1b615627bc9",
     },
 }
 """Computed by the ``__main__`` block below (see the module docstring)."""
