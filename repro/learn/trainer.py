@@ -15,9 +15,10 @@ the process's entry point makes once (:func:`repro.learn.process.configure_proce
 Determinism: torch is seeded from the run seed; the policy's sampling draws come from one numpy
 Generator owned by the trainer (its state is checkpointed); epoch e's environment seed is derived
 from (seed, e). Timing columns are the only run-to-run differences in the outputs. Across machines:
-on every x86-64 CPU with AVX2 the kernels of torch, its MKL and numpy are the pinned AVX2 ones
-(:mod:`repro.core.kernels`; the trainer warns where they are not), numpy's BLAS is not used, and
-the outputs are the same bytes.
+the learner's arithmetic is compiled loops whose sums run in a fixed order, with no library that
+picks kernels by the CPU (:mod:`repro.core.kernels`; the trainer warns where the pin of what
+remains did not take), so on every x86-64 CPU with AVX2 and FMA, of any vendor, the outputs are
+the same bytes.
 """
 
 from __future__ import annotations
