@@ -161,6 +161,8 @@ class ReleasedPool:
                                 self.seed)
             per_episode = np.bincount(chunk.path_episode, np.diff(chunk.path_start),
                                       minlength=len(positions)).astype(np.int64)
+            if not per_episode.all():  # the counter would never reach the batch
+                raise ValueError(f"{env.name}: an episode without decisions")
             for i, p in enumerate(positions):
                 known[p] = sum(len(c.episode_return) for c in chunks) + i
                 lengths[p] = int(per_episode[i])
