@@ -36,6 +36,10 @@ class TrainConfig(Validated):
     batch_workers: int = 40
     """Parallel sampling workers the decision-counted batch emulates (the released runner.sh's
     ``--n_parallel 40``): each finishes the episode it has in flight when the count is reached."""
+    sampler: str = "independent"
+    """Whose random streams the batch's episodes draw from (:data:`SAMPLERS`): "independent", every
+    episode its own; "released-pool", the released runner's unseeded pool, batch_workers streams
+    forked from one state, so that identical episodes recur (:mod:`repro.learn.pool`)."""
     batch_episodes: int | None = None
     """Batch counted in episodes: this many whole episodes per epoch (the paper's tables: bus 540,
     wildfire 600-1,200). None: counted in decisions (``batch_decisions``)."""
@@ -110,6 +114,9 @@ class TrainConfig(Validated):
         self.check(self.batch_episodes is None or self.batch_episodes >= 1, "batch_episodes",
                    "an integer >= 1")
         self.check(self.batch_workers >= 1, "batch_workers", "an integer >= 1")
+        self.check(self.sampler in SAMPLERS, "sampler", "one of " + ", ".join(SAMPLERS))
+        self.check(self.sampler == "independent" or self.batch_decisions is not None, "sampler",
+                   "independent when the batch is counted in episodes (--batch-episodes)")
         self.check(self.init in INITS, "init", "one of " + ", ".join(INITS))
         self.check(self.lam >= 0 and math.isfinite(self.lam), "lam", "a number >= 0")
         self.check(self.advantage in ESTIMATORS, "advantage", "one of " + ", ".join(ESTIMATORS))
@@ -129,6 +136,8 @@ class TrainConfig(Validated):
 
 
 INITS = ("xavier", "orthogonal")
+SAMPLERS = ("independent", "released-pool")
+"""The batch samplers (``TrainConfig.sampler``)."""
 
 LEARNERS: dict[str, dict[str, Any]] = {
     "authors": dict(hidden=(32,), init="xavier", normalize_obs=False, fvp_subsample=1.0,
@@ -210,7 +219,7 @@ def study_train_config(scale: str, env: str, learner: str, batch_decisions: int,
     return train_config(scale, env, learner, **batch, **dict(settings), **fields)
 
 
-SETTING_FIELDS = (*LEARNER_FIELDS, "batch_decisions", "batch_episodes", "batch_workers")
+SETTING_FIELDS = (*LEARNER_FIELDS, "batch_decisions", "batch_episodes", "batch_workers", "sampler")
 """The learner settings a study may change one at a time (``settings`` of a study config)."""
 
 

@@ -204,8 +204,13 @@ class Sampler:
         return e / e.sum(axis=1, keepdims=True)
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
+        return self.act(batch, self.rng.random(len(batch.obs)))
+
+    def act(self, batch: DecisionBatch, u: np.ndarray) -> np.ndarray:
+        """The actions of ``batch``'s rows, row r's by inverse-CDF sampling with the uniform
+        ``u[r]`` (the released pool draws them from each episode's own stream:
+        :mod:`repro.learn.pool`)."""
         actions = np.empty(len(batch.obs), np.int64)
-        u = self.rng.random(len(actions))
         _act_rows(batch.obs, self.weights, self.biases, self.mean, self.scale, u, actions)
         return actions
 

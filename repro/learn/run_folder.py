@@ -123,9 +123,9 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     a checkpoint if ``training`` or if it has any) and of its type, a whole non-negative epoch, a
     run config with its hidden sizes, policy layers of those sizes (and of ``obs_dim`` inputs and
     ``n_actions`` outputs, if given), a normaliser and baseline of the policy's input size, finite
-    numbers throughout, and generator states numpy and torch take. Checked before anything uses
-    the state, so that damage is one line, not a traceback halfway through a resume, an
-    evaluation or a render."""
+    numbers throughout, generator states numpy and torch take, and the released pool's worker
+    positions where the run has one. Checked before anything uses the state, so that damage is
+    one line, not a traceback halfway through a resume, an evaluation or a render."""
     whole = training or any(k in state for k in TRAINING_KEYS)
     missing = [k for k in ACTING_KEYS + (TRAINING_KEYS if whole else ()) if k not in state]
     if missing:
@@ -183,6 +183,12 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     if not (isinstance(rng, torch.Tensor) and rng.dtype == torch.uint8
             and rng.shape == torch.get_rng_state().shape):
         return "its torch generator state is not one torch takes"
+    if train.get("sampler") == "released-pool":
+        offsets = state.get("pool_offsets")
+        if not (isinstance(offsets, torch.Tensor) and offsets.dtype == torch.int64
+                and tuple(offsets.shape) == (train.get("batch_workers"),)
+                and bool((offsets >= 0).all())):
+            return "its pool's worker positions are not one whole number >= 0 per worker"
     return None
 
 

@@ -2,7 +2,8 @@
 
 One epoch = sample a batch of whole episodes with the current shared policy (``batch_episodes`` of
 them, or, counted in decisions, as the released runner's parallel workers collected them:
-:mod:`repro.learn.batch`), compute M-GAE
+:mod:`repro.learn.batch`, or with the released pool's shared random streams:
+:mod:`repro.learn.pool`), compute M-GAE
 advantages (or those of ``TrainConfig.advantage``) with the current baseline, take one TRPO step,
 update the observation normaliser, then fit the baseline to the batch's discounted returns (in the
 new normalisation, which it will be used with). Given a run folder, the trainer hands each epoch's
@@ -18,7 +19,8 @@ from (seed, e). Timing columns are the only run-to-run differences in the output
 the learner's arithmetic is compiled loops whose sums run in a fixed order, with no library that
 picks kernels by the CPU (:mod:`repro.core.kernels`; the trainer warns where the pin of what
 remains did not take), so on every x86-64 CPU with AVX2 and FMA, of any vendor, the outputs are
-the same bytes.
+the same bytes. With the released pool the sampling draws come instead from the run's pool stream
+at the workers' positions, which the checkpoint keeps too.
 """
 
 from __future__ import annotations
@@ -35,19 +37,20 @@ import torch
 from repro.core.errors import require
 from repro.core.kernels import check as check_kernels
 from repro.core.progress import progress
-from repro.core.rollout import BatchEnv
+from repro.core.rollout import BatchEnv, RunsToEnd
 from repro.learn import batch
 from repro.learn.baseline import make_baseline
 from repro.learn.config import TrainConfig
 from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.pool import ReleasedPool
 from repro.learn import run_folder
 from repro.learn.sizes import check_training_size
 from repro.learn.trpo import normalize, trpo_step
 
 # Independent child streams of the run seed.
-_TORCH_STREAM, _SAMPLER_STREAM, _ENV_STREAM, _FVP_STREAM = 0, 1, 2, 3
+_TORCH_STREAM, _SAMPLER_STREAM, _ENV_STREAM, _FVP_STREAM, _POOL_STREAM = 0, 1, 2, 3, 4
 
 
 def _stream(seed: int, *key: int) -> np.random.SeedSequence:
@@ -74,6 +77,9 @@ class Trainer:
         """The option that named ``out`` (a sweep's is --runs-dir): refusals name it."""
         self.env_config = env_config
         self.run_config = run_folder.run_config(cfg, env_config, env.name)
+        require(cfg.sampler != "released-pool" or isinstance(env, RunsToEnd), "--sampler",
+                "independent for an environment that draws random numbers itself (the released "
+                "pool is modelled where only the policy draws: bus)", cfg.sampler)
         check_training_size(cfg, env)  # before the networks are built
         check_kernels()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
@@ -82,6 +88,8 @@ class Trainer:
                                       cfg.baseline_iters)
         self.normalizer = ObsNormalizer(env.obs_dim)
         self.rng = np.random.default_rng(_stream(cfg.seed, _SAMPLER_STREAM))
+        self.pool = (ReleasedPool(_stream(cfg.seed, _POOL_STREAM), cfg.batch_workers)
+                     if cfg.sampler == "released-pool" else None)
         self.epoch = 0
         self.rows: list[dict[str, Any]] = []
 
@@ -91,11 +99,14 @@ class Trainer:
         cfg, env = self.cfg, self.env
         t0 = time.perf_counter()
         sampler = Sampler(self.policy, self.normalizer, self.rng)
-        if cfg.batch_decisions is None:
-            ro = env.rollout(sampler, cfg.batch_episodes, epoch_seed(cfg.seed, self.epoch))
+        if self.pool is not None:
+            ro, distinct = self.pool.sample(env, sampler.act, cfg.batch_decisions)
         else:
-            ro = batch.sample(env, sampler, cfg.batch_decisions, cfg.batch_workers,
-                              epoch_seed(cfg.seed, self.epoch))
+            ro = (env.rollout(sampler, cfg.batch_episodes, epoch_seed(cfg.seed, self.epoch))
+                  if cfg.batch_decisions is None else
+                  batch.sample(env, sampler, cfg.batch_decisions, cfg.batch_workers,
+                               epoch_seed(cfg.seed, self.epoch)))
+            distinct = len(ro.episode_return)  # every episode its own stream
         t1 = time.perf_counter()
         z = self.normalizer(ro.obs)
         index = ro.step_index()
@@ -122,6 +133,7 @@ class Trainer:
             surrogate_after=stats.surrogate_after, backtracks=stats.backtracks,
             accepted=int(stats.accepted), explained_variance=float(explained),
             baseline_loss=baseline_loss, batch_episodes=len(ro.episode_return),
+            distinct_episodes=distinct,
             decisions=ro.n_decisions, truncated_episodes=ro.n_truncated,
             seconds_sim=t1 - t0, seconds_trpo=t2 - t1, seconds_baseline=t3 - t2,
             seconds_update=t3 - t1,
@@ -182,6 +194,7 @@ class Trainer:
     # --- checkpoints -----------------------------------------------------------------------------
 
     def state_dict(self) -> dict[str, Any]:
+        pool = {} if self.pool is None else {"pool_offsets": torch.from_numpy(self.pool.offsets)}
         return {
             "epoch": self.epoch,
             "policy": self.policy.state_dict(),
@@ -190,6 +203,7 @@ class Trainer:
             "sampler_rng": self.rng.bit_generator.state,  # saved as JSON
             "torch_rng": torch.get_rng_state(),
             "run_config": self.run_config,
+            **pool,
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -199,15 +213,20 @@ class Trainer:
         self.normalizer.load_state_dict(state["normalizer"])
         self.rng.bit_generator.state = state["sampler_rng"]
         torch.set_rng_state(state["torch_rng"])
+        if self.pool is not None:
+            self.pool.offsets = state["pool_offsets"].numpy().astype(np.int64)
 
 
 PROGRESS_COLUMNS = [
     "epoch", "average_return", "average_discounted_return", "kl", "entropy", "surrogate_before",
     "surrogate_after", "backtracks", "accepted", "explained_variance", "baseline_loss",
-    "batch_episodes", "decisions", "truncated_episodes", "seconds_sim", "seconds_trpo",
-    "seconds_baseline", "seconds_update", "seconds",
+    "batch_episodes", "distinct_episodes", "decisions", "truncated_episodes", "seconds_sim",
+    "seconds_trpo", "seconds_baseline", "seconds_update", "seconds",
 ]
-"""The columns of progress.csv, one row per epoch. ``truncated_episodes``: the batch's episodes
+"""The columns of progress.csv, one row per epoch. ``distinct_episodes``: how many of the batch's
+episodes are distinct, drawn from distinct random stream positions (every one with the independent
+sampler; the released pool's batch holds copies: :mod:`repro.learn.pool`). ``truncated_episodes``:
+the batch's episodes
 cut at the environment's bound on their length (``Rollout.truncated``; the wildfire's decision
 limit), so that a policy that drifts into it is seen. Timing (wall seconds): ``seconds_sim`` the
 rollout; ``seconds_trpo`` everything from the batch to the TRPO step's end (standardisation,
