@@ -13,7 +13,7 @@ details give the intervals.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from scipy import stats as sps
@@ -112,6 +112,8 @@ def standard_error(groups: tuple[np.ndarray, ...],
         return np.sqrt(v[0] + v[1]), df
     x = groups[0]
     n = x.shape[-1]
+    if n < 2:  # no spread to estimate: no degrees of freedom
+        return np.full(x.shape[:-1], np.nan), np.zeros(x.shape[:-1])
     g = _trimmed(n) if statistic == "iqm" else 0
     se = _winsorized_sd(x, g) / ((1 - 2 * g / n) * np.sqrt(n))
     return se, np.full(se.shape, n - 2 * g - 1, dtype=float)
@@ -123,6 +125,23 @@ def expanded_level(n: int, confidence: float = 0.95) -> float:
     return float(1 - 2 * sps.norm.cdf(-np.sqrt(n / (n - 1)) * sps.t.ppf(1 - alpha / 2, n - 1)))
 
 
+def t_limits(point: Any, se: Any, df: Any, confidence: float = 0.95) -> tuple[Any, Any]:
+    """Limits of the t interval point +- t_{df, (1 + confidence) / 2} se; without degrees of
+    freedom (one score) the interval is the whole line."""
+    df = np.asarray(df, dtype=float)
+    half = np.where(df >= 1, sps.t.ppf((1 + confidence) / 2, np.maximum(df, 1)) * se, np.inf)
+    return point - half, point + half
+
+
+def interval(groups: Sequence[np.ndarray], statistic: str = "mean", kind: str = "t", *,
+             confidence: float = 0.95, n_boot: int = 2000,
+             rng: np.random.Generator | None = None) -> tuple[float, float, float]:
+    """:func:`intervals` of one sample, ``groups`` its 1-D arrays of scores."""
+    point, lo, hi = intervals(tuple(np.asarray(g, dtype=float)[None] for g in groups), statistic,
+                              kind, confidence=confidence, n_boot=n_boot, rng=rng)
+    return float(point[0]), float(lo[0]), float(hi[0])
+
+
 def intervals(groups: tuple[np.ndarray, ...], statistic: str, kind: str, *,
               confidence: float = 0.95, n_boot: int = 2000,
               rng: np.random.Generator | None = None) -> tuple[np.ndarray, ...]:
@@ -132,9 +151,7 @@ def intervals(groups: tuple[np.ndarray, ...], statistic: str, kind: str, *,
     point = estimate(groups, statistic)
     alpha = 1 - confidence
     if kind == "t":
-        se, df = standard_error(groups, statistic)
-        half = sps.t.ppf(1 - alpha / 2, df) * se
-        return point, point - half, point + half
+        return (point, *t_limits(point, *standard_error(groups, statistic), confidence))
     if rng is None:
         raise ValueError(f"the {kind} interval resamples: it needs a generator")
     reps = tuple(np.take_along_axis(g[..., None, :], rng.integers(

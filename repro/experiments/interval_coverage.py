@@ -4,7 +4,8 @@ The claims compare intervals over 5 trained policies (or seeds). This study meas
 Carlo, the coverage of each interval kind of ``repro.core.stats.INTERVALS`` (Student's t, the
 percentile bootstrap, the expanded percentile bootstrap, the bootstrap-t) for the statistics the
 claims use (the mean, the IQM, the difference of two means) at n = 3, 5 and 10 scores per group,
-on four populations:
+at the claims' level (95%) and at 98.75%, the level of each of C2's four Bonferroni intervals, on
+four populations:
 
 - ``normal``; ``lognormal`` (sigma 1, skewed); ``t3`` (Student's t with 3 degrees of freedom,
   heavy tails);
@@ -70,7 +71,9 @@ class IntervalCoverageConfig(Validated):
     """Bootstrap resamples per interval (the claims' drivers use 2,000)."""
     sizes: tuple[int, ...] = (3, 5, 10)
     """Scores per group n."""
-    confidence: float = 0.95
+    confidences: tuple[float, ...] = (0.95, 0.9875)
+    """Nominal levels: the claims' 95%, and 1 - 0.05 / 4, each interval of C2's Bonferroni
+    bound over four lambdas."""
     populations: tuple[str, ...] = (*POPULATIONS, SUITE)
     kinds: tuple[str, ...] = INTERVALS
     statistics: tuple[str, ...] = STATISTICS
@@ -86,7 +89,8 @@ class IntervalCoverageConfig(Validated):
         self.check(self.n_boot >= 100, "n_boot", "an integer >= 100")
         self.check(len(self.sizes) >= 1 and min(self.sizes) >= 3, "sizes",
                    "integers >= 3 (the bootstrap-t and the expanded interval need n >= 3)")
-        self.check(0.5 <= self.confidence < 1, "confidence", "in [0.5, 1)")
+        self.check(len(self.confidences) >= 1 and all(0.5 <= c < 1 for c in self.confidences),
+                   "confidences", "numbers in [0.5, 1)")
         self.check(len(self.populations) >= 1
                    and set(self.populations) <= {*POPULATIONS, SUITE}, "populations",
                    "one or more of " + ", ".join((*POPULATIONS, SUITE)))
@@ -137,43 +141,46 @@ def measure(cfg: IntervalCoverageConfig, pool: np.ndarray, seed: int) -> pd.Data
         for j, statistic in enumerate(cfg.statistics):
             groups = 2 if statistic == "difference" else 1
             truth = {"mean": mean, "iqm": trimmed, "difference": 0.0}[statistic]
-            for n in cfg.sizes:
-                key = (list((*POPULATIONS, SUITE)).index(name), STATISTICS.index(statistic), n)
+            for n, level in ((n, c) for c in cfg.confidences for n in cfg.sizes):
+                key = (list((*POPULATIONS, SUITE)).index(name), STATISTICS.index(statistic), n,
+                       round(level * 1e4))
                 rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
                 found = coverage(lambda r, m: tuple(draw(r, (m, n)) for _ in range(groups)),
                                  truth, statistic, cfg.kinds, trials=cfg.trials,
-                                 confidence=cfg.confidence, n_boot=cfg.n_boot, rng=rng)
+                                 confidence=level, n_boot=cfg.n_boot, rng=rng)
                 rows += [dict(population=name, statistic=statistic, n=n, kind=kind,
-                              confidence=cfg.confidence, trials=cfg.trials, n_boot=cfg.n_boot,
+                              confidence=level, trials=cfg.trials, n_boot=cfg.n_boot,
                               truth=truth, **{**r, "median_width": r["median_width"] / sd})
                          for kind, r in found.items()]
     return pd.DataFrame(rows)
 
 
 def plot(table: pd.DataFrame, stem: Path, sources: list[Path]) -> None:
-    """Coverage against n, one panel per statistic (rows) and population (columns), one line per
-    kind with +- 2 standard errors, the nominal level dotted."""
+    """Coverage against n, one panel per statistic and level (rows) and population (columns), one
+    line per kind with +- 2 standard errors, the nominal level dotted."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    stats_, pops = list(dict.fromkeys(table.statistic)), list(dict.fromkeys(table.population))
-    fig, axes = plt.subplots(len(stats_), len(pops), figsize=(3 * len(pops), 2.6 * len(stats_)),
+    rows = list(dict.fromkeys(zip(table.statistic, table.confidence)))
+    pops = list(dict.fromkeys(table.population))
+    fig, axes = plt.subplots(len(rows), len(pops), figsize=(3 * len(pops), 2.4 * len(rows)),
                              sharex=True, sharey=True, squeeze=False)
-    for (r, statistic), (c, pop) in ((a, b) for a in enumerate(stats_) for b in enumerate(pops)):
+    for (r, (statistic, level)), (c, pop) in ((a, b) for a in enumerate(rows)
+                                              for b in enumerate(pops)):
         ax = axes[r][c]
-        for k, (kind, g) in enumerate(table[(table.statistic == statistic)
-                                            & (table.population == pop)].groupby("kind",
-                                                                                 sort=False)):
+        cell = table[(table.statistic == statistic) & (table.confidence == level)
+                     & (table.population == pop)]
+        for k, (kind, g) in enumerate(cell.groupby("kind", sort=False)):
             ax.errorbar(g.n + 0.08 * (k - 1.5), g.coverage, yerr=2 * g.coverage_se, marker="o",
                         ms=3, lw=1, capsize=2, label=kind)
-        ax.axhline(table.confidence.iloc[0], color="k", lw=0.8, ls=":")
-        ax.set_title(f"{statistic}, {pop}", fontsize=9)
+        ax.axhline(level, color="k", lw=0.8, ls=":")
+        ax.set_title(f"{statistic}, {pop}, nominal {level:.2%}", fontsize=8)
         ax.grid(True, alpha=0.3)
         if c == 0:
             ax.set_ylabel("coverage")
-        if r == len(stats_) - 1:
+        if r == len(rows) - 1:
             ax.set_xlabel("scores per group n")
     axes[0][0].legend(fontsize=7)
     axes[0][0].set_xticks(sorted(table.n.unique()))
@@ -208,6 +215,6 @@ def run(args: argparse.Namespace) -> int:
                       extra=dict(suite_pool=dict(values=len(pool), files=used)))
     sources = [write_result(results / f"{NAME}.csv", table, prov)]
     plot(table, figures / NAME, sources)
-    print(table.pivot_table(index=["population", "statistic", "n"], columns="kind",
+    print(table.pivot_table(index=["confidence", "population", "statistic", "n"], columns="kind",
                             values="coverage", sort=False).round(3).to_string())
     return 0
