@@ -55,7 +55,8 @@ def check_x1(results: Path, suffix: str = "") -> Verdict:
     verdict = "PASS" if all(beats) else "PARTIAL" if any(beats) else "FAIL"
     verdict, caveat = at_most_partial(verdict, int(s.n_runs.min()))
     detail = ("Score per run: bus final return (mean of the last epochs, as C1), wildfire ADR on "
-              f"ED (as C8); mean [95% {interval_name()} CI] over runs. " + ". ".join(parts) + "." + caveat)
+              f"ED (as C8); mean [95% {interval_name()} CI] over runs. " + ". ".join(parts) + "."
+              + caveat)
     return Verdict("; ".join(ours), verdict, detail, scale_of(path))
 
 
@@ -94,7 +95,8 @@ def check_x3(results: Path, suffix: str = "") -> Verdict:
     ours = (f"holds up to {_dt(holds)}, breaks from {_dt(breaks)}"
             + (f" (overlaps again at {', '.join(_dt(dt) for dt in again)})" if again else ""))
     detail = (f"{int(s.n_policies.min())} policies per simulator, tested on ED, mean [95% "
-              f"{interval_name()} CI]; ED {ed['mean']:.3f} [{ed.ci_low:.3f}, {ed.ci_high:.3f}]; FS-dT against it: "
+              f"{interval_name()} CI]; ED {ed['mean']:.3f} [{ed.ci_low:.3f}, {ed.ci_high:.3f}]; "
+              "FS-dT against it: "
               + "; ".join(f"{dt:.3g} s {r['mean']:.3f} ({side[dt]})"
                           for dt, (_, r) in zip(side, fs.iterrows())) + ".")
     races = read_races(results, TransferDtConfig().race_agents)

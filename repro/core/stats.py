@@ -94,7 +94,8 @@ def _winsorized_sd(x: np.ndarray, g: int) -> np.ndarray:
 
 
 def estimate(groups: tuple[np.ndarray, ...], statistic: str) -> np.ndarray:
-    """``statistic`` of each sample of a batch: ``groups`` holds one array (batch..., n) per group."""
+    """``statistic`` of each sample of a batch: ``groups`` holds one array (batch..., n) per
+    group."""
     if statistic == "mean":
         return groups[0].mean(axis=-1)
     if statistic == "iqm":
@@ -193,7 +194,8 @@ def coverage(draw: Callable[[np.random.Generator, int], tuple[np.ndarray, ...]],
     out = {}
     for k in kinds:
         covered, below, above = counts[k] / trials
-        out[k] = dict(coverage=covered, coverage_se=float(np.sqrt(covered * (1 - covered) / trials)),
+        out[k] = dict(coverage=covered,
+                      coverage_se=float(np.sqrt(covered * (1 - covered) / trials)),
                       missed_below=below, missed_above=above,
                       median_width=float(np.median(np.concatenate(widths[k]))))
     return out

@@ -133,19 +133,24 @@ def population(name: str, pool: np.ndarray) -> tuple[Callable, float, float, flo
             float(trimmed), float(dist.std()))
 
 
+def sampler(draw: Callable, n: int, groups: int) -> Callable:
+    """``draw`` as :func:`repro.core.stats.coverage` takes it: m samples of ``groups`` groups of
+    n scores."""
+    return lambda rng, m: tuple(draw(rng, (m, n)) for _ in range(groups))
+
+
 def measure(cfg: IntervalCoverageConfig, pool: np.ndarray, seed: int) -> pd.DataFrame:
     """The coverage table: one row per population, statistic, n and kind."""
     rows = []
-    for i, name in enumerate(cfg.populations):
+    for name in cfg.populations:
         draw, mean, trimmed, sd = population(name, pool)
-        for j, statistic in enumerate(cfg.statistics):
-            groups = 2 if statistic == "difference" else 1
+        for statistic in cfg.statistics:
             truth = {"mean": mean, "iqm": trimmed, "difference": 0.0}[statistic]
             for n, level in ((n, c) for c in cfg.confidences for n in cfg.sizes):
                 key = (list((*POPULATIONS, SUITE)).index(name), STATISTICS.index(statistic), n,
                        round(level * 1e4))
                 rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
-                found = coverage(lambda r, m: tuple(draw(r, (m, n)) for _ in range(groups)),
+                found = coverage(sampler(draw, n, 2 if statistic == "difference" else 1),
                                  truth, statistic, cfg.kinds, trials=cfg.trials,
                                  confidence=level, n_boot=cfg.n_boot, rng=rng)
                 rows += [dict(population=name, statistic=statistic, n=n, kind=kind,
