@@ -7,6 +7,7 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
+from repro.claims import intervals_of
 from repro.core.stats import INTERVALS, coverage, expanded_level, interval
 from tests.conftest import tree_snapshot, write_result_csv
 
@@ -135,3 +136,47 @@ def test_the_claims_switch_refuses_an_unknown_interval(tmp_path, monkeypatch, ca
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "--interval" in err
     assert tree_snapshot(tmp_path) == before
+
+
+def bus_lambda_results(folder, finals: list[float], thresholds: float, stored: tuple) -> None:
+    """The lambda sweep's per-epoch table (two epochs, the last one final) and its summary, with
+    the percentile CI ``stored`` for the MLP at lambda 2."""
+    curve = pd.DataFrame([dict(**{"lambda": 2.0}, batch=12000, seed=s, epoch=e,
+                               average_return=v if e else 10 * v)
+                          for s, v in enumerate(finals) for e in (0, 1)])
+    write_result_csv(curve, folder / "bus_lambda.csv", config=dict(epochs=2, final_epochs=1))
+    rows = [dict(policy="nohold", runs=1, final_iqm=-1e6), dict(policy="thresholds", runs=1,
+                                                                final_iqm=thresholds),
+            dict(policy="mlp", **{"lambda": 2.0}, batch=12000, runs=len(finals),
+                 final_iqm=float(np.mean(sorted(finals)[1:-1])), ci_low=stored[0],
+                 ci_high=stored[1])]
+    rows += [dict(policy="mlp-run", **{"lambda": 2.0}, batch=12000, runs=1, final_iqm=v)
+             for v in finals]
+    write_result_csv(pd.DataFrame(rows), folder / "bus_lambda_summary.csv")
+
+
+def test_c1_reads_the_trimmed_t_interval_of_the_final_returns(tmp_path):
+    from repro.claims import evaluate_with
+    from repro.claims.bus import check_c1
+
+    # IQM -100.3; the trimmed t interval, from 2 degrees of freedom, reaches below -101.5
+    bus_lambda_results(tmp_path, [-100.0, -101.0, -99.0, -100.0, -300.0], -101.5, (-101.0, -99.3))
+    t, pct = (evaluate_with(claim("C1"), tmp_path, k) for k in ("t", "percentile"))
+    assert (t.verdict, pct.verdict) == ("PARTIAL", "PASS")
+    low = interval([np.array([-100.0, -101.0, -99.0, -100.0, -300.0])], "iqm")[1]
+    with intervals_of("t"):
+        assert f"[{low:.0f}, " in check_c1(tmp_path).ours
+
+
+def test_c2_bounds_the_spread_by_bonferroni_over_the_lambdas():
+    from repro.claims.bus import c2_intervals
+
+    scores = np.array([[-100.0, -90.0], [-101.0, -91.0], [-99.0, -89.0], [-102.0, -88.0],
+                       [-98.0, -92.0]])
+    with intervals_of("t"):
+        spread, gap = c2_intervals(scores, -200.0)
+    each = [interval([x], "iqm", confidence=0.975) for x in scores.T]
+    assert spread == pytest.approx((10.0, max(0.0, each[1][1] - each[0][2]),
+                                    each[1][2] - each[0][1]))
+    assert gap == pytest.approx((105.0, (each[0][1] + each[1][1]) / 2 + 200.0,
+                                 (each[0][2] + each[1][2]) / 2 + 200.0))

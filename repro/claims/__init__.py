@@ -21,10 +21,11 @@ import dataclasses
 import importlib
 import json
 import textwrap
+from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 import pandas as pd
@@ -52,6 +53,16 @@ def interval_kind() -> str:
     return _INTERVAL.get()
 
 
+@contextmanager
+def intervals_of(kind: str) -> Iterator[None]:
+    """Decide the claims checked inside with the intervals ``kind`` (:data:`INTERVALS`)."""
+    token = _INTERVAL.set(kind)
+    try:
+        yield
+    finally:
+        _INTERVAL.reset(token)
+
+
 def with_intervals(summary: pd.DataFrame, runs: str = "n_policies") -> pd.DataFrame:
     """A driver's summary (rows with ``mean``, ``sem``, ``ci_low``, ``ci_high`` and the number of
     runs in column ``runs``) with the CIs of :func:`interval_kind`: the t interval from the mean
@@ -63,14 +74,16 @@ def with_intervals(summary: pd.DataFrame, runs: str = "n_policies") -> pd.DataFr
     return summary.assign(ci_low=lo, ci_high=hi)
 
 
-def with_difference_intervals(effect: pd.DataFrame, per_policy: pd.DataFrame, by: list[str],
+def with_difference_intervals(effect: pd.DataFrame, per_policy_path: Path, by: list[str],
                               pair: tuple[str, str], score: str = "adr_ed") -> pd.DataFrame:
     """A driver's table of differences (one row per group of the ``by`` columns: ``difference``,
     the mean ``score`` of simulator ``pair[0]`` minus that of ``pair[1]``, ``ci_low``,
     ``ci_high``, ``degrades``: the CI below 0) with the CIs of :func:`interval_kind`: Welch's t from
-    ``per_policy``'s scores, or the stored percentile bootstrap."""
+    the scores of the per-policy table at ``per_policy_path``, or the stored percentile
+    bootstrap."""
     if interval_kind() == "percentile":
         return effect
+    per_policy = read_result(per_policy_path)
     limits = []
     for key in zip(*(effect[c] for c in by)):
         g = per_policy[np.logical_and.reduce([per_policy[c] == v for c, v in zip(by, key)])]
@@ -298,11 +311,8 @@ def is_paper_scale(results: Path) -> bool:
 def evaluate_with(claim: Claim, results: Path, interval: str) -> Verdict:
     """``claim``'s verdict with the intervals ``interval`` (:data:`INTERVALS`); for a claim that
     compares intervals, the other interval's verdict and value in its ``other``."""
-    token = _INTERVAL.set(interval)
-    try:
+    with intervals_of(interval):
         v = claim.evaluate(results)
-    finally:
-        _INTERVAL.reset(token)
     if not claim.intervals:
         return v
     other = next(k for k in INTERVALS if k != interval)
@@ -315,11 +325,8 @@ def render(results: Path, interval: str = INTERVALS[0]) -> str:
     """paper_claims.md (paper-scale results), or a smaller scale's smoke check: a tally, one short
     row per claim, then each claim's detail; claims that compare intervals are decided with
     ``interval``'s, the other's verdict beside."""
-    token = _INTERVAL.set(interval)
-    try:
+    with intervals_of(interval):
         return _render(results, interval)
-    finally:
-        _INTERVAL.reset(token)
 
 
 def _render(results: Path, interval: str) -> str:

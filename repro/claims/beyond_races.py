@@ -72,8 +72,8 @@ def _pairs(frame: pd.DataFrame) -> str:
 def check_x4(results: Path, suffix: str = "") -> Verdict:
     path = results / f"{ORDER}{suffix}_effect.csv"
     by = ["semantics", "order"]
-    e = with_difference_intervals(read_result(path), read_result(results / f"{ORDER}{suffix}.csv"),
-                                  by, C9_PAIR).set_index(by)
+    e = with_difference_intervals(read_result(path), results / f"{ORDER}{suffix}.csv", by,
+                                  C9_PAIR).set_index(by)
     semantics = list(dict.fromkeys(e.index.get_level_values(0)))
     degrades = [s for s in semantics if e.loc[(s, "released"), "degrades"]]
     survives = [s for s in degrades if e.loc[(s, "reversed"), "degrades"]]

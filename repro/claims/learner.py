@@ -31,7 +31,7 @@ def check_x5(results: Path) -> Verdict:
     path = results / f"{ABLATION}_c9.csv"
     e = read_result(path)
     e = with_difference_intervals(e[e.protocol == "final policy"],
-                                  read_result(results / f"{ABLATION}.csv"), ["setting"],
+                                  results / f"{ABLATION}.csv", ["setting"],
                                   C9_PAIR).set_index("setting")
     row, base = e.loc[X5_SETTING], e.loc["authors"]
     verdict = "PASS" if row.degrades else "FAIL"
