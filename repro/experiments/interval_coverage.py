@@ -81,7 +81,7 @@ class IntervalCoverageConfig(Validated):
     SCALES: ClassVar[dict] = {
         "smoke": dict(trials=100, n_boot=200, sizes=(3, 5)),
         "quick": {},
-        "paper": dict(trials=10000),
+        "paper": dict(trials=5000),
     }
 
     def validate(self) -> None:
