@@ -68,7 +68,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke che
 	$(MAKE) interval-coverage SCALE=$(SCALE) SEED=$(SEED)
 	$(REPRO) claims --results-dir results/$(SCALE)
 
-claims: $(STAMP) ## render paper_claims.md from results/paper/ (ARGS="--results-dir results/quick": a smoke check)
+claims: $(STAMP) ## render paper_claims.md from results/paper/ (ARGS="--results-dir results/quick": a smoke check; "--interval percentile": decided with the percentile bootstrap)
 	$(REPRO) claims $(ARGS)
 
 race: $(STAMP) ## race-condition table and figure (C10; alias table-race)

@@ -34,6 +34,7 @@ from repro.core.errors import require
 from repro.core.io import (check_names, check_writable_dir, read_provenance, read_result,
                            write_text)
 from repro.core.stats import interval, t_limits
+from repro.experiments.interval_coverage import NAME as COVERAGE
 
 INTERVALS = ("t", "percentile")
 """The intervals a claim that compares intervals is decided with (``claims --interval``, default
@@ -100,8 +101,6 @@ def interval_name() -> str:
     return "t" if interval_kind() == "t" else "percentile bootstrap"
 
 
-COVERAGE = "interval_coverage"
-"""Stem of the interval-coverage study's result file."""
 NOT_RUN = "not yet run"
 AMBIGUOUS = "AMBIGUOUS"
 VERDICTS = ("PASS", "PARTIAL", "FAIL", AMBIGUOUS, NOT_RUN)
@@ -137,8 +136,10 @@ class Verdict:
     """The result files exist but were made on semantics the engines no longer follow (the verdict
     is then "not yet run"); a rerun is pending."""
     other: str = ""
-    """For a claim that compares intervals: its verdict and value under the other interval of
-    :data:`INTERVALS` (set by :func:`render`)."""
+    """For a claim that compares intervals: its verdict under the other interval of
+    :data:`INTERVALS`, named ("percentile: PASS"; set by :func:`evaluate_with`)."""
+    other_ours: str = ""
+    """Its value under the other interval, where that differs from ``ours``."""
 
 
 @dataclass(frozen=True)
@@ -317,8 +318,8 @@ def evaluate_with(claim: Claim, results: Path, interval: str) -> Verdict:
         return v
     other = next(k for k in INTERVALS if k != interval)
     w = evaluate_with(dataclasses.replace(claim, intervals=False), results, other)
-    return dataclasses.replace(v, other=f"{other}: {w.verdict}" + (
-        "" if w.ours == v.ours else f" ({w.ours})"))
+    return dataclasses.replace(v, other=f"{other}: {w.verdict}",
+                               other_ours="" if w.ours == v.ours else w.ours)
 
 
 def render(results: Path, interval: str = INTERVALS[0]) -> str:
@@ -407,7 +408,7 @@ def _table(rows: list[tuple[Claim, Verdict]]) -> list[str]:
     lines = []
     for c, v in rows:
         where = f" ({c.where})" if c.where else ""
-        verdict = f"**{v.verdict}**" + (f" ({v.other.split(' (')[0]})" if v.other else "")
+        verdict = f"**{v.verdict}**" + (f" ({v.other})" if v.other else "")
         lines.append("| " + " | ".join(_cell(x) for x in (
             c.id, c.text, c.paper + where, v.ours, verdict)) + " |")
     return lines
@@ -417,7 +418,8 @@ def _details(rows: list[tuple[Claim, Verdict]]) -> list[str]:
     lines = []
     for c, v in rows:
         lines += ["", f"### {c.id}: {v.verdict}" + (f" ({v.scale} scale)" if v.scale else ""), ""]
-        other = f" With the other intervals, {v.other}." if v.other else ""
+        other = (f" With the other intervals, {v.other}" + (f" ({v.other_ours})" if v.other_ours
+                                                              else "") + "." if v.other else "")
         lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}{other}", WIDTH,
                                break_on_hyphens=False)
         lines.append(f"Regenerate: `{c.command}`.")
@@ -432,7 +434,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--results-dir", default="results/paper",
                    help="folder the checks read (default results/paper)")
     p.add_argument("--interval", default=INTERVALS[0],
-                   help=f"the 95%% intervals that decide the claims comparing intervals: "
+                   help=f"the 95%% intervals that decide the claims that compare intervals: "
                    f"{' or '.join(INTERVALS)} (default {INTERVALS[0]}, whose coverage at 5 runs "
                    f"the interval-coverage study checks)")
     p.add_argument("--out", help=f"the rendered table (default {PAPER_CLAIMS} for paper-scale "
