@@ -387,7 +387,8 @@ def _interval_note(results: Path, interval: str) -> str:
         scale_of(path)
     except FileNotFoundError:
         return text + f" Their coverage: not yet measured (`make {COVERAGE.replace('_', '-')}`)."
-    cov = cov[(cov.n == 5) & (cov.statistic == "mean") & cov.kind.isin(INTERVALS)]
+    cov = cov[(cov.n == 5) & (cov.statistic == "mean") & (cov.confidence == 0.95)
+              & cov.kind.isin(INTERVALS)]
     parts = [f"{k} " + ", ".join(f"{r.coverage:.1%} ({r.population})" for r in g.itertuples())
              for k, g in cov.groupby("kind", sort=False)]
     return (text + f" Measured coverage of a nominal 95% interval of the mean of 5 runs "
