@@ -387,13 +387,13 @@ def _interval_note(results: Path, interval: str) -> str:
         scale_of(path)
     except FileNotFoundError:
         return text + f" Their coverage: not yet measured (`make {COVERAGE.replace('_', '-')}`)."
-    cov = cov[(cov.n == 5) & (cov.statistic == "mean") & (cov.confidence == 0.95)
-              & cov.kind.isin(INTERVALS)]
-    parts = [f"{k} " + ", ".join(f"{r.coverage:.1%} ({r.population})" for r in g.itertuples())
-             for k, g in cov.groupby("kind", sort=False)]
-    return (text + f" Measured coverage of a nominal 95% interval of the mean of 5 runs "
-            f"(`{COVERAGE}.csv`, {int(cov.trials.iloc[0]):,} samples each): "
-            + "; ".join(parts) + ".")
+    cov = cov[(cov.n == 5) & (cov.confidence == 0.95) & cov.kind.isin(INTERVALS)]
+    parts = [f"{statistic}: " + ", ".join(
+        f"{kind} " + "/".join(f"{x:.1%}" for x in g.coverage) for kind, g in s.groupby(
+            "kind", sort=False)) for statistic, s in cov.groupby("statistic", sort=False)]
+    return (text + f" Measured coverage of a nominal 95% interval from 5 runs per group "
+            f"(`{COVERAGE}.csv`, {int(cov.trials.iloc[0]):,} samples each; populations "
+            f"{'/'.join(dict.fromkeys(cov.population))}): " + "; ".join(parts) + ".")
 
 
 def _tally(rows: list[tuple[Claim, Verdict]]) -> str:
