@@ -6,9 +6,10 @@ resampled within itself, so each bootstrap replicate keeps the design's group si
 
 With as few runs as the paper has, percentile intervals are narrower than their nominal level: for
 the mean of 5 normal scores a nominal 95% interval covers the true mean 83% of the time. The claims
-that compare intervals are therefore decided with t intervals by default (``repro.claims.INTERVALS``);
-:func:`intervals` computes every kind the interval-coverage study compares, and :func:`coverage`
-measures how often one holds the true value (``repro/experiments/interval_coverage.py``).
+that compare intervals are therefore decided with t intervals by default
+(``repro.claims.INTERVALS``); :func:`intervals` computes every kind the interval-coverage study
+compares, and :func:`coverage` measures how often one holds the true value
+(``repro/experiments/interval_coverage.py``).
 """
 
 from __future__ import annotations
