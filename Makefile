@@ -17,7 +17,7 @@ STAMP  := $(VENV)/.installed
 .PHONY: help setup reproduce test lint claims race bus-thresholds bus-eval fig-bus-lambda \
 	fig-bus-batch fig-bus-arrivals fig-bus-load wildfire-heuristics bench-bus bench-wildfire \
 	wildfire-eval bench-learn plot-runs scaling fig-transfer wildfire-behaviour render train \
-	beyond-races beyond-mgae beyond-order beyond-transfer-dt learner-ablation c9-inputs clean \
+	beyond-races beyond-mgae beyond-order beyond-transfer-dt learner-ablation c9-inputs interval-coverage clean \
 	table-race table-thresholds fig-scaling
 .DEFAULT_GOAL := help
 
@@ -65,9 +65,10 @@ reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke che
 	$(MAKE) beyond-transfer-dt SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) learner-ablation SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) c9-inputs SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) interval-coverage SCALE=$(SCALE) SEED=$(SEED)
 	$(REPRO) claims --results-dir results/$(SCALE)
 
-claims: $(STAMP) ## render paper_claims.md from results/paper/ (ARGS="--results-dir results/quick": a smoke check)
+claims: $(STAMP) ## render paper_claims.md from results/paper/ (ARGS="--results-dir results/quick": a smoke check; "--interval percentile": decided with the percentile bootstrap)
 	$(REPRO) claims $(ARGS)
 
 race: $(STAMP) ## race-condition table and figure (C10; alias table-race)
@@ -126,6 +127,9 @@ wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the f
 
 beyond-races: $(STAMP) ## X2: races in the wildfire simulator, dT against N, beside C10 (after race)
 	$(REPRO) beyond-races --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+interval-coverage: $(STAMP) ## coverage of the claims' interval kinds at 3, 5 and 10 runs (after the studies whose per-seed scores it pools)
+	$(REPRO) interval-coverage --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 beyond-order: $(STAMP) ## X4: C9's pair under both same-instant orders (reuses fig-transfer's runs)
 	$(REPRO) beyond-order --scale $(SCALE) --seed $(SEED) $(ARGS)

@@ -53,6 +53,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                   "C9's policies tested with out-of-range inputs clamped (the mechanism)"),
     "beyond-order": ("repro.experiments.beyond_order",
                      "C9 under both same-instant orders (X4)"),
+    "interval-coverage": ("repro.experiments.interval_coverage",
+                          "coverage of the claims' interval kinds at 3, 5 and 10 runs"),
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
     "train": ("repro.experiments.train", "train a shared policy with PS-TRPO and M-GAE"),
     "render": ("repro.experiments.render", "an animation (GIF) of one episode of a policy"),

@@ -49,3 +49,13 @@ def write_result_csv(frame, path: Path, scale: str = "paper", **provenance) -> N
 
     frame.to_csv(path, index=False)
     sidecar_path(path).write_text(json.dumps({"scale": scale, **provenance}))
+
+
+@pytest.fixture
+def stored_intervals():
+    """Claims decided with the CIs a test writes into its summaries (the drivers' percentile
+    bootstrap, ``claims --interval percentile``) rather than t intervals from per-seed scores."""
+    from repro.claims import intervals_of
+
+    with intervals_of("percentile"):
+        yield

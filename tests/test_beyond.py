@@ -133,7 +133,7 @@ def _races(rates: dict[float, float]) -> pd.DataFrame:
                          for dt, r in rates.items()])
 
 
-def test_x3_check(tmp_path):
+def test_x3_check(tmp_path, stored_intervals):
     """Holds up to the largest dT overlapping ED, breaks from the smallest below it; the verdict
     asks whether races (X2, N = 3) begin there; without races.csv it is not yet answered."""
     dts = [0.01, 0.1, 1.0, 10.0]
@@ -150,7 +150,7 @@ def test_x3_check(tmp_path):
     assert beyond.check_x3(tmp_path).verdict == "FAIL"  # races begin a decade later
 
 
-def test_x3_names_an_overlap_beyond_the_break(tmp_path):
+def test_x3_names_an_overlap_beyond_the_break(tmp_path, stored_intervals):
     """A CI that overlaps ED's again above the break does not move "holds up to" past it."""
     dts = [0.1, 1.0, 3.0, 10.0]
     write_result_csv(_grid({0.0: 3.0, **dict(zip(dts, [3.0, 3.0, 2.5, 3.0]))}),
@@ -159,7 +159,7 @@ def test_x3_names_an_overlap_beyond_the_break(tmp_path):
                                               "at 10 s)")
 
 
-def test_x1_check(tmp_path):
+def test_x1_check(tmp_path, stored_intervals):
     def summary(bus_alt: float, fire_alt: float, n: int = 5) -> pd.DataFrame:
         rows = [("bus", "m-gae", -100.0), ("bus", "decision-gae", bus_alt),
                 ("bus", "duration-gae", bus_alt), ("wildfire", "m-gae", 3.0),

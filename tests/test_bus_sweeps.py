@@ -125,7 +125,7 @@ def _write_summary(res, sweep: str, settings: dict[float, list[float]], threshol
     ([-300.0, -299.0, -298.0], -200.0, "FAIL"),
     ([-100.0, -99.0, -98.0], -95000.0, "FAIL"),    # thresholds below No Holding
 ])
-def test_c1_verdict_follows_the_orderings(tmp_path, mlp, thresholds, verdict):
+def test_c1_verdict_follows_the_orderings(tmp_path, stored_intervals, mlp, thresholds, verdict):
     _write_summary(tmp_path, "lambda", {2.0: mlp}, thresholds)
     assert check_c1(tmp_path).verdict == verdict
 
@@ -134,7 +134,8 @@ def test_c1_verdict_follows_the_orderings(tmp_path, mlp, thresholds, verdict):
     ({0.5: [-101.0, -100.0, -99.0], 2.0: [-100.0, -99.0, -98.0]}, "PASS"),  # spread ~1, gap ~100
     ({0.5: [-190.0, -189.0, -188.0], 2.0: [-100.0, -99.0, -98.0]}, "FAIL"),  # spread 90, gap 56
 ])
-def test_c2_verdict_compares_the_spread_over_lambda_with_the_gap(tmp_path, settings, verdict):
+def test_c2_verdict_compares_the_spread_over_lambda_with_the_gap(tmp_path, stored_intervals,
+                                                                 settings, verdict):
     _write_summary(tmp_path, "lambda", settings, thresholds=-200.0)
     assert check_c2(tmp_path).verdict == verdict
 
@@ -144,7 +145,7 @@ def test_c2_verdict_compares_the_spread_over_lambda_with_the_gap(tmp_path, setti
     ((-300.0, -50.0, -100.0), "PARTIAL"),   # not monotone, but the largest beats the smallest
     ((-100.0, -200.0, -300.0), "FAIL"),
 ])
-def test_c3_verdict_needs_a_monotone_rise(tmp_path, means, verdict):
+def test_c3_verdict_needs_a_monotone_rise(tmp_path, stored_intervals, means, verdict):
     settings = {b: [m - 1.0, m, m + 1.0] for b, m in zip((54, 135, 540), means)}
     _write_summary(tmp_path, "batch", settings, thresholds=-400.0)
     assert check_c3(tmp_path).verdict == verdict

@@ -17,15 +17,89 @@ never PASS; any other error a check raises is a bug in it and propagates
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import json
 import textwrap
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
+
+import numpy as np
+import pandas as pd
 
 from repro.core.errors import require
-from repro.core.io import check_names, check_writable_dir, read_provenance, write_text
+from repro.core.io import (check_names, check_writable_dir, read_provenance, read_result,
+                           write_text)
+from repro.core.stats import interval, t_limits
+from repro.experiments.interval_coverage import NAME as COVERAGE
+
+INTERVALS = ("t", "percentile")
+"""The intervals a claim that compares intervals is decided with (``claims --interval``, default
+the first), each claim's verdict under the other rendered beside it:
+
+- ``t``: Student's t interval of a mean (of an IQM, the trimmed-mean t of Tukey and McLaughlin; of
+  a difference of means, Welch's), computed here from the result files' per-seed scores or their
+  standard errors. The interval-coverage study (``interval_coverage.csv``) measures its coverage at
+  3, 5 and 10 runs.
+- ``percentile``: the percentile bootstrap CIs the drivers store, which cover less than 95% with 5
+  runs (the same study)."""
+_INTERVAL: ContextVar[str] = ContextVar("interval", default=INTERVALS[0])
+
+
+def interval_kind() -> str:
+    """The interval the claims are being decided with (:data:`INTERVALS`)."""
+    return _INTERVAL.get()
+
+
+@contextmanager
+def intervals_of(kind: str) -> Iterator[None]:
+    """Decide the claims checked inside with the intervals ``kind`` (:data:`INTERVALS`)."""
+    token = _INTERVAL.set(kind)
+    try:
+        yield
+    finally:
+        _INTERVAL.reset(token)
+
+
+def with_intervals(summary: pd.DataFrame, runs: str = "n_policies") -> pd.DataFrame:
+    """A driver's summary (rows with ``mean``, ``sem``, ``ci_low``, ``ci_high`` and the number of
+    runs in column ``runs``) with the CIs of :func:`interval_kind`: the t interval from the mean
+    and its standard error, or the stored percentile bootstrap."""
+    if interval_kind() == "percentile":
+        return summary
+    lo, hi = t_limits(summary["mean"].to_numpy(), summary["sem"].to_numpy(),
+                      summary[runs].to_numpy() - 1)
+    return summary.assign(ci_low=lo, ci_high=hi)
+
+
+def with_difference_intervals(effect: pd.DataFrame, per_policy_path: Path, by: list[str],
+                              pair: tuple[str, str], score: str = "adr_ed") -> pd.DataFrame:
+    """A driver's table of differences (one row per group of the ``by`` columns: ``difference``,
+    the mean ``score`` of simulator ``pair[0]`` minus that of ``pair[1]``, ``ci_low``,
+    ``ci_high``, ``degrades``: the CI below 0) with the CIs of :func:`interval_kind`: Welch's t from
+    the scores of the per-policy table at ``per_policy_path``, or the stored percentile
+    bootstrap."""
+    if interval_kind() == "percentile":
+        return effect
+    per_policy = read_result(per_policy_path)
+    limits = []
+    for key in zip(*(effect[c] for c in by)):
+        g = per_policy[np.logical_and.reduce([per_policy[c] == v for c, v in zip(by, key)])]
+        groups = [g[g.simulator == label][score].to_numpy() for label in pair]
+        if min(map(len, groups)) == 0:
+            raise IncompleteResult(f"no {pair} policies for {dict(zip(by, key))}")
+        limits.append(interval(groups, "difference", "t")[1:])
+    lo, hi = (np.array(x) for x in zip(*limits))
+    return effect.assign(ci_low=lo, ci_high=hi, degrades=hi < 0)
+
+
+def interval_name() -> str:
+    """How a detail names the CIs of :func:`interval_kind`."""
+    return "t" if interval_kind() == "t" else "percentile bootstrap"
+
 
 NOT_RUN = "not yet run"
 AMBIGUOUS = "AMBIGUOUS"
@@ -61,6 +135,11 @@ class Verdict:
     outdated: bool = False
     """The result files exist but were made on semantics the engines no longer follow (the verdict
     is then "not yet run"); a rerun is pending."""
+    other: str = ""
+    """For a claim that compares intervals: its verdict under the other interval of
+    :data:`INTERVALS`, named ("percentile: PASS"; set by :func:`evaluate_with`)."""
+    other_ours: str = ""
+    """Its value under the other interval, where that differs from ``ours``."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +156,9 @@ class Claim:
     """None until the experiment that checks the claim exists."""
     where: str = ""
     """Where the paper makes the claim (figure, table or section number)."""
+    intervals: bool = False
+    """The check compares intervals, those of :func:`interval_kind`: rendered with its verdict
+    under the other interval too."""
 
     def evaluate(self, results: Path) -> Verdict:
         if self.check is None:
@@ -227,10 +309,29 @@ def is_paper_scale(results: Path) -> bool:
     return result_scales(results) == {PAPER}
 
 
-def render(results: Path) -> str:
+def evaluate_with(claim: Claim, results: Path, interval: str) -> Verdict:
+    """``claim``'s verdict with the intervals ``interval`` (:data:`INTERVALS`); for a claim that
+    compares intervals, the other interval's verdict and value in its ``other``."""
+    with intervals_of(interval):
+        v = claim.evaluate(results)
+    if not claim.intervals:
+        return v
+    other = next(k for k in INTERVALS if k != interval)
+    w = evaluate_with(dataclasses.replace(claim, intervals=False), results, other)
+    return dataclasses.replace(v, other=f"{other}: {w.verdict}",
+                               other_ours="" if w.ours == v.ours else w.ours)
+
+
+def render(results: Path, interval: str = INTERVALS[0]) -> str:
     """paper_claims.md (paper-scale results), or a smaller scale's smoke check: a tally, one short
-    row per claim, then each claim's detail."""
-    evaluated = [(c, c.evaluate(results)) for c in registry()]
+    row per claim, then each claim's detail; claims that compare intervals are decided with
+    ``interval``'s, the other's verdict beside."""
+    with intervals_of(interval):
+        return _render(results, interval)
+
+
+def _render(results: Path, interval: str) -> str:
+    evaluated = [(c, evaluate_with(c, results, interval)) for c in registry()]
     rows = [(c, v) for c, v in evaluated if not is_beyond(c)]
     beyond = [(c, v) for c, v in evaluated if is_beyond(c)]
     paper = is_paper_scale(results)
@@ -250,6 +351,8 @@ def render(results: Path) -> str:
         "The verdicts:",
         "",
         *(f"- **{k}**: {m}." for k, m in LEGEND.items()),
+        "",
+        *textwrap.wrap(_interval_note(results, interval), WIDTH),
         "",
         "| id | claim | paper | ours | verdict |",
         "|----|-------|-------|------|---------|",
@@ -271,6 +374,28 @@ def render(results: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _interval_note(results: Path, interval: str) -> str:
+    """Which intervals decide the claims that compare intervals, with the coverage the
+    interval-coverage study measured for each at 5 runs, when it has run."""
+    other = next(k for k in INTERVALS if k != interval)
+    text = (f"Claims that compare 95% intervals over runs are decided with the **{interval}** "
+            f"intervals (`claims --interval`, {' or '.join(INTERVALS)}); beside the verdict, "
+            f"the verdict under the {other} intervals (with its value where that differs).")
+    path = results / f"{COVERAGE}.csv"
+    try:
+        cov = read_result(path)
+        scale_of(path)
+    except FileNotFoundError:
+        return text + f" Their coverage: not yet measured (`make {COVERAGE.replace('_', '-')}`)."
+    cov = cov[(cov.n == 5) & (cov.confidence == 0.95) & cov.kind.isin(INTERVALS)]
+    parts = [f"{statistic}: " + ", ".join(
+        f"{kind} " + "/".join(f"{x:.1%}" for x in g.coverage) for kind, g in s.groupby(
+            "kind", sort=False)) for statistic, s in cov.groupby("statistic", sort=False)]
+    return (text + f" Measured coverage of a nominal 95% interval from 5 runs per group "
+            f"(`{COVERAGE}.csv`, {int(cov.trials.iloc[0]):,} samples each; populations "
+            f"{'/'.join(dict.fromkeys(cov.population))}): " + "; ".join(parts) + ".")
+
+
 def _tally(rows: list[tuple[Claim, Verdict]]) -> str:
     counts = {k: sum(v.verdict == k for _, v in rows) for k in VERDICTS}
     return ", ".join(f"{n} {k}" for k, n in counts.items() if n)
@@ -284,8 +409,9 @@ def _table(rows: list[tuple[Claim, Verdict]]) -> list[str]:
     lines = []
     for c, v in rows:
         where = f" ({c.where})" if c.where else ""
+        verdict = f"**{v.verdict}**" + (f" ({v.other})" if v.other else "")
         lines.append("| " + " | ".join(_cell(x) for x in (
-            c.id, c.text, c.paper + where, v.ours, f"**{v.verdict}**")) + " |")
+            c.id, c.text, c.paper + where, v.ours, verdict)) + " |")
     return lines
 
 
@@ -293,7 +419,9 @@ def _details(rows: list[tuple[Claim, Verdict]]) -> list[str]:
     lines = []
     for c, v in rows:
         lines += ["", f"### {c.id}: {v.verdict}" + (f" ({v.scale} scale)" if v.scale else ""), ""]
-        lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}", WIDTH,
+        other = (f" With the other intervals, {v.other}" + (f" ({v.other_ours})" if v.other_ours
+                                                              else "") + "." if v.other else "")
+        lines += textwrap.wrap(f"Tolerance: {c.tolerance}. {v.detail or ''}{other}", WIDTH,
                                break_on_hyphens=False)
         lines.append(f"Regenerate: `{c.command}`.")
     return lines
@@ -306,6 +434,10 @@ WIDTH = 100
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--results-dir", default="results/paper",
                    help="folder the checks read (default results/paper)")
+    p.add_argument("--interval", default=INTERVALS[0],
+                   help=f"the 95%% intervals that decide the claims that compare intervals: "
+                   f"{' or '.join(INTERVALS)} (default {INTERVALS[0]}, whose coverage at 5 runs "
+                   f"the interval-coverage study checks)")
     p.add_argument("--out", help=f"the rendered table (default {PAPER_CLAIMS} for paper-scale "
                    f"results; for those of a smaller scale, a smoke check, "
                    f"<results-dir>/{SMOKE_OUT}, never {PAPER_CLAIMS})")
@@ -314,6 +446,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     require(args.results_dir.strip() != "", "--results-dir",
             "a folder of result files (not an empty path)", args.results_dir)
+    require(args.interval in INTERVALS, "--interval", " or ".join(INTERVALS), args.interval)
     results = Path(args.results_dir)
     # a mistyped or empty folder would otherwise render a table of "not yet run" over the claims
     require(results.is_dir() and any(results.glob("*.provenance.json")), "--results-dir",
@@ -328,7 +461,7 @@ def run(args: argparse.Namespace) -> int:
             f"({PAPER_CLAIMS} is rendered from paper-scale results only)", str(out))
     require(not out.is_dir(), "--out", "a file, not a folder", str(out))
     check_writable_dir(out.parent, "--out")
-    text = render(results)
+    text = render(results, args.interval)
     write_text(out, text)
     if not paper:  # the smoke check's table, for the end of `make reproduce`
         print(text.split("\n## Details")[0].rstrip())

@@ -1,8 +1,8 @@
 """Beyond the paper: questions the paper raises and leaves open, checked like its claims
 and rendered in a section of their own. A verdict says whether the hypothesis in the table holds.
 
-Intervals are the drivers' 95% percentile bootstrap CIs of the mean over seeds
-(``repro.core.stats``); with one run per setting they are points, so a verdict is at most PARTIAL.
+Intervals are 95% CIs of the mean over seeds, of :func:`repro.claims.interval_kind` (t, or the
+drivers' percentile bootstrap); with one run per setting a verdict is at most PARTIAL.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from pathlib import Path
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_partial, scale_of,
-                          side_by_side)
+from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_partial,
+                          interval_name, scale_of, side_by_side, with_intervals)
 from repro.core.stats import ci_side
 from repro.experiments.beyond_mgae import REFERENCE
 from repro.experiments.transfer_dt import RACES, TransferDtConfig, read_races
@@ -35,7 +35,7 @@ def check_x1(results: Path, suffix: str = "") -> Verdict:
     """M-GAE against each other estimator, per environment: PASS when M-GAE's CI lies above every
     other's, PARTIAL above some, FAIL none."""
     path = results / f"beyond_mgae{suffix}_summary.csv"
-    s = read_result(path)
+    s = with_intervals(read_result(path), runs="n_runs")
     parts, beats, ours = [], [], []
     for env, grp in s.groupby("env", sort=False):
         ref = grp[grp.estimator == REFERENCE].iloc[0]
@@ -55,7 +55,8 @@ def check_x1(results: Path, suffix: str = "") -> Verdict:
     verdict = "PASS" if all(beats) else "PARTIAL" if any(beats) else "FAIL"
     verdict, caveat = at_most_partial(verdict, int(s.n_runs.min()))
     detail = ("Score per run: bus final return (mean of the last epochs, as C1), wildfire ADR on "
-              "ED (as C8); mean [95% bootstrap CI] over runs. " + ". ".join(parts) + "." + caveat)
+              f"ED (as C8); mean [95% {interval_name()} CI] over runs. " + ". ".join(parts) + "."
+              + caveat)
     return Verdict("; ".join(ours), verdict, detail, scale_of(path))
 
 
@@ -81,7 +82,7 @@ def check_x3(results: Path, suffix: str = "") -> Verdict:
     dT before it whose CI overlaps ED's; PASS when the break lies within ONSET_WINDOW of the race
     onset."""
     path = results / f"transfer_dt_grid{suffix}_summary.csv"
-    s = read_result(path)
+    s = with_intervals(read_result(path))
     ed = s[s.dt == 0].iloc[0]
     fs = s[s.dt > 0].sort_values("dt")
     side = {r.dt: ci_side(r, ed) for r in fs.itertuples()}
@@ -93,8 +94,9 @@ def check_x3(results: Path, suffix: str = "") -> Verdict:
     again = [dt for dt in overlapping if breaks is not None and dt > breaks]
     ours = (f"holds up to {_dt(holds)}, breaks from {_dt(breaks)}"
             + (f" (overlaps again at {', '.join(_dt(dt) for dt in again)})" if again else ""))
-    detail = (f"{int(s.n_policies.min())} policies per simulator, tested on ED; ED "
-              f"{ed['mean']:.3f} [{ed.ci_low:.3f}, {ed.ci_high:.3f}]; FS-dT against it: "
+    detail = (f"{int(s.n_policies.min())} policies per simulator, tested on ED, mean [95% "
+              f"{interval_name()} CI]; ED {ed['mean']:.3f} [{ed.ci_low:.3f}, {ed.ci_high:.3f}]; "
+              "FS-dT against it: "
               + "; ".join(f"{dt:.3g} s {r['mean']:.3f} ({side[dt]})"
                           for dt, (_, r) in zip(side, fs.iterrows())) + ".")
     races = read_races(results, TransferDtConfig().race_agents)
@@ -117,11 +119,12 @@ CLAIMS = [
           "batch's mean duration) and duration-discounted GAE (lambda per decision), all else "
           "equal", "M-GAE beats both alternatives in both environments",
           "PASS: M-GAE's 95% CI lies above each alternative's; PARTIAL: above some; FAIL: none",
-          "make beyond-mgae", side_by_side(check_x1, LEARNER_READINGS), where="Sec. 3.2"),
+          "make beyond-mgae", side_by_side(check_x1, LEARNER_READINGS), where="Sec. 3.2",
+          intervals=True),
     Claim("X3", "Where does transfer from FS-dT to ED break (13 dT from 0.01 to 10 s), and does it "
           "break where races begin?", "transfer breaks where races begin (X2's rate, N = 3)",
           f"PASS: the smallest dT whose CI lies below ED's is within {ONSET_WINDOW:g} decades of "
           f"the dT at which the nearest policy's races reach {RACE_ONSET:g} per decision",
           "make beyond-transfer-dt", side_by_side(check_x3, LEARNER_READINGS),
-          where="Fig. 7, Sec. 5.3"),
+          where="Fig. 7, Sec. 5.3", intervals=True),
 ]

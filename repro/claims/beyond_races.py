@@ -9,9 +9,10 @@ import numpy as np
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_partial, scale_of,
-                          side_by_side)
+from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_partial,
+                          interval_name, scale_of, side_by_side, with_difference_intervals)
 from repro.claims.race import PAPER_BETA
+from repro.claims.wildfire import C9_PAIR
 from repro.experiments.beyond_order import NAME as ORDER
 from repro.experiments.beyond_races import FIT, RACES, c10_beta
 
@@ -70,7 +71,9 @@ def _pairs(frame: pd.DataFrame) -> str:
 
 def check_x4(results: Path, suffix: str = "") -> Verdict:
     path = results / f"{ORDER}{suffix}_effect.csv"
-    e = read_result(path).set_index(["semantics", "order"])
+    by = ["semantics", "order"]
+    e = with_difference_intervals(read_result(path), results / f"{ORDER}{suffix}.csv", by,
+                                  C9_PAIR).set_index(by)
     semantics = list(dict.fromkeys(e.index.get_level_values(0)))
     degrades = [s for s in semantics if e.loc[(s, "released"), "degrades"]]
     survives = [s for s in degrades if e.loc[(s, "reversed"), "degrades"]]
@@ -88,7 +91,7 @@ def check_x4(results: Path, suffix: str = "") -> Verdict:
               f"decides whether C9 shows" if appears else ""))
     detail = (f"FS-1 trained with T_health 2.9999 and 3.0, {int(e.n_policies.min())} policies "
               f"each, tested on ED; mean ADR difference (2.9999 minus 3.0) with its 95% "
-              f"bootstrap CI: {'; '.join(parts)}. {why}.{caveat}")
+              f"{interval_name()} CI: {'; '.join(parts)}. {why}.{caveat}")
     ours = "; ".join(f"{s}: {e.loc[(s, 'released'), 'difference']:+.2f} -> "
                      f"{e.loc[(s, 'reversed'), 'difference']:+.2f}" for s in semantics)
     return Verdict(ours, verdict, detail, scale_of(path))
@@ -103,7 +106,7 @@ CLAIMS = [
     Claim("X4", "C9's degradation (FS-1, T_health 2.9999) survives reversing, at one instant, a "
           "UAV's macro-action end and a fire's extinguishing",
           "C9: 1.937 vs 2.789 (the order is not discussed)",
-          "where the released order degrades (95% bootstrap CI of the ADR difference below 0), "
+          "where the released order degrades (95% CI of the ADR difference below 0), "
           "the reversed order's CI lies below 0 too; PARTIAL: in some semantics",
-          "make beyond-order", side_by_side(check_x4, LEARNER_READINGS)),
+          "make beyond-order", side_by_side(check_x4, LEARNER_READINGS), intervals=True),
 ]

@@ -1,21 +1,25 @@
 """C1-C5: the bus-holding claims, checked from the result CSVs of the bus drivers.
 
 A run's final return is the mean average return of its last ``final_epochs`` epochs (see
-``repro.experiments.bus_sweeps``); intervals are 95% stratified-bootstrap CIs over seeds of the IQM.
-The baselines are deterministic (one exact episode each), so they carry no interval. Verdicts:
+``repro.experiments.bus_sweeps``); intervals are 95% CIs over seeds of the IQM, of
+:func:`repro.claims.interval_kind`: the trimmed-mean t, or the drivers' (stratified) percentile
+bootstrap. The baselines are deterministic (one exact episode each), so they carry no interval.
+Verdicts:
 PASS when the intervals separate as the claim says, PARTIAL when only the point estimates do, FAIL
 otherwise.
 """
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
 
-from repro.core.io import read_result
-from repro.claims import (LEARNER_READINGS, Claim, IncompleteResult, Verdict, is_incomplete,
-                          scale_of, side_by_side)
-from repro.core.stats import bootstrap_ci, iqm
+from repro.core.io import read_provenance, read_result
+from repro.claims import (LEARNER_READINGS, Claim, IncompleteResult, Verdict, interval_kind,
+                          interval_name, is_incomplete, scale_of, side_by_side)
+from repro.core.stats import bootstrap_ci, interval, iqm
+from repro.experiments.bus_sweeps import final_returns
 from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_SHARE,
                                     UNIFORM_WINDOW_MIN, l1_per_point, load_variance_per_record,
@@ -35,7 +39,23 @@ def _summary(results: Path, sweep: str) -> tuple[pd.DataFrame, dict[str, float],
     path = results / f"bus_{sweep}_summary.csv"  # sweep: lambda or batch, then the suffix
     table = read_result(path)
     base = {p: float(table[table.policy == p].final_iqm.iloc[0]) for p in ("nohold", "thresholds")}
+    if interval_kind() == "t":
+        finals = _finals(results / f"bus_{sweep}.csv")
+        mlp = table.policy == "mlp"
+        limits = [interval([finals[(finals["lambda"] == lam) & (finals.batch == batch)]
+                            .final_return.to_numpy()], "iqm", "t")[1:]
+                  for lam, batch in zip(table["lambda"][mlp], table.batch[mlp])]
+        table = table.copy()
+        table.loc[mlp, ["ci_low", "ci_high"]] = limits
     return table, base, path
+
+
+def _finals(path: Path) -> pd.DataFrame:
+    """One row per run of a sweep's per-epoch table: its final return, as the driver computed it
+    (the epochs and final epochs its sidecar records)."""
+    cfg = read_provenance(path)["config"]
+    return final_returns(SimpleNamespace(epochs=cfg["epochs"], final_epochs=cfg["final_epochs"]),
+                         read_result(path))
 
 
 def _fmt(row: pd.Series) -> str:
@@ -51,26 +71,48 @@ def check_c1(results: Path, suffix: str = "") -> Verdict:
                  order and mlp.final_iqm > base["thresholds"])
     ours = (f"MLP {_fmt(mlp)} > thresholds {base['thresholds']:.0f} > no holding "
             f"{base['nohold']:.0f}")
-    return Verdict(ours, v, f"final return, IQM over {int(mlp.runs)} seeds with 95% bootstrap CI, "
+    return Verdict(ours, v, f"final return, IQM over {int(mlp.runs)} seeds with 95% "
+                   f"{interval_name()} CI, "
                    f"lambda = {PAPER_LAMBDA:g}; baselines exact", scale_of(path))
 
 
+def c2_intervals(scores: np.ndarray, thresholds: float) -> tuple[tuple[float, ...], ...]:
+    """C2's spread over lambda of the final-return IQM and the gap of the MLP (mean over lambdas
+    of the IQMs) to Optimized Thresholds, each (point, low, high); ``scores``: seeds x lambdas.
+
+    Percentile: a stratified bootstrap (lambda = stratum). t: from every lambda's trimmed-mean t
+    interval at level 1 - 0.05 / k (Bonferroni over k lambdas, so that all k hold together with
+    95%): the spread lies within [max low - min high, max high - min low], the gap within the means
+    of the limits less the thresholds' return."""
+    if interval_kind() == "percentile":
+        rng = np.random.default_rng(0)
+        return (bootstrap_ci(scores, lambda x: np.ptp(iqm(x, axis=0)), rng=rng),
+                bootstrap_ci(scores, lambda x: iqm(x, axis=0).mean() - thresholds, rng=rng))
+    k = scores.shape[1]
+    point, lo, hi = np.array([interval([x], "iqm", "t", confidence=1 - 0.05 / k)
+                              for x in scores.T]).T
+    return ((float(np.ptp(point)), max(0.0, float(lo.max() - hi.min())),
+             float(hi.max() - lo.min())),
+            (float(point.mean() - thresholds), float(lo.mean() - thresholds),
+             float(hi.mean() - thresholds)))
+
+
 def check_c2(results: Path, suffix: str = "") -> Verdict:
-    """Spread of the final-return IQM over lambda vs the gap of the MLP (mean over lambdas of the
-    IQMs) to Optimized Thresholds, both with stratified bootstrap CIs (lambda = stratum)."""
+    """Spread of the final-return IQM over lambda vs the gap of the MLP to Optimized Thresholds,
+    with the intervals of :func:`c2_intervals`."""
     table, base, path = _summary(results, f"lambda{suffix}")
     runs = table[table.policy == "mlp-run"]
     scores = np.stack([g.final_iqm.to_numpy() for _, g in runs.groupby("lambda")], axis=1)
-    rng = np.random.default_rng(0)
-    spread = bootstrap_ci(scores, lambda x: np.ptp(iqm(x, axis=0)), rng=rng)
-    gap = bootstrap_ci(scores, lambda x: iqm(x, axis=0).mean() - base["thresholds"], rng=rng)
+    spread, gap = c2_intervals(scores, base["thresholds"])
     ours = (f"spread over lambda {spread[0]:.0f} [{spread[1]:.0f}, {spread[2]:.0f}] vs gap to "
             f"thresholds {gap[0]:.0f} [{gap[1]:.0f}, {gap[2]:.0f}]")
     return Verdict(ours, _verdict(spread[2] < gap[1], spread[0] < gap[0]),
                    "range over lambda in "
                    f"{{{', '.join(f'{x:g}' for x in sorted(runs['lambda'].unique()))}}} "
                    "of the final-return "
-                   f"IQM, {scores.shape[0]} seeds each", scale_of(path))
+                   f"IQM, {scores.shape[0]} seeds each, 95% {interval_name()} CIs"
+                   + (" (Bonferroni over the lambdas)" if interval_kind() == "t" else ""),
+                   scale_of(path))
 
 
 def check_c3(results: Path, suffix: str = "") -> Verdict:
@@ -84,7 +126,8 @@ def check_c3(results: Path, suffix: str = "") -> Verdict:
                                   first.final_iqm < last.final_iqm),
                    "final-return IQM per batch size (decisions per epoch for the authors' "
                    "learner, episodes for the suite's) at lambda = 2; PASS needs a "
-                   "monotone rise and separated CIs of the smallest and largest batch",
+                   "monotone rise and separated 95% "
+                   f"{interval_name()} CIs of the smallest and largest batch",
                    scale_of(path))
 
 def load_distances(loads: pd.DataFrame) -> dict[str, float]:
@@ -153,14 +196,15 @@ CLAIMS = [
     Claim("C1", "PS-TRPO + M-GAE (MLP) beats Optimized Thresholds beats No Holding",
           "MLP > thresholds > no holding",
           "ordering holds with bootstrap CIs over seeds", "make fig-bus-lambda",
-          side_by_side(check_c1, LEARNER_READINGS), where="Figs. 2, 3"),
+          side_by_side(check_c1, LEARNER_READINGS), where="Figs. 2, 3", intervals=True),
     Claim("C2", "lambda matters little next to the MLP-thresholds gap", "spread over lambda small",
           "spread over lambda < gap MLP - thresholds",
-          "make fig-bus-lambda", side_by_side(check_c2, LEARNER_READINGS), where="Fig. 2"),
+          "make fig-bus-lambda", side_by_side(check_c2, LEARNER_READINGS), where="Fig. 2",
+          intervals=True),
     Claim("C3", "smaller batches converge worse",
           "return after E epochs rises with batch size",
           "monotone in batch size", "make fig-bus-batch", side_by_side(check_c3, LEARNER_READINGS),
-          where="Fig. 3"),
+          where="Fig. 3", intervals=True),
     Claim("C4", "No Holding bunches the fleet: a full leader, empty followers",
           "leader loads 50, 64, 60, 75, ... and followers 0 (records 40-50)", "exact",
           "make fig-bus-load", side_by_side(check_c4, LEARNER_READINGS), where="Fig. 5a"),

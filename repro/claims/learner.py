@@ -9,7 +9,9 @@ from pathlib import Path
 import pandas as pd
 
 from repro.core.io import read_result
-from repro.claims import Claim, Verdict, at_most_partial, is_incomplete, scale_of
+from repro.claims import (Claim, Verdict, at_most_partial, interval_name, is_incomplete,
+                          scale_of, with_difference_intervals)
+from repro.claims.wildfire import C9_PAIR
 from repro.experiments.c9_inputs import NAME as INPUTS
 from repro.experiments.learner_ablation import NAME as ABLATION
 from repro.experiments.transfer import PAPER, distance_in_se
@@ -28,14 +30,16 @@ def check_x5(results: Path) -> Verdict:
     normalisation on: PASS when its CI lies below 0 as it does without; FAIL when it does not."""
     path = results / f"{ABLATION}_c9.csv"
     e = read_result(path)
-    e = e[e.protocol == "final policy"].set_index("setting")
+    e = with_difference_intervals(e[e.protocol == "final policy"],
+                                  results / f"{ABLATION}.csv", ["setting"],
+                                  C9_PAIR).set_index("setting")
     row, base = e.loc[X5_SETTING], e.loc["authors"]
     verdict = "PASS" if row.degrades else "FAIL"
     verdict, caveat = at_most_partial(verdict, int(e.n_policies.min()))
     parts = [f"{k}: {r.difference:+.3f} [{r.ci_low:+.3f}, {r.ci_high:+.3f}]"
              for k, r in e.iterrows()]
     detail = (f"C9's degradation (mean ADR on ED of FS-1 trained with T_health 2.9999 minus "
-              f"FS-1 with 3.0, final policies, 95% stratified bootstrap CI) per learner setting, "
+              f"FS-1 with 3.0, final policies, 95% {interval_name()} CI) per learner setting, "
               f"from the authors' learner on the simulator of 2017-04-22: {'; '.join(parts)}. "
               f"Without normalisation it {'degrades' if base.degrades else 'does not degrade'}."
               f"{caveat}")
@@ -152,6 +156,6 @@ CLAIMS = [
     Claim("X5", "C9's degradation is a property of the fixed time step, not of the learner: it "
           "survives observation normalisation",
           "C9: 1.937 vs 2.789 (the paper's learner has no normalisation)",
-          "with normalisation on, the 95% bootstrap CI of FS-1 (2.9999) minus FS-1 lies below 0",
-          "make learner-ablation", check_x5, where="Fig. 7"),
+          "with normalisation on, the 95% CI of FS-1 (2.9999) minus FS-1 lies below 0",
+          "make learner-ablation", check_x5, where="Fig. 7", intervals=True),
 ]
