@@ -15,7 +15,7 @@ from typing import Any
 from repro.core.config import flat_settings, read_config_file
 from repro.core.errors import UsageError, WorkerDied, require
 from repro.core.io import check_names, release_results
-from repro.experiments.options import default_folders
+from repro.experiments.options import default_folders, note_scale_departures
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
@@ -186,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
             if isinstance(getattr(args, dest, None), str):
                 check_names(getattr(args, dest), "--" + dest.replace("_", "-"))
         default_folders(args)
+        note_scale_departures(module, parser, args)
         return int(module.run(args) or 0)
     except UsageError as err:
         if err.param in keys:  # a bad value from the --config file: named by its key there

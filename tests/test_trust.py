@@ -262,6 +262,57 @@ def test_results_of_a_larger_scale_are_replaced_only_when_told(tmp_path, capsys)
     assert not (res / RESULTS_LOCK).exists()
 
 
+PAPER_BUT = ("race", "--scale", "paper", "--n-sets", "10", "--exact-n", "2", "3",
+             "--bisection-steps", "3", "--distributions", "exponential", "--no-figure")
+"""A run asked at the paper scale with settings of its own."""
+
+
+def test_a_paper_scale_run_with_settings_of_its_own_is_no_paper_scale_run(tmp_path, capsys):
+    """It does not replace paper-scale results (refused before any work, naming the settings
+    that differ), and where it writes, its sidecars record the scale "custom" and why."""
+    res = tmp_path / "paper"
+    res.mkdir()
+    for name in ("table_race", "race_exact"):
+        for ext in (".csv", ".provenance.json"):
+            shutil.copy(ROOT / "results" / "paper" / (name + ext), res)
+    before = tree_snapshot(res)
+    assert _main([*PAPER_BUT, "--results-dir", str(res)]) == 2
+    line = _one_line(capsys, "--results-dir")
+    assert "custom: --n-sets, --distributions, --bisection-steps, --exact-n differ" in line
+    assert tree_snapshot(res) == before
+    assert _main([*PAPER_BUT, "--results-dir", str(tmp_path / "elsewhere")]) == 0
+    prov = read_provenance(tmp_path / "elsewhere" / "table_race.csv")
+    assert prov["scale"] == "custom" and prov["departs_from_scale"] == {
+        "scale": "paper", "options": ["--n-sets", "--distributions", "--bisection-steps",
+                                      "--exact-n"]}
+
+
+def _departures(command: str, *argv: str) -> list[str]:
+    import importlib
+
+    from repro.cli import COMMANDS, OneLineParser
+    from repro.experiments.options import scale_departures
+
+    module = importlib.import_module(COMMANDS[command][0])
+    parser = OneLineParser(prog=command)
+    module.add_arguments(parser)
+    return scale_departures(parser, parser.parse_args(argv), getattr(module, "VARIANTS", ()))
+
+
+def test_the_settings_of_a_run_are_compared_with_its_scales():
+    """A flag given with the scale's own value, or one that chooses another study (its own
+    result files), leaves a run at its scale; a subset of the study's simulators does not."""
+    from repro.experiments.race import RaceConfig
+
+    paper_sets = str(RaceConfig.SCALES["paper"].get("n_sets", RaceConfig.n_sets))
+    assert _departures("race", "--scale", "paper", "--n-sets", paper_sets) == []
+    assert _departures("race", "--scale", "paper", "--n-sets", "10") == ["--n-sets"]
+    assert _departures("fig-transfer", "--scale", "paper", "--sim-version", "2017-04-22",
+                       "--learner", "suite", "--n-jobs", "2", "--seed", "0") == []
+    assert _departures("fig-transfer", "--scale", "paper", "--simulator", "ED") == [
+        "--simulator"]
+
+
 def test_a_smaller_scale_run_may_write_beside_nothing_larger(tmp_path):
     _pair(tmp_path, "a.csv", scale="smoke")
     _pair(tmp_path, "a.csv", scale="paper")  # larger replaces smaller

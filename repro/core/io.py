@@ -17,6 +17,10 @@ A result is a pair, a CSV and its sidecar, and the pair is trusted only whole:
 - **Provenance guards results, not folder names.** A run never replaces a result whose sidecar
   records a larger scale (smoke < quick < paper) unless told to (``--overwrite``); a driver checks
   its results folder for such results before any work.
+- **The paper scale is what was run, not what was asked.** A run started with ``--scale paper``
+  and settings of its own (``race --scale paper --n-sets 10``) records the scale ``custom``
+  (:func:`run_scale`), below every scale: it neither replaces paper-scale results nor counts as
+  one for the claims.
 
 Figures are guarded the same way. A figure is ``<stem>.png`` and ``<stem>.pdf`` with a sidecar,
 ``<stem>.provenance.json``, that records both files' SHA-256, the result CSVs it was drawn from
@@ -343,12 +347,14 @@ def provenance(config: Any, *, command: str, scale: str | None, seed: int | None
 
     rec = {
         "command": command,
-        "scale": scale,
+        "scale": run_scale(scale),
         "seed": seed,
         "config": to_dict(config) if hasattr(config, "__dataclass_fields__") else config,
         "wall_seconds": round(wall_seconds, 3),
         **run_record(),
     }
+    if rec["scale"] == CUSTOM:
+        rec["departs_from_scale"] = {"scale": scale, "options": list(_departures)}
     if _trained_under:
         rec["trained_under"] = [_trained_under[key] for key in sorted(_trained_under)]
     if extra:
@@ -405,6 +411,32 @@ _figures_held: dict[Path, bool] = {}
 its figures may replace larger-scale ones."""
 
 
+CUSTOM = "custom"
+"""The scale a run records that was started at the paper scale with settings of its own."""
+_departures: list[str] = []
+"""The options by which this process's run departs from its ``--scale``
+(:func:`note_departures`)."""
+
+
+def note_departures(flags: Sequence[str]) -> None:
+    """Note that this process's run departs from its ``--scale`` by the options ``flags`` (the CLI
+    notes them before a driver runs; :func:`release_results` forgets them)."""
+    _departures[:] = list(flags)
+
+
+def run_scale(scale: str | None) -> str | None:
+    """The scale this process's results are of: ``scale``, or :data:`CUSTOM` where that is the
+    paper scale and the run departs from its settings (:func:`note_departures`)."""
+    return CUSTOM if scale == SCALES[-1] and _departures else scale
+
+
+def _scale_text(scale: str | None) -> str:
+    """A run's scale as a refusal names it, with what made a paper-scale run a custom one."""
+    if scale == CUSTOM and _departures:
+        return f"{CUSTOM}: {', '.join(_departures)} differ from the {SCALES[-1]} scale's"
+    return str(scale)
+
+
 def scale_rank(scale: Any) -> int:
     """The order of ``scale`` among :data:`~repro.core.config.SCALES` (-1 for none or unknown)."""
     return SCALES.index(scale) if scale in SCALES else -1
@@ -458,8 +490,8 @@ def _refuse_larger(larger: list[tuple[str, str]], scale: str | None, param: str,
         name, theirs = larger[0]
         more = f" and {len(larger) - 1} more" if len(larger) > 1 else ""
         raise UsageError(param, f"a folder without {what} of a larger scale than this run's "
-                         f"({scale}): it holds {theirs}-scale {name}{more} (--overwrite replaces "
-                         "them)", str(path))
+                         f"({_scale_text(scale)}): it holds {theirs}-scale {name}{more} "
+                         "(--overwrite replaces them)", str(path))
 
 
 def open_figures(path: str | Path, param: str, *, scale: str | None, overwrite: bool = False,
@@ -475,7 +507,7 @@ def open_figures(path: str | Path, param: str, *, scale: str | None, overwrite: 
         require(folder.resolve() != Path(results).resolve(), param, "a folder other than "
                 "--results-dir (a figure's sidecar, <stem>.provenance.json, has the name of its "
                 "result's)", str(path))
-    key = folder.resolve()
+    key, scale = folder.resolve(), run_scale(scale)
     with ExitStack() as stack:
         if key not in _figures_held:
             stack.callback(_remove_empty, _missing(folder))  # after the lock file is gone
@@ -495,7 +527,7 @@ def open_results(path: str | Path, param: str, *, scale: str | None,
     if it holds results of a larger scale than ``scale`` and ``overwrite`` is not given. A folder
     this creates is removed again on release if nothing was written into it."""
     folder = check_writable_dir(path, param)
-    key = folder.resolve()
+    key, scale = folder.resolve(), run_scale(scale)
     if key in _held:
         _held[key] = _held[key] or overwrite
         return folder
@@ -511,11 +543,13 @@ def open_results(path: str | Path, param: str, *, scale: str | None,
 
 def release_results() -> None:
     """Let go of every results folder this process holds (:func:`open_results`), and forget the
-    figures folders it opened (:func:`open_figures`) and the kernels its runs were trained under
-    (:func:`note_trained_under`)."""
+    figures folders it opened (:func:`open_figures`), the kernels its runs were trained under
+    (:func:`note_trained_under`) and how its run departs from its scale
+    (:func:`note_departures`)."""
     _held.clear()
     _figures_held.clear()
     _trained_under.clear()
+    _departures.clear()
     _session.close()
 
 

@@ -143,6 +143,11 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
     return table
 
 
+VARIANTS = ("env",)
+"""The option that chooses the environment benchmarked, not the benchmark's settings
+(:func:`repro.experiments.options.scale_departures`)."""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     p.add_argument("--env", default="toy", help="environment: " + ", ".join(BUILT_IN)

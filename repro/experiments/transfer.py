@@ -352,6 +352,10 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem, sources)
 
 
+VARIANTS = ("corrected", "no_quirk", *QUIRKS, "sim_version", "no_fire_out_first")
+"""Options that choose the study, each writing result files of its own (``transfer_corrected*``,
+``*_no_q3*``, ``*_20170422``, ``*_no_fire_out_first``), not its settings
+(:func:`repro.experiments.options.scale_departures`)."""
 SIZES = ("seeds", "epochs", "test_episodes")
 """The TransferConfig fields that every study of the transfer family takes as flags, besides the
 learner and its batch sizes (:func:`repro.learn.config.add_study_learner_arguments`)."""

@@ -234,6 +234,9 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
 
 
 FLAGS = ("seeds", "epochs", "sim_version", "test_episodes", "max_decisions")
+VARIANTS = ("sim_version",)
+"""The option that chooses the study (``*_20170422``), not its settings
+(:func:`repro.experiments.options.scale_departures`)."""
 """The BehaviourConfig fields the study takes as flags, besides the learner and its batch sizes
 (:func:`repro.learn.config.add_study_learner_arguments`)."""
 
