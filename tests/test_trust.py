@@ -481,11 +481,33 @@ SIXTEEN_GIB = 16 << 30
     (["fig-bus-arrivals", "--scale", "smoke", "--policies", "nohold", "--thresholds", "nan",
       "nan", "nan"], "--thresholds"),
     (["render", "--policy", "nearest", "--out", "/proc/a.gif"], "--out"),
+    *[([command, *rest, flag, str(10**40)], flag) for command, rest, flag in [
+        ("fig-transfer", ["--scale", "smoke"], "--seeds"),
+        ("fig-transfer", ["--scale", "smoke"], "--n-jobs"),
+        ("fig-transfer", ["--scale", "smoke"], "--epochs"),
+        ("fig-transfer", ["--scale", "smoke"], "--test-episodes"),
+        ("fig-transfer", ["--scale", "smoke"], "--seed"),
+        ("bench-bus", ["--scale", "smoke"], "--repeats"),
+        ("render", ["--policy", "nearest", "--out", "a.gif"], "--fps"),
+        ("render", ["--policy", "nearest", "--out", "a.gif"], "--frames"),
+        ("race", ["--scale", "smoke"], "--bisection-steps"),
+        ("bus-thresholds", ["--scale", "smoke"], "--popsize"),
+        ("wildfire-eval", ["--policy", "nearest"], "--max-decisions"),
+        ("train", ["--env", "wildfire", "--scale", "smoke"], "--epochs"),
+    ]],
+    (["beyond-races", "--scale", "smoke", "--log10-dt-step", "inf"], "--log10-dt-step"),
+    (["train", "--env", "bus", "--scale", "smoke", "--epoch", "2"], "--epoch"),
+    (["bus-eval", "--policy", "mlp", "--learner", "/../../TRAV"], "--learner"),
+    (["fig-bus-load", "--scale", "smoke", "--learner", "/../../TRAV"], "--learner"),
+    (["fig-bus-arrivals", "--scale", "smoke", "--learner", "/../../TRAV"], "--learner"),
+    (["fig-bus-lambda", "--scale", "smoke", "--runs-dir", ""], "--runs-dir"),
 ])
 def test_sizes_the_machine_cannot_hold_are_refused_up_front(argv, param, tmp_path, monkeypatch,
                                                              capsys):
     """Memory estimates are checked against 16 GiB here, whatever this machine has, so that the
-    probe's sizes are refused alike everywhere; nothing runs, nothing is written."""
+    probe's sizes are refused alike everywhere; sizes far beyond any study's (10^40), options
+    abbreviated, a learner that is none and an empty folder name are refused too; nothing runs,
+    nothing is written."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(memory, "available_memory", lambda: SIXTEEN_GIB)
     t0 = time.perf_counter()
@@ -496,6 +518,14 @@ def test_sizes_the_machine_cannot_hold_are_refused_up_front(argv, param, tmp_pat
         assert "16.0 GiB available" in line
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]
 
+
+
+def test_a_config_file_gives_a_folder_as_text_only(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "c.json").write_text('{"results_dir": 5}')
+    assert _main([*RACE, "--config", "c.json"]) == 2
+    assert "c.json: results_dir: must be a string" in _one_line(capsys, "results_dir")
+    assert [p.name for p in tmp_path.iterdir()] == ["c.json"]
 
 def test_the_sizes_of_the_paper_scale_fit():
     """The estimates are lower bounds: nothing the paper's scale asks for comes near a limit."""
