@@ -17,6 +17,9 @@ A result is a pair, a CSV and its sidecar, and the pair is trusted only whole:
 - **Provenance guards results, not folder names.** A run never replaces a result whose sidecar
   records a larger scale (smoke < quick < paper) unless told to (``--overwrite``); a driver checks
   its results folder for such results before any work.
+- **Provenance is written once.** A sidecar is never edited after its run; a later correction
+  of one of its fields is a separate, dated note beside it, ``<stem>.correction-<date>.json``
+  (:func:`write_correction`), and :func:`shown_provenance` shows the sidecar with its notes.
 - **The paper scale is what was run, not what was asked.** A run started with ``--scale paper``
   and settings of its own (``race --scale paper --n-sets 10``) records the scale ``custom``
   (:func:`run_scale`), below every scale: it neither replaces paper-scale results nor counts as
@@ -196,7 +199,7 @@ def figure_sidecar(stem: str | Path) -> Path:
 def source_records(sources: Sequence[str | Path]) -> list[dict[str, Any]]:
     """What a figure's sidecar records of each result CSV it was drawn from: its path, the hash
     its sidecar records (or, for a sidecar without one, the hash of its bytes), and its sidecar's
-    scale, command and commit."""
+    scale, command and commit, with the sidecar's correction notes (:func:`write_correction`)."""
     out = []
     for source in sources:
         source = Path(source)
@@ -207,7 +210,8 @@ def source_records(sources: Sequence[str | Path]) -> list[dict[str, Any]]:
         prov = prov if isinstance(prov, dict) else {}
         digest = prov.get(CSV_HASH) or hashlib.sha256(source.read_bytes()).hexdigest()
         out.append({"csv": str(source), CSV_HASH: digest, "scale": prov.get("scale"),
-                    "command": prov.get("command"), "git_commit": prov.get("git_commit")})
+                    "command": prov.get("command"), "git_commit": prov.get("git_commit"),
+                    **_corrections(source)})
     return out
 
 
@@ -627,6 +631,47 @@ def read_result(result: str | Path) -> pd.DataFrame:
     if not side.exists():
         raise FileNotFoundError(errno.ENOENT, "missing", str(side))
     raise FileNotFoundError(errno.ENOENT, "not the CSV its sidecar describes", str(result))
+
+
+CORRECTION = "{stem}.correction-{date}.json"
+"""A correction note's name, beside the result ``<stem>.csv``; ``date``: YYYY-MM-DD."""
+
+
+def correction_paths(result: str | Path) -> list[Path]:
+    """The correction notes of ``result``'s sidecar, oldest first."""
+    result = Path(result)
+    return sorted(result.parent.glob(CORRECTION.format(stem=result.stem, date="*")))
+
+
+def write_correction(result: str | Path, field: str, value: Any, reason: str,
+                     date: str | None = None) -> Path:
+    """Record that the sidecar of ``result`` holds a wrong ``field``, which should read ``value``,
+    and why, in a new note dated ``date`` (default today, UTC); the sidecar stays as its run
+    wrote it. A note is written once: UsageError if the field is not in the sidecar, or a note of
+    that date exists."""
+    prov = read_provenance(result)
+    require(field in prov, "field", "a field of the sidecar: " + ", ".join(sorted(prov)), field)
+    date = date or time.strftime("%Y-%m-%d", time.gmtime())
+    note = Path(result).with_name(CORRECTION.format(stem=Path(result).stem, date=date))
+    require(not note.exists(), "date", "a date without a correction note of this result yet",
+            str(note))
+    write_json(note, {"corrects": sidecar_path(result).name, "date": date, "field": field,
+                      "recorded": prov[field], "value": value, "reason": reason})
+    return note
+
+
+def _corrections(result: str | Path) -> dict[str, Any]:
+    """``{"corrections": [note, ...]}`` of ``result``'s correction notes, oldest first; empty if
+    it has none."""
+    notes = [json.loads(path.read_text()) for path in correction_paths(result)]
+    return {"corrections": notes} if notes else {}
+
+
+def shown_provenance(result: str | Path) -> dict[str, Any]:
+    """The sidecar of ``result`` as its run wrote it, with its correction notes under
+    ``corrections`` where it has any: a reader sees both the recorded and the corrected value of
+    a field."""
+    return {**read_provenance(result), **_corrections(result)}
 
 
 def read_provenance(result: str | Path) -> dict[str, Any]:
