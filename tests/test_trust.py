@@ -358,6 +358,22 @@ def _wrong_layer(s):
     s["policy"]["net.0.bias"] = torch.zeros(16)  # its weight has a row per hidden unit
 
 
+def _extra_action(s):
+    """Consistent in itself, but for 7 actions where the wildfire has 6."""
+    last = f"net.{2 * len(s['run_config']['train']['hidden'])}"
+    s["policy"][f"{last}.weight"] = torch.cat([s["policy"][f"{last}.weight"],
+                                               s["policy"][f"{last}.weight"][:1]])
+    s["policy"][f"{last}.bias"] = torch.cat([s["policy"][f"{last}.bias"],
+                                             s["policy"][f"{last}.bias"][:1]])
+
+
+def _weights_as(dtype):
+    """The damage: the policy's weights saved in ``dtype`` (trained: float32)."""
+    def damage(s):
+        s["policy"] = {k: v.to(dtype) for k, v in s["policy"].items()}
+    return damage
+
+
 DAMAGE = {
     "missing policy": lambda s: s.pop("policy"),
     "wrong layer shape": _wrong_layer,
@@ -370,6 +386,11 @@ DAMAGE = {
     "Inf variance": _inf_variance,
     "negative epoch": lambda s: s.update(epoch=-3),
     "epoch not a number": lambda s: s.update(epoch="1"),
+    "epoch beyond the run": lambda s: s.update(epoch=10**30),
+    "an entry of its own": lambda s: s.update(notes="hello"),
+    "one action more": _extra_action,
+    **{f"{dtype} weights": _weights_as(dtype)
+       for dtype in (torch.float16, torch.float64, torch.int64, torch.bool, torch.complex64)},
 }
 
 
@@ -393,11 +414,58 @@ def test_a_damaged_checkpoint_is_refused_in_one_line_everywhere(damage, wildfire
     assert _main(["bench-wildfire", "--scale", "smoke", "--checkpoint", str(run / CHECKPOINT),
                   "--results-dir", str(tmp_path / "res")]) == 2
     _one_line(capsys, "--checkpoint")
-    if damage != "other input size":  # whole in itself: only an environment tells
+    if damage not in ("other input size", "one action more"):  # only an environment tells
         with pytest.raises(UsageError):
             policy_from_checkpoint(run / CHECKPOINT, np.random.default_rng(0))
     assert tree_snapshot(run) == before
     assert not (tmp_path / "a.gif").exists() and not (tmp_path / "res").exists()
+
+
+@pytest.mark.parametrize("epochs", [1, 2])
+def test_a_checkpoint_set_back_is_refused_before_the_run_changes(epochs, wildfire_run, tmp_path,
+                                                                  capsys):
+    """Its epoch set back to 0 in a finished run of one epoch: a resume would cut progress.csv
+    and train again; refused in one line, the folder as it was. An acting command takes it (its
+    epoch is within progress.csv), one beyond progress.csv is refused by all of them."""
+    run = tmp_path / "run"
+    shutil.copytree(wildfire_run, run)
+    state = load_checkpoint(run / CHECKPOINT)
+    save_checkpoint(run / CHECKPOINT, {**state, "epoch": 0})
+    before = tree_snapshot(run)
+    capsys.readouterr()
+    assert _main([*TRAIN, "--epochs", str(epochs), "--out", str(run)]) == 2
+    assert "holds the 1 epochs its last call finished with" in _one_line(capsys, "--out")
+    assert tree_snapshot(run) == before
+    kept = state_problem({k: state[k] for k in ("epoch", "policy", "normalizer", "run_config")})
+    assert kept is None
+    save_checkpoint(run / CHECKPOINT, {**state, "run_config": {
+        **state["run_config"], "train": {**state["run_config"]["train"], "epochs": 5}},
+        "epoch": 3})
+    assert _main(["render", "--policy", "checkpoint", str(run / CHECKPOINT),
+                  "--out", str(tmp_path / "a.gif")]) == 2
+    assert "whose epoch (3) its run's progress.csv holds" in _one_line(capsys, "--policy")
+
+
+def test_a_studys_damaged_run_is_refused_naming_runs_dir(wildfire_run, tmp_path):
+    """A sweep's finished run whose checkpoint is damaged, or acts on another number of actions,
+    is refused in one line naming --runs-dir (not train's --out), before a study tests it."""
+    from repro.envs.wildfire import WildfireConfig
+    from repro.experiments.transfer import score_policy
+    from repro.learn.run_folder import is_finished
+
+    run = tmp_path / "run"
+    shutil.copytree(wildfire_run, run)
+    state = load_checkpoint(run / CHECKPOINT)
+    _extra_action(state)
+    save_checkpoint(run / CHECKPOINT, state)
+    assert is_finished(run, 1)  # whole in itself: only the environment tells
+    with pytest.raises(UsageError, match="--runs-dir: .*7 actions, the environment 6"):
+        score_policy(WildfireConfig(), (run / CHECKPOINT).read_bytes(), [], 1, 0,
+                     np.random.SeedSequence(0))
+    _nan_weight(state)
+    save_checkpoint(run / CHECKPOINT, state)
+    with pytest.raises(UsageError, match="^--runs-dir: .*NaN"):
+        is_finished(run, 1)
 
 
 def test_a_whole_checkpoint_still_resumes(wildfire_run, tmp_path, monkeypatch):
