@@ -514,7 +514,6 @@ def open_figures(path: str | Path, param: str, *, scale: str | None, overwrite: 
     key, scale = folder.resolve(), run_scale(scale)
     with ExitStack() as stack:
         if key not in _figures_held:
-            stack.callback(_remove_empty, _missing(folder))  # after the lock file is gone
             stack.enter_context(folder_lock(folder, FIGURES_LOCK, param, "a figures folder"))
         if not overwrite:
             _refuse_larger(larger_figures(folder, scale), scale, param, path, "figures")
@@ -536,7 +535,6 @@ def open_results(path: str | Path, param: str, *, scale: str | None,
         _held[key] = _held[key] or overwrite
         return folder
     with ExitStack() as stack:
-        stack.callback(_remove_empty, _missing(folder))  # after the lock file is gone
         stack.enter_context(folder_lock(folder, RESULTS_LOCK, param, "a results folder"))
         if not overwrite:
             _refuse_larger(larger_results(folder, scale), scale, param, path)
@@ -555,23 +553,6 @@ def release_results() -> None:
     _trained_under.clear()
     _departures.clear()
     _session.close()
-
-
-def _missing(folder: Path) -> list[Path]:
-    """``folder`` and its ancestors that do not exist yet, deepest first."""
-    out = []
-    while not folder.exists() and folder.parent != folder:
-        out.append(folder)
-        folder = folder.parent
-    return out
-
-
-def _remove_empty(folders: list[Path]) -> None:
-    for folder in folders:
-        try:
-            folder.rmdir()
-        except OSError:  # something was written there (or it went already)
-            return
 
 
 def csv_bytes(frame: pd.DataFrame) -> bytes:
