@@ -15,7 +15,7 @@ from typing import Any
 from repro.core.config import flat_settings, read_config_file
 from repro.core.errors import UsageError, WorkerDied, require
 from repro.core.io import check_names, release_results
-from repro.experiments.options import default_folders
+from repro.experiments.options import default_folders, note_scale_departures
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
@@ -73,6 +73,30 @@ PATH_OPTIONS = ("out", "results_dir", "figures_dir", "runs_dir", "checkpoint", "
 """Options that name a file or folder (by their ``args`` names): checked for length and encoding
 before a command runs, whichever of them it has."""
 
+SIZE_LIMITS = {
+    "seeds": 1000, "n_jobs": 1024, "epochs": 10**6, "final_epochs": 10**6,
+    "test_episodes": 10**7, "episodes": 10**7, "fast_episodes": 10**7,
+    "reference_episodes": 10**7, "repeats": 10**4, "fps": 1000, "frames": 10**5,
+    "bisection_steps": 1000, "popsize": 10**5, "maxiter": 10**5, "max_decisions": 10**7,
+}
+"""The largest value of each size option (by its ``args`` name), checked before a command runs:
+far above any study's (the paper scale's largest is 2,000 test episodes, 500 epochs, 20 seeds)
+and below what would run for years or overflow a counter. Every other integer option, the seed
+included, is at most :data:`INT64_MAX` (numpy's and numba's integers)."""
+INT64_MAX = 2**63 - 1
+
+
+def check_sizes(args: argparse.Namespace) -> None:
+    """Refuse (UsageError naming the flag) an integer option above its :data:`SIZE_LIMITS` entry,
+    or any above :data:`INT64_MAX`, one value at a time for a list."""
+    for dest, value in vars(args).items():
+        values = value if isinstance(value, (list, tuple)) else [value]
+        limit = SIZE_LIMITS.get(dest, INT64_MAX)
+        for v in values:
+            if isinstance(v, int) and not isinstance(v, bool):
+                require(v <= limit, "--" + dest.replace("_", "-"), f"an integer <= {limit:,}",
+                        v if v < 10**20 else f"{str(v)[:6]}... ({len(str(v))} digits)")
+
 
 def file_argv(parser: argparse.ArgumentParser, settings: dict[str, Any], argv: list[str],
               path: str, partial: bool = False) -> tuple[list[str], dict[str, str]]:
@@ -120,6 +144,8 @@ def _tokens(action: argparse.Action, option: str, value: Any, param: str) -> lis
     allowed = getattr(action.type, "allowed", f"a value {option} takes")
     for v in values:
         require(not isinstance(v, (bool, dict, list)), param, allowed, v)
+        # an option of text (a path, a name) takes text only: the number 5 is no folder name
+        require(action.type is not None or isinstance(v, str), param, "a string", v)
         try:
             parsed = v if action.type is None else action.type(str(v))
         except (ValueError, TypeError, argparse.ArgumentTypeError):
@@ -132,7 +158,11 @@ def _tokens(action: argparse.Action, option: str, value: Any, param: str) -> lis
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """argparse whose errors are one line on stderr and exit status 2."""
+    """argparse whose errors are one line on stderr and exit status 2, and which takes no
+    abbreviation of an option (``--epoch 2`` is refused, not taken for ``--epochs 2``)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, allow_abbrev=False, **kwargs)
 
     def error(self, message: str) -> None:  # type: ignore[override]
         print(f"{self.prog}: error: {message}", file=sys.stderr)
@@ -184,10 +214,15 @@ def main(argv: list[str] | None = None) -> int:
         # every seed becomes a numpy SeedSequence, which takes no negative entropy
         if getattr(args, "seed", None) is not None and args.seed < 0:
             raise UsageError("--seed", "an integer >= 0", args.seed)
+        check_sizes(args)
         for dest in PATH_OPTIONS:
             if isinstance(getattr(args, dest, None), str):
-                check_names(getattr(args, dest), "--" + dest.replace("_", "-"))
+                param = "--" + dest.replace("_", "-")
+                require(getattr(args, dest).strip() != "", param, "a path (not empty)",
+                        getattr(args, dest))
+                check_names(getattr(args, dest), param)
         default_folders(args)
+        note_scale_departures(module, parser, args)
         return int(module.run(args) or 0)
     except UsageError as err:
         if err.param in keys:  # a bad value from the --config file: named by its key there

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -14,8 +15,9 @@ from repro.claims.bus import check_c4, load_distances
 from repro.cli import main
 
 
-def _repro(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "repro", *args], capture_output=True, text=True)
+def _repro(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "repro", *args], capture_output=True, text=True,
+                          cwd=cwd)
 
 
 @pytest.fixture(scope="module")
@@ -105,13 +107,17 @@ def test_bad_input(args, param, tmp_path):
 
 
 def test_mlp_run_of_another_environment_is_refused(tmp_path):
+    """Refused in one line, nothing written: run in a folder of its own, whose only entry is the
+    toy run (the default figures folder, figures/quick, is relative to it)."""
     run = tmp_path / "toy"
     assert main(["train", "--env", "toy", "--scale", "smoke", "--out", str(run)]) == 0
-    for cmd in (["bus-eval", "--policy", "mlp"], ["fig-bus-load", "--policies", "mlp"]):
-        proc = _repro(*cmd, "--mlp-run", str(run), "--results-dir", str(tmp_path / "r"))
+    for cmd in (["bus-eval", "--policy", "mlp"], ["fig-bus-load", "--policies", "mlp"],
+                ["fig-bus-load", "--policies", "mlp", "--figures-dir", str(tmp_path / "f")]):
+        proc = _repro(*cmd, "--mlp-run", str(run), "--results-dir", str(tmp_path / "r"),
+                      cwd=tmp_path)
         assert proc.returncode == 2 and "error: --mlp-run: must be the checkpoint.pt of a bus" \
             in proc.stderr, proc.stderr
-    assert not (tmp_path / "r").exists()
+        assert list(tmp_path.iterdir()) == [run], cmd
 
 
 def test_missing_thresholds_file(tmp_path):

@@ -3,13 +3,14 @@ check's own code raises, so that a bug is never taken for missing data."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from repro.claims import NOT_RUN, Claim, Verdict, is_incomplete
-from tests.conftest import tree_snapshot, write_result_csv
+from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
 
 def claim(check) -> Claim:
@@ -111,12 +112,48 @@ def test_paper_claims_md_is_never_rendered_from_a_smaller_scale(tmp_path, monkey
 
 
 def test_paper_scale_results_render_paper_claims_md(tmp_path, monkeypatch):
+    """The committed paper-scale results, a complete set, render paper_claims.md."""
     from repro.cli import main
 
-    race_results(tmp_path / "paper", "paper")
+    shutil.copytree(ROOT / "results" / "paper", tmp_path / "paper")
     monkeypatch.chdir(tmp_path)
     assert main(["claims", "--results-dir", "paper"]) == 0
     text = (tmp_path / "paper_claims.md").read_text()
     assert text.startswith("# Paper claims") and "smoke check, not evidence" not in text
     assert "from the paper-scale result CSVs only" in text
     assert not (tmp_path / "paper" / "claims.md").exists()
+
+
+def test_an_incomplete_set_of_paper_scale_results_never_renders_paper_claims_md(
+        tmp_path, monkeypatch, capsys):
+    """One genuine paper-scale result (C10's) is not the paper's claims: its verdicts go to the
+    folder's claims.md, and paper_claims.md, asked for by name, is refused, nothing written."""
+    from repro.cli import main
+
+    race_results(tmp_path / "paper", "paper")
+    (tmp_path / "paper_claims.md").write_text("the evidence\n")
+    monkeypatch.chdir(tmp_path)
+    before = tree_snapshot(tmp_path)
+    assert main(["claims", "--results-dir", "paper", "--out", "paper_claims.md"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "error: --out:" in err
+    assert "an incomplete set of paper-scale results (C1, C2" in err
+    assert tree_snapshot(tmp_path) == before
+    assert main(["claims", "--results-dir", "paper"]) == 0
+    assert (tmp_path / "paper_claims.md").read_text() == "the evidence\n"
+    text = (tmp_path / "paper" / "claims.md").read_text()
+    assert "**Not the evidence.**" in text and "| C10 |" in text
+
+
+@pytest.mark.parametrize("out", ["paper/table_race.csv", "paper/table_race.provenance.json",
+                                 "table.txt"])
+def test_claims_out_is_never_a_result_file(tmp_path, monkeypatch, capsys, out):
+    from repro.cli import main
+
+    race_results(tmp_path / "paper", "paper")
+    monkeypatch.chdir(tmp_path)
+    before = tree_snapshot(tmp_path)
+    assert main(["claims", "--results-dir", "paper", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--out: must be a Markdown file name" in err
+    assert tree_snapshot(tmp_path) == before

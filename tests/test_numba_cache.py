@@ -1,15 +1,23 @@
-"""numba's cache file under concurrent saves (repro.core.numba_cache): two writers of one
-function's cache that read its index at the same time must not both take one data file."""
+"""numba's cache (repro.core.numba_cache): two writers of one function's cache that read its index
+at the same time must not both take one data file, and kernels compiled by different processes
+must not share a symbol."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
+import pytest
 from numba.core.caching import IndexDataCacheFile
 
 import repro  # noqa: F401  (installs the lock, as every process of the suite does)
 from repro.core import numba_cache
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _save_concurrently(tmp_path, monkeypatch) -> dict:
@@ -43,3 +51,33 @@ def test_without_the_lock_one_signature_gets_the_others_code(tmp_path, monkeypat
     monkeypatch.setattr(IndexDataCacheFile, "save", numba_cache.NUMBA_SAVE)
     loaded = _save_concurrently(tmp_path, monkeypatch)
     assert loaded != {"signature 0": "code 0", "signature 1": "code 1"}
+
+
+_CELLS = """
+import sys
+import repro
+from repro.experiments.beyond_races import cell
+for n in sys.argv[1:]:
+    r = cell("nearest", int(n), -1.0, 2, 0)
+    print(n, r["decisions"], r["races"])
+"""
+
+
+def _cells(cache: Path, *n_agents: int) -> subprocess.CompletedProcess:
+    """beyond-races' cells of ``n_agents`` UAVs in a fresh process that caches into ``cache``."""
+    return subprocess.run([sys.executable, "-c", _CELLS, *map(str, n_agents)],
+                          env=dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT)),
+                          capture_output=True, text=True, timeout=600)
+
+
+@pytest.mark.timeout(900)
+def test_engines_cached_by_separate_processes_load_together(tmp_path):
+    """The wildfire engine compiled for three N in three processes, as the test suite's commands
+    and workers fill the cache, then loaded together by a fourth, as a study does: each N must
+    run its own code. With numba's per-process compilation counter the three compilations had
+    one symbol, and the fourth process crashed in the engine's set-up (SIGSEGV)."""
+    alone = [_cells(tmp_path, n) for n in (3, 6, 12)]
+    assert all(p.returncode == 0 for p in alone), [p.stderr[-2000:] for p in alone]
+    together = _cells(tmp_path, 3, 6, 12)
+    assert together.returncode == 0, together.stderr[-2000:]
+    assert together.stdout == "".join(p.stdout for p in alone)

@@ -120,8 +120,7 @@ def test_a_listener_that_is_not_dask_is_refused_within_the_deadline(reply, monke
     finally:
         listener.close()
     _one_line(capsys, "--scheduler")
-    assert not (tmp_path / "res").exists()
-    assert not any(p.is_file() for p in (tmp_path / "runs").rglob("*"))
+    assert list(tmp_path.iterdir()) == []  # no folder of runs, results or figures, no lock
 
 
 # --- refusals across processes -------------------------------------------------------------------
@@ -163,7 +162,7 @@ def test_a_second_sweep_over_the_same_runs_is_refused_naming_runs_dir(tmp_path, 
     with folder_lock(root, sweep.SWEEP_LOCK, "--runs-dir", "a folder of runs"):
         assert _main(_transfer(tmp_path, "--n-jobs", "2")) == 2
     assert "sweep.lock" in _one_line(capsys, "--runs-dir")
-    assert [p.name for p in root.iterdir()] == []
+    assert not root.exists()  # nothing written: gone with the lock that made it
 
 
 # --- results folders and their pairs -------------------------------------------------------------
@@ -237,7 +236,7 @@ def test_a_second_writer_of_a_results_folder_is_refused(tmp_path, capsys):
     with folder_lock(tmp_path / "res", RESULTS_LOCK, "--results-dir", "a results folder"):
         assert _main([*RACE, "--results-dir", str(tmp_path / "res")]) == 2
     assert RESULTS_LOCK in _one_line(capsys, "--results-dir")
-    assert list((tmp_path / "res").iterdir()) == []
+    assert not (tmp_path / "res").exists()  # nothing written: gone with the lock that made it
 
 
 def test_results_of_a_larger_scale_are_replaced_only_when_told(tmp_path, capsys):
@@ -260,6 +259,57 @@ def test_results_of_a_larger_scale_are_replaced_only_when_told(tmp_path, capsys)
     assert _main([*RACE, "--results-dir", str(res), "--overwrite"]) == 0
     assert read_provenance(res / "table_race.csv")["scale"] == "smoke"
     assert not (res / RESULTS_LOCK).exists()
+
+
+PAPER_BUT = ("race", "--scale", "paper", "--n-sets", "10", "--exact-n", "2", "3",
+             "--bisection-steps", "3", "--distributions", "exponential", "--no-figure")
+"""A run asked at the paper scale with settings of its own."""
+
+
+def test_a_paper_scale_run_with_settings_of_its_own_is_no_paper_scale_run(tmp_path, capsys):
+    """It does not replace paper-scale results (refused before any work, naming the settings
+    that differ), and where it writes, its sidecars record the scale "custom" and why."""
+    res = tmp_path / "paper"
+    res.mkdir()
+    for name in ("table_race", "race_exact"):
+        for ext in (".csv", ".provenance.json"):
+            shutil.copy(ROOT / "results" / "paper" / (name + ext), res)
+    before = tree_snapshot(res)
+    assert _main([*PAPER_BUT, "--results-dir", str(res)]) == 2
+    line = _one_line(capsys, "--results-dir")
+    assert "custom: --n-sets, --distributions, --bisection-steps, --exact-n differ" in line
+    assert tree_snapshot(res) == before
+    assert _main([*PAPER_BUT, "--results-dir", str(tmp_path / "elsewhere")]) == 0
+    prov = read_provenance(tmp_path / "elsewhere" / "table_race.csv")
+    assert prov["scale"] == "custom" and prov["departs_from_scale"] == {
+        "scale": "paper", "options": ["--n-sets", "--distributions", "--bisection-steps",
+                                      "--exact-n"]}
+
+
+def _departures(command: str, *argv: str) -> list[str]:
+    import importlib
+
+    from repro.cli import COMMANDS, OneLineParser
+    from repro.experiments.options import scale_departures
+
+    module = importlib.import_module(COMMANDS[command][0])
+    parser = OneLineParser(prog=command)
+    module.add_arguments(parser)
+    return scale_departures(parser, parser.parse_args(argv), getattr(module, "VARIANTS", ()))
+
+
+def test_the_settings_of_a_run_are_compared_with_its_scales():
+    """A flag given with the scale's own value, or one that chooses another study (its own
+    result files), leaves a run at its scale; a subset of the study's simulators does not."""
+    from repro.experiments.race import RaceConfig
+
+    paper_sets = str(RaceConfig.SCALES["paper"].get("n_sets", RaceConfig.n_sets))
+    assert _departures("race", "--scale", "paper", "--n-sets", paper_sets) == []
+    assert _departures("race", "--scale", "paper", "--n-sets", "10") == ["--n-sets"]
+    assert _departures("fig-transfer", "--scale", "paper", "--sim-version", "2017-04-22",
+                       "--learner", "suite", "--n-jobs", "2", "--seed", "0") == []
+    assert _departures("fig-transfer", "--scale", "paper", "--simulator", "ED") == [
+        "--simulator"]
 
 
 def test_a_smaller_scale_run_may_write_beside_nothing_larger(tmp_path):
@@ -307,6 +357,22 @@ def _wrong_layer(s):
     s["policy"]["net.0.bias"] = torch.zeros(16)  # its weight has a row per hidden unit
 
 
+def _extra_action(s):
+    """Consistent in itself, but for 7 actions where the wildfire has 6."""
+    last = f"net.{2 * len(s['run_config']['train']['hidden'])}"
+    s["policy"][f"{last}.weight"] = torch.cat([s["policy"][f"{last}.weight"],
+                                               s["policy"][f"{last}.weight"][:1]])
+    s["policy"][f"{last}.bias"] = torch.cat([s["policy"][f"{last}.bias"],
+                                             s["policy"][f"{last}.bias"][:1]])
+
+
+def _weights_as(dtype):
+    """The damage: the policy's weights saved in ``dtype`` (trained: float32)."""
+    def damage(s):
+        s["policy"] = {k: v.to(dtype) for k, v in s["policy"].items()}
+    return damage
+
+
 DAMAGE = {
     "missing policy": lambda s: s.pop("policy"),
     "wrong layer shape": _wrong_layer,
@@ -319,6 +385,11 @@ DAMAGE = {
     "Inf variance": _inf_variance,
     "negative epoch": lambda s: s.update(epoch=-3),
     "epoch not a number": lambda s: s.update(epoch="1"),
+    "epoch beyond the run": lambda s: s.update(epoch=10**30),
+    "an entry of its own": lambda s: s.update(notes="hello"),
+    "one action more": _extra_action,
+    **{f"{dtype} weights": _weights_as(dtype)
+       for dtype in (torch.float16, torch.float64, torch.int64, torch.bool, torch.complex64)},
 }
 
 
@@ -342,11 +413,58 @@ def test_a_damaged_checkpoint_is_refused_in_one_line_everywhere(damage, wildfire
     assert _main(["bench-wildfire", "--scale", "smoke", "--checkpoint", str(run / CHECKPOINT),
                   "--results-dir", str(tmp_path / "res")]) == 2
     _one_line(capsys, "--checkpoint")
-    if damage != "other input size":  # whole in itself: only an environment tells
+    if damage not in ("other input size", "one action more"):  # only an environment tells
         with pytest.raises(UsageError):
             policy_from_checkpoint(run / CHECKPOINT, np.random.default_rng(0))
     assert tree_snapshot(run) == before
     assert not (tmp_path / "a.gif").exists() and not (tmp_path / "res").exists()
+
+
+@pytest.mark.parametrize("epochs", [1, 2])
+def test_a_checkpoint_set_back_is_refused_before_the_run_changes(epochs, wildfire_run, tmp_path,
+                                                                  capsys):
+    """Its epoch set back to 0 in a finished run of one epoch: a resume would cut progress.csv
+    and train again; refused in one line, the folder as it was. An acting command takes it (its
+    epoch is within progress.csv), one beyond progress.csv is refused by all of them."""
+    run = tmp_path / "run"
+    shutil.copytree(wildfire_run, run)
+    state = load_checkpoint(run / CHECKPOINT)
+    save_checkpoint(run / CHECKPOINT, {**state, "epoch": 0})
+    before = tree_snapshot(run)
+    capsys.readouterr()
+    assert _main([*TRAIN, "--epochs", str(epochs), "--out", str(run)]) == 2
+    assert "holds the 1 epochs its last call finished with" in _one_line(capsys, "--out")
+    assert tree_snapshot(run) == before
+    kept = state_problem({k: state[k] for k in ("epoch", "policy", "normalizer", "run_config")})
+    assert kept is None
+    save_checkpoint(run / CHECKPOINT, {**state, "run_config": {
+        **state["run_config"], "train": {**state["run_config"]["train"], "epochs": 5}},
+        "epoch": 3})
+    assert _main(["render", "--policy", "checkpoint", str(run / CHECKPOINT),
+                  "--out", str(tmp_path / "a.gif")]) == 2
+    assert "whose epoch (3) its run's progress.csv holds" in _one_line(capsys, "--policy")
+
+
+def test_a_studys_damaged_run_is_refused_naming_runs_dir(wildfire_run, tmp_path):
+    """A sweep's finished run whose checkpoint is damaged, or acts on another number of actions,
+    is refused in one line naming --runs-dir (not train's --out), before a study tests it."""
+    from repro.envs.wildfire import WildfireConfig
+    from repro.experiments.transfer import score_policy
+    from repro.learn.run_folder import is_finished
+
+    run = tmp_path / "run"
+    shutil.copytree(wildfire_run, run)
+    state = load_checkpoint(run / CHECKPOINT)
+    _extra_action(state)
+    save_checkpoint(run / CHECKPOINT, state)
+    assert is_finished(run, 1)  # whole in itself: only the environment tells
+    with pytest.raises(UsageError, match="--runs-dir: .*7 actions, the environment 6"):
+        score_policy(WildfireConfig(), (run / CHECKPOINT).read_bytes(), [], 1, 0,
+                     np.random.SeedSequence(0))
+    _nan_weight(state)
+    save_checkpoint(run / CHECKPOINT, state)
+    with pytest.raises(UsageError, match="^--runs-dir: .*NaN"):
+        is_finished(run, 1)
 
 
 def test_a_whole_checkpoint_still_resumes(wildfire_run, tmp_path, monkeypatch):
@@ -430,11 +548,33 @@ SIXTEEN_GIB = 16 << 30
     (["fig-bus-arrivals", "--scale", "smoke", "--policies", "nohold", "--thresholds", "nan",
       "nan", "nan"], "--thresholds"),
     (["render", "--policy", "nearest", "--out", "/proc/a.gif"], "--out"),
+    *[([command, *rest, flag, str(10**40)], flag) for command, rest, flag in [
+        ("fig-transfer", ["--scale", "smoke"], "--seeds"),
+        ("fig-transfer", ["--scale", "smoke"], "--n-jobs"),
+        ("fig-transfer", ["--scale", "smoke"], "--epochs"),
+        ("fig-transfer", ["--scale", "smoke"], "--test-episodes"),
+        ("fig-transfer", ["--scale", "smoke"], "--seed"),
+        ("bench-bus", ["--scale", "smoke"], "--repeats"),
+        ("render", ["--policy", "nearest", "--out", "a.gif"], "--fps"),
+        ("render", ["--policy", "nearest", "--out", "a.gif"], "--frames"),
+        ("race", ["--scale", "smoke"], "--bisection-steps"),
+        ("bus-thresholds", ["--scale", "smoke"], "--popsize"),
+        ("wildfire-eval", ["--policy", "nearest"], "--max-decisions"),
+        ("train", ["--env", "wildfire", "--scale", "smoke"], "--epochs"),
+    ]],
+    (["beyond-races", "--scale", "smoke", "--log10-dt-step", "inf"], "--log10-dt-step"),
+    (["train", "--env", "bus", "--scale", "smoke", "--epoch", "2"], "--epoch"),
+    (["bus-eval", "--policy", "mlp", "--learner", "/../../TRAV"], "--learner"),
+    (["fig-bus-load", "--scale", "smoke", "--learner", "/../../TRAV"], "--learner"),
+    (["fig-bus-arrivals", "--scale", "smoke", "--learner", "/../../TRAV"], "--learner"),
+    (["fig-bus-lambda", "--scale", "smoke", "--runs-dir", ""], "--runs-dir"),
 ])
 def test_sizes_the_machine_cannot_hold_are_refused_up_front(argv, param, tmp_path, monkeypatch,
                                                              capsys):
     """Memory estimates are checked against 16 GiB here, whatever this machine has, so that the
-    probe's sizes are refused alike everywhere; nothing runs, nothing is written."""
+    probe's sizes are refused alike everywhere; sizes far beyond any study's (10^40), options
+    abbreviated, a learner that is none and an empty folder name are refused too; nothing runs,
+    nothing is written."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(memory, "available_memory", lambda: SIXTEEN_GIB)
     t0 = time.perf_counter()
@@ -445,6 +585,14 @@ def test_sizes_the_machine_cannot_hold_are_refused_up_front(argv, param, tmp_pat
         assert "16.0 GiB available" in line
     assert not [p for p in tmp_path.rglob("*") if p.is_file()]
 
+
+
+def test_a_config_file_gives_a_folder_as_text_only(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "c.json").write_text('{"results_dir": 5}')
+    assert _main([*RACE, "--config", "c.json"]) == 2
+    assert "c.json: results_dir: must be a string" in _one_line(capsys, "results_dir")
+    assert [p.name for p in tmp_path.iterdir()] == ["c.json"]
 
 def test_the_sizes_of_the_paper_scale_fit():
     """The estimates are lower bounds: nothing the paper's scale asks for comes near a limit."""

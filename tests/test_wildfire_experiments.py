@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import signal
 import time
 from pathlib import Path
 
@@ -252,9 +253,12 @@ def test_map_tasks_on_dask_keeps_the_order_and_stops_when_the_workers_go_away(mo
     assert "no task finished within 3 s" in str(caught.value)
 
 
-def _die(value: int) -> int:
-    """A task whose worker process dies (as one the system kills for want of memory)."""
-    os._exit(9)
+def _die(signum: int) -> int:
+    """A task whose worker process dies of the signal ``signum`` (SIGKILL: as one the system kills
+    for want of memory; SIGSEGV: as compiled code that crashes)."""
+    os.kill(os.getpid(), signum)
+    time.sleep(60)  # the signal arrives meanwhile
+    return signum
 
 
 def test_a_worker_that_dies_is_one_line_on_joblib_and_on_dask(monkeypatch, capsys, tmp_path):
@@ -263,9 +267,13 @@ def test_a_worker_that_dies_is_one_line_on_joblib_and_on_dask(monkeypatch, capsy
     from repro.core.errors import WorkerDied
     from repro.experiments import race, sweep
 
-    with pytest.raises(WorkerDied, match="joblib: exit codes.*--n-jobs") as caught:
-        sweep.map_tasks(_die, [(0,), (1,)], n_jobs=2)
+    with pytest.raises(WorkerDied, match="joblib: SIGKILL: most often the system out of memory "
+                       r"\(fewer --n-jobs") as caught:
+        sweep.map_tasks(_die, [(signal.SIGKILL,), (signal.SIGKILL,)], n_jobs=2)
     assert "\n" not in str(caught.value) and "runs these tasks again" in str(caught.value)
+    with pytest.raises(WorkerDied, match="joblib: SIGSEGV: a crash in compiled code") as crashed:
+        sweep.map_tasks(_die, [(signal.SIGSEGV,), (signal.SIGSEGV,)], n_jobs=2)
+    assert "out of memory" not in str(crashed.value) and "\n" not in str(crashed.value)
     distributed = pytest.importorskip("dask.distributed")
     import dask
 
@@ -274,7 +282,7 @@ def test_a_worker_that_dies_is_one_line_on_joblib_and_on_dask(monkeypatch, capsy
                                      protocol="tcp://", host="127.0.0.1",
                                      dashboard_address=None) as cluster:
         with pytest.raises(WorkerDied, match="Dask: every worker that ran one task died") as caught:
-            sweep.map_tasks(_die, [(0,)], scheduler=cluster.scheduler_address)
+            sweep.map_tasks(_die, [(signal.SIGKILL,)], scheduler=cluster.scheduler_address)
     assert "\n" not in str(caught.value)
 
     def dies(*args, **kwargs):

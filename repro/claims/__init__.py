@@ -2,7 +2,10 @@
 to ``paper_claims.md`` by ``python -m repro claims`` (``make claims``), and the questions beyond the
 paper, X1.., in a section of their own.
 
-Only paper-scale results make ``paper_claims.md``. The verdicts of a smaller scale's results
+Only a complete set of paper-scale results makes ``paper_claims.md``: every result file in the
+folder of the paper scale (its sidecar says so, and a run records the paper scale only with the
+paper scale's settings: :func:`repro.core.io.run_scale`), and every claim of the paper read from
+its files (none "not yet run" for want of them). The verdicts of a smaller scale's results
 (``claims --results-dir results/quick``, the end of ``make reproduce SCALE=quick``) go to
 ``results/<scale>/claims.md``, marked as a smoke check: they show that every driver ran and every
 check reads its files, and are no evidence for or against a claim (:data:`SMOKE_NOTE`).
@@ -294,6 +297,10 @@ SMOKE_NOTE = (
     "trained policies are far from what the paper's budgets give. They show that every driver "
     "ran and that each claim's check reads its files; a verdict here may differ from the "
     "paper-scale one either way. The evidence is paper_claims.md, rendered from `results/paper/`.")
+INCOMPLETE_NOTE = (
+    "**Not the evidence.** These results are of the paper scale, but not all of them: {missing} "
+    "lack their result files. paper_claims.md is rendered only from a complete set, "
+    "`results/paper/`.")
 
 
 def result_scales(results: Path) -> set[str]:
@@ -322,20 +329,44 @@ def evaluate_with(claim: Claim, results: Path, interval: str) -> Verdict:
                                other_ours="" if w.ours == v.ours else w.ours)
 
 
-def render(results: Path, interval: str = INTERVALS[0]) -> str:
-    """paper_claims.md (paper-scale results), or a smaller scale's smoke check: a tally, one short
-    row per claim, then each claim's detail; claims that compare intervals are decided with
-    ``interval``'s, the other's verdict beside."""
+def missing_claims(evaluated: list[tuple[Claim, Verdict]]) -> list[str]:
+    """The claims of the paper (not the questions beyond it) that read "not yet run" for want of
+    result files or rows; one whose files were made on semantics since changed (``outdated``)
+    has its results, and says so."""
+    return [c.id for c, v in evaluated if not is_beyond(c) and v.verdict == NOT_RUN
+            and not v.outdated]
+
+
+def evaluate_all(results: Path, interval: str = INTERVALS[0]) -> list[tuple[Claim, Verdict]]:
+    """Every claim and question with its verdict on the results in ``results``, claims that
+    compare intervals decided with ``interval``'s."""
+    return [(c, evaluate_with(c, results, interval)) for c in registry()]
+
+
+def is_paper_set(results: Path, evaluated: list[tuple[Claim, Verdict]]) -> bool:
+    """Whether ``results`` is a complete set of paper-scale results, the only one that makes
+    paper_claims.md: every result file of the paper scale, and no claim without its files."""
+    return is_paper_scale(results) and not missing_claims(evaluated)
+
+
+def render(results: Path, interval: str = INTERVALS[0],
+           evaluated: list[tuple[Claim, Verdict]] | None = None) -> str:
+    """paper_claims.md (a complete set of paper-scale results), or else a smoke check: a tally,
+    one short row per claim, then each claim's detail; claims that compare intervals are decided
+    with ``interval``'s, the other's verdict beside. ``evaluated``: :func:`evaluate_all`'s, if
+    done already."""
+    evaluated = evaluate_all(results, interval) if evaluated is None else evaluated
     with intervals_of(interval):
-        return _render(results, interval)
+        return _render(results, interval, evaluated)
 
 
-def _render(results: Path, interval: str) -> str:
-    evaluated = [(c, evaluate_with(c, results, interval)) for c in registry()]
+def _render(results: Path, interval: str, evaluated: list[tuple[Claim, Verdict]]) -> str:
     rows = [(c, v) for c, v in evaluated if not is_beyond(c)]
     beyond = [(c, v) for c, v in evaluated if is_beyond(c)]
-    paper = is_paper_scale(results)
+    paper = is_paper_set(results, evaluated)
     scale = " and ".join(sorted(result_scales(results))) or "no"
+    note = (SMOKE_NOTE.format(scale=scale) if not is_paper_scale(results) else
+            INCOMPLETE_NOTE.format(missing=", ".join(missing_claims(evaluated))))
     title = ("# Paper claims: the paper's numbers beside ours" if paper else
              f"# Smoke check ({scale} scale): the paper's numbers beside a short run's")
     source = ("from the paper-scale result CSVs only (a smaller scale's verdicts are a smoke "
@@ -346,7 +377,7 @@ def _render(results: Path, interval: str) -> str:
         "",
         f"**{len(rows)} claims: {_tally(rows)}** (results in `{results}/`, {_scales(rows)} scale).",
         "",
-        *([] if paper else [*textwrap.wrap(SMOKE_NOTE.format(scale=scale), WIDTH), ""]),
+        *([] if paper else [*textwrap.wrap(note, WIDTH), ""]),
         f"Rendered by `make claims` (`python -m repro claims`) {source}; do not edit by hand. "
         "The verdicts:",
         "",
@@ -438,9 +469,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"the 95%% intervals that decide the claims that compare intervals: "
                    f"{' or '.join(INTERVALS)} (default {INTERVALS[0]}, whose coverage at 5 runs "
                    f"the interval-coverage study checks)")
-    p.add_argument("--out", help=f"the rendered table (default {PAPER_CLAIMS} for paper-scale "
-                   f"results; for those of a smaller scale, a smoke check, "
-                   f"<results-dir>/{SMOKE_OUT}, never {PAPER_CLAIMS})")
+    p.add_argument("--out", help=f"the rendered table, a Markdown file (.md; default "
+                   f"{PAPER_CLAIMS} for a complete set of paper-scale results; otherwise a smoke "
+                   f"check, <results-dir>/{SMOKE_OUT}, never {PAPER_CLAIMS})")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -452,16 +483,24 @@ def run(args: argparse.Namespace) -> int:
     require(results.is_dir() and any(results.glob("*.provenance.json")), "--results-dir",
             "an existing folder of result files (CSVs with their provenance sidecars)",
             str(results))
-    paper = is_paper_scale(results)
-    default = PAPER_CLAIMS if paper else str(results / SMOKE_OUT)
     require(args.out is None or args.out.strip() != "", "--out", "a file name", args.out)
+    # a Markdown name: never a result's CSV or sidecar
+    require(args.out is None or args.out.endswith(".md"), "--out",
+            "a Markdown file name ending in .md (never a result CSV or sidecar)", args.out)
+    evaluated = evaluate_all(results, args.interval)
+    paper = is_paper_set(results, evaluated)
+    default = PAPER_CLAIMS if paper else str(results / SMOKE_OUT)
     out = check_names(default if args.out is None else args.out, "--out")
+    missing = missing_claims(evaluated)
+    why = (f"results of the {' and '.join(sorted(result_scales(results)))} scale"
+           if not is_paper_scale(results) else
+           f"an incomplete set of paper-scale results ({', '.join(missing)} without their files)")
     require(paper or out.name != PAPER_CLAIMS, "--out", f"another file than {PAPER_CLAIMS} for "
-            f"results of the {' and '.join(sorted(result_scales(results)))} scale "
-            f"({PAPER_CLAIMS} is rendered from paper-scale results only)", str(out))
+            f"{why} ({PAPER_CLAIMS} is rendered from a complete set of paper-scale results only)",
+            str(out))
     require(not out.is_dir(), "--out", "a file, not a folder", str(out))
     check_writable_dir(out.parent, "--out")
-    text = render(results, args.interval)
+    text = render(results, args.interval, evaluated)
     write_text(out, text)
     if not paper:  # the smoke check's table, for the end of `make reproduce`
         print(text.split("\n## Details")[0].rstrip())

@@ -181,14 +181,16 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
         names = (flag(name), *old.get(name, ()))
         text = text.replace("%", "%%")  # argparse formats help with %
         if kind is bool and not sequence:
-            parser.add_argument(*names, dest=name, action=argparse.BooleanOptionalAction,
-                                default=argparse.SUPPRESS, help=text)
+            action = parser.add_argument(*names, dest=name, default=argparse.SUPPRESS, help=text,
+                                         action=argparse.BooleanOptionalAction)
         elif sequence:  # --sizes 1 2, or --sizes 1 --sizes 2
-            parser.add_argument(*names, dest=name, type=_parse_value(kind, optional),
-                                action="extend", nargs="+", default=argparse.SUPPRESS, help=text)
+            action = parser.add_argument(*names, dest=name, type=_parse_value(kind, optional),
+                                         action="extend", nargs="+", default=argparse.SUPPRESS,
+                                         help=text)
         else:
-            parser.add_argument(*names, dest=name, type=_parse_value(kind, optional),
-                                default=argparse.SUPPRESS, help=text)
+            action = parser.add_argument(*names, dest=name, type=_parse_value(kind, optional),
+                                         default=argparse.SUPPRESS, help=text)
+        action.setting = (cls, name)  # whose value a scale sets (scale_departures)
 
 
 def _default_text(cls: type, name: str, default: Any) -> str:

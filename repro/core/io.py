@@ -17,6 +17,13 @@ A result is a pair, a CSV and its sidecar, and the pair is trusted only whole:
 - **Provenance guards results, not folder names.** A run never replaces a result whose sidecar
   records a larger scale (smoke < quick < paper) unless told to (``--overwrite``); a driver checks
   its results folder for such results before any work.
+- **Provenance is written once.** A sidecar is never edited after its run; a later correction
+  of one of its fields is a separate, dated note beside it, ``<stem>.correction-<date>.json``
+  (:func:`write_correction`), and :func:`shown_provenance` shows the sidecar with its notes.
+- **The paper scale is what was run, not what was asked.** A run started with ``--scale paper``
+  and settings of its own (``race --scale paper --n-sets 10``) records the scale ``custom``
+  (:func:`run_scale`), below every scale: it neither replaces paper-scale results nor counts as
+  one for the claims.
 
 Figures are guarded the same way. A figure is ``<stem>.png`` and ``<stem>.pdf`` with a sidecar,
 ``<stem>.provenance.json``, that records both files' SHA-256, the result CSVs it was drawn from
@@ -192,7 +199,7 @@ def figure_sidecar(stem: str | Path) -> Path:
 def source_records(sources: Sequence[str | Path]) -> list[dict[str, Any]]:
     """What a figure's sidecar records of each result CSV it was drawn from: its path, the hash
     its sidecar records (or, for a sidecar without one, the hash of its bytes), and its sidecar's
-    scale, command and commit."""
+    scale, command and commit, with the sidecar's correction notes (:func:`write_correction`)."""
     out = []
     for source in sources:
         source = Path(source)
@@ -203,7 +210,8 @@ def source_records(sources: Sequence[str | Path]) -> list[dict[str, Any]]:
         prov = prov if isinstance(prov, dict) else {}
         digest = prov.get(CSV_HASH) or hashlib.sha256(source.read_bytes()).hexdigest()
         out.append({"csv": str(source), CSV_HASH: digest, "scale": prov.get("scale"),
-                    "command": prov.get("command"), "git_commit": prov.get("git_commit")})
+                    "command": prov.get("command"), "git_commit": prov.get("git_commit"),
+                    **_corrections(source)})
     return out
 
 
@@ -343,12 +351,14 @@ def provenance(config: Any, *, command: str, scale: str | None, seed: int | None
 
     rec = {
         "command": command,
-        "scale": scale,
+        "scale": run_scale(scale),
         "seed": seed,
         "config": to_dict(config) if hasattr(config, "__dataclass_fields__") else config,
         "wall_seconds": round(wall_seconds, 3),
         **run_record(),
     }
+    if rec["scale"] == CUSTOM:
+        rec["departs_from_scale"] = {"scale": scale, "options": list(_departures)}
     if _trained_under:
         rec["trained_under"] = [_trained_under[key] for key in sorted(_trained_under)]
     if extra:
@@ -405,6 +415,32 @@ _figures_held: dict[Path, bool] = {}
 its figures may replace larger-scale ones."""
 
 
+CUSTOM = "custom"
+"""The scale a run records that was started at the paper scale with settings of its own."""
+_departures: list[str] = []
+"""The options by which this process's run departs from its ``--scale``
+(:func:`note_departures`)."""
+
+
+def note_departures(flags: Sequence[str]) -> None:
+    """Note that this process's run departs from its ``--scale`` by the options ``flags`` (the CLI
+    notes them before a driver runs; :func:`release_results` forgets them)."""
+    _departures[:] = list(flags)
+
+
+def run_scale(scale: str | None) -> str | None:
+    """The scale this process's results are of: ``scale``, or :data:`CUSTOM` where that is the
+    paper scale and the run departs from its settings (:func:`note_departures`)."""
+    return CUSTOM if scale == SCALES[-1] and _departures else scale
+
+
+def _scale_text(scale: str | None) -> str:
+    """A run's scale as a refusal names it, with what made a paper-scale run a custom one."""
+    if scale == CUSTOM and _departures:
+        return f"{CUSTOM}: {', '.join(_departures)} differ from the {SCALES[-1]} scale's"
+    return str(scale)
+
+
 def scale_rank(scale: Any) -> int:
     """The order of ``scale`` among :data:`~repro.core.config.SCALES` (-1 for none or unknown)."""
     return SCALES.index(scale) if scale in SCALES else -1
@@ -458,8 +494,8 @@ def _refuse_larger(larger: list[tuple[str, str]], scale: str | None, param: str,
         name, theirs = larger[0]
         more = f" and {len(larger) - 1} more" if len(larger) > 1 else ""
         raise UsageError(param, f"a folder without {what} of a larger scale than this run's "
-                         f"({scale}): it holds {theirs}-scale {name}{more} (--overwrite replaces "
-                         "them)", str(path))
+                         f"({_scale_text(scale)}): it holds {theirs}-scale {name}{more} "
+                         "(--overwrite replaces them)", str(path))
 
 
 def open_figures(path: str | Path, param: str, *, scale: str | None, overwrite: bool = False,
@@ -475,10 +511,9 @@ def open_figures(path: str | Path, param: str, *, scale: str | None, overwrite: 
         require(folder.resolve() != Path(results).resolve(), param, "a folder other than "
                 "--results-dir (a figure's sidecar, <stem>.provenance.json, has the name of its "
                 "result's)", str(path))
-    key = folder.resolve()
+    key, scale = folder.resolve(), run_scale(scale)
     with ExitStack() as stack:
         if key not in _figures_held:
-            stack.callback(_remove_empty, _missing(folder))  # after the lock file is gone
             stack.enter_context(folder_lock(folder, FIGURES_LOCK, param, "a figures folder"))
         if not overwrite:
             _refuse_larger(larger_figures(folder, scale), scale, param, path, "figures")
@@ -495,12 +530,11 @@ def open_results(path: str | Path, param: str, *, scale: str | None,
     if it holds results of a larger scale than ``scale`` and ``overwrite`` is not given. A folder
     this creates is removed again on release if nothing was written into it."""
     folder = check_writable_dir(path, param)
-    key = folder.resolve()
+    key, scale = folder.resolve(), run_scale(scale)
     if key in _held:
         _held[key] = _held[key] or overwrite
         return folder
     with ExitStack() as stack:
-        stack.callback(_remove_empty, _missing(folder))  # after the lock file is gone
         stack.enter_context(folder_lock(folder, RESULTS_LOCK, param, "a results folder"))
         if not overwrite:
             _refuse_larger(larger_results(folder, scale), scale, param, path)
@@ -511,29 +545,14 @@ def open_results(path: str | Path, param: str, *, scale: str | None,
 
 def release_results() -> None:
     """Let go of every results folder this process holds (:func:`open_results`), and forget the
-    figures folders it opened (:func:`open_figures`) and the kernels its runs were trained under
-    (:func:`note_trained_under`)."""
+    figures folders it opened (:func:`open_figures`), the kernels its runs were trained under
+    (:func:`note_trained_under`) and how its run departs from its scale
+    (:func:`note_departures`)."""
     _held.clear()
     _figures_held.clear()
     _trained_under.clear()
+    _departures.clear()
     _session.close()
-
-
-def _missing(folder: Path) -> list[Path]:
-    """``folder`` and its ancestors that do not exist yet, deepest first."""
-    out = []
-    while not folder.exists() and folder.parent != folder:
-        out.append(folder)
-        folder = folder.parent
-    return out
-
-
-def _remove_empty(folders: list[Path]) -> None:
-    for folder in folders:
-        try:
-            folder.rmdir()
-        except OSError:  # something was written there (or it went already)
-            return
 
 
 def csv_bytes(frame: pd.DataFrame) -> bytes:
@@ -593,6 +612,47 @@ def read_result(result: str | Path) -> pd.DataFrame:
     if not side.exists():
         raise FileNotFoundError(errno.ENOENT, "missing", str(side))
     raise FileNotFoundError(errno.ENOENT, "not the CSV its sidecar describes", str(result))
+
+
+CORRECTION = "{stem}.correction-{date}.json"
+"""A correction note's name, beside the result ``<stem>.csv``; ``date``: YYYY-MM-DD."""
+
+
+def correction_paths(result: str | Path) -> list[Path]:
+    """The correction notes of ``result``'s sidecar, oldest first."""
+    result = Path(result)
+    return sorted(result.parent.glob(CORRECTION.format(stem=result.stem, date="*")))
+
+
+def write_correction(result: str | Path, field: str, value: Any, reason: str,
+                     date: str | None = None) -> Path:
+    """Record that the sidecar of ``result`` holds a wrong ``field``, which should read ``value``,
+    and why, in a new note dated ``date`` (default today, UTC); the sidecar stays as its run
+    wrote it. A note is written once: UsageError if the field is not in the sidecar, or a note of
+    that date exists."""
+    prov = read_provenance(result)
+    require(field in prov, "field", "a field of the sidecar: " + ", ".join(sorted(prov)), field)
+    date = date or time.strftime("%Y-%m-%d", time.gmtime())
+    note = Path(result).with_name(CORRECTION.format(stem=Path(result).stem, date=date))
+    require(not note.exists(), "date", "a date without a correction note of this result yet",
+            str(note))
+    write_json(note, {"corrects": sidecar_path(result).name, "date": date, "field": field,
+                      "recorded": prov[field], "value": value, "reason": reason})
+    return note
+
+
+def _corrections(result: str | Path) -> dict[str, Any]:
+    """``{"corrections": [note, ...]}`` of ``result``'s correction notes, oldest first; empty if
+    it has none."""
+    notes = [json.loads(path.read_text()) for path in correction_paths(result)]
+    return {"corrections": notes} if notes else {}
+
+
+def shown_provenance(result: str | Path) -> dict[str, Any]:
+    """The sidecar of ``result`` as its run wrote it, with its correction notes under
+    ``corrections`` where it has any: a reader sees both the recorded and the corrected value of
+    a field."""
+    return {**read_provenance(result), **_corrections(result)}
 
 
 def read_provenance(result: str | Path) -> dict[str, Any]:

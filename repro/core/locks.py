@@ -23,11 +23,40 @@ from repro.core.errors import UsageError
 @contextmanager
 def folder_lock(folder: str | Path, name: str, param: str, what: str,
                 wait: float = 0.0) -> Iterator[None]:
-    """Hold ``folder``/``name`` while the block runs (the folder is created). If another process
-    holds it after ``wait`` seconds: a UsageError naming ``param``, "must be ``what`` no other
-    process is writing to (<holder> holds <name>)"."""
+    """Hold ``folder``/``name`` while the block runs (the folder is created, and removed again
+    with the ancestors it needed if nothing was written there: a refusal leaves no empty
+    folders). If another process holds it after ``wait`` seconds: a UsageError naming ``param``,
+    "must be ``what`` no other process is writing to (<holder> holds <name>)"."""
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    created = _missing(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with _held(folder, name, param, what, wait):
+            yield
+    finally:
+        _remove_empty(created)
+
+
+def _missing(folder: Path) -> list[Path]:
+    """``folder`` and its ancestors that do not exist yet, deepest first."""
+    out = []
+    while not folder.exists() and folder.parent != folder:
+        out.append(folder)
+        folder = folder.parent
+    return out
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:  # something was written there (or it went already)
+            return
+
+
+@contextmanager
+def _held(folder: Path, name: str, param: str, what: str, wait: float) -> Iterator[None]:
+    """:func:`folder_lock` in an existing ``folder``."""
     path = folder / name
     give_up = time.monotonic() + wait
     while True:

@@ -8,6 +8,16 @@ up naming one signature's machine code for the other. The next process that load
 (a wildfire race study, `beyond-races`, segfaulted so after a `make reproduce` whose sweeps had
 compiled new engine shapes in two workers). :func:`install` serialises each function's saves, and
 lets loads wait for them, with an advisory lock on a file beside its cache.
+
+A compiled function's machine-code symbol is its name, its argument types and numba's id of the
+compilation, a counter that starts at 1 in every process; a record type enters the name as
+another per-process counter. Two processes that compile a kernel for two shapes (the wildfire
+engine for N = 3 and for N = 6) in the same order thus give both compilations one symbol, and a
+third process that loads both from the cache binds the second to the first one's code (LLVM keeps
+one definition of a symbol): the engine of one shape ran on the other's states and crashed in
+``_setup`` (SIGSEGV). The cache keys (signature and bytecode) were right; the symbols were not
+unique. :func:`install` also makes numba's compilation ids random (:class:`RandomIds`), so that no
+two compilations of any processes share a symbol.
 """
 
 from __future__ import annotations
@@ -15,8 +25,10 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import secrets
 from collections.abc import Iterator
 
+from numba.core.bytecode import FunctionIdentity
 from numba.core.caching import IndexDataCacheFile
 
 LOCK_NAME = ".repro-numba-cache.lock"
@@ -37,10 +49,27 @@ def locked(cache_file: IndexDataCacheFile, mode: int) -> Iterator[None]:
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
+class RandomIds:
+    """numba's compilation ids (``FunctionIdentity._unique_ids``, an iterator) drawn at random,
+    96 bits from the operating system each: unique across processes (forked workers too, which
+    would copy a counter or a seeded generator); two of a million compilations share one with a
+    probability below 1e-17."""
+
+    BITS = 96
+
+    def __iter__(self) -> RandomIds:
+        return self
+
+    def __next__(self) -> int:
+        return secrets.randbits(self.BITS)
+
+
 def install() -> None:
-    """Wrap numba's cache-file save (exclusive) and load (shared) in the lock; idempotent."""
+    """Wrap numba's cache-file save (exclusive) and load (shared) in the lock, and draw numba's
+    compilation ids at random (:class:`RandomIds`); idempotent."""
     if getattr(IndexDataCacheFile.save, "_repro_locked", False):
         return
+    FunctionIdentity._unique_ids = RandomIds()
 
     def locked_save(self, key, data):
         with locked(self, fcntl.LOCK_EX):

@@ -15,7 +15,7 @@ import pandas as pd
 from repro.envs.bus import BusConfig, make_env, make_reference_env
 from repro.envs.bus.policies import no_holding
 from repro.experiments import bench_common
-from repro.experiments.bench_common import BenchConfig, add_arguments
+from repro.experiments.bench_common import VARIANTS, BenchConfig, add_arguments  # noqa: F401
 from repro.learn.trained_policy import trained_env_config
 
 __all__ = ["BusBenchConfig", "add_arguments", "measure", "run"]

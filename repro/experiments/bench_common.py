@@ -195,6 +195,11 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
     return frame
 
 
+VARIANTS = ("checkpoint",)
+"""Options that choose the benchmark (``--checkpoint``: ``<command>_checkpoint.csv``), not its
+settings (:func:`repro.experiments.options.scale_departures`)."""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     add_config_arguments(p, BenchConfig)

@@ -141,11 +141,16 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
     return table
 
 
+VARIANTS = ("env",)
+"""The option that chooses the environment benchmarked, not the benchmark's settings
+(:func:`repro.experiments.options.scale_departures`)."""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     p.add_argument("--env", default="toy", help="environment: " + ", ".join(BUILT_IN)
                    + ", or an importable module that provides the environment contract")
-    p.add_argument("--learner", default=DEFAULT_LEARNER,
+    p.add_argument("--learner", default=DEFAULT_LEARNER, choices=tuple(LEARNERS),
                    help="named learner whose network and Fisher products are timed: "
                         + ", ".join(LEARNERS) + " (default %(default)s; its batch is counted in "
                         "episodes here)")

@@ -40,6 +40,8 @@ RACES, FIT = "races", "races_fit"
 """Stems of the result files (the per-cell table and the fit)."""
 MIN_FIT_POINTS = 3
 """Crossings an OLS fit needs for a standard error of its slope."""
+MAX_GRID = 10_000
+"""The most steps of the dT grid (the paper scale's has 56)."""
 _ENV_STREAM, _POLICY_STREAM = 0, 1
 
 
@@ -78,11 +80,14 @@ class BeyondRacesConfig(Validated):
                    "at least two different integers >= 1")
         self.check(set(self.policies) <= set(POLICIES) and len(self.policies) >= 1, "policies",
                    "one of " + ", ".join(POLICIES))
-        self.check(self.log10_dt_step > 0, "log10_dt_step", "a number > 0")
         # ten times the race count's tolerance (1 ns) at least
         self.check(-8 <= self.log10_dt_min <= 2, "log10_dt_min", "in [-8, 2] (dT from 10 ns)")
         self.check(self.log10_dt_min < self.log10_dt_max <= 2, "log10_dt_max",
                    "above --log10-dt-min and at most 2 (dT to 100 s)")
+        span = self.log10_dt_max - self.log10_dt_min
+        self.check(span / MAX_GRID <= self.log10_dt_step <= span, "log10_dt_step",
+                   f"a number in [{span / MAX_GRID:g}, {span:g}] (--log10-dt-max minus "
+                   f"--log10-dt-min, in at most {MAX_GRID:,} steps)")
         self.check(0 < self.delta < 1, "delta", "in (0, 1)")
 
     def log10_dts(self) -> np.ndarray:

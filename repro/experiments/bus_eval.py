@@ -74,7 +74,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="thresholds in seconds (default: ours in results/bus_thresholds.csv)")
     p.add_argument("--mlp-run", help="training run folder of the mlp policy "
                    "(default: the best run in results/bus_lambda_summary.csv)")
-    p.add_argument("--learner", help="the mlp policy is the best run of this learner's lambda "
+    p.add_argument("--learner", choices=tuple(LEARNERS),
+                   help="the mlp policy is the best run of this learner's lambda "
                    "sweep: " + ", ".join(LEARNERS) + " (default authors)")
     p.add_argument("--results-dir", default="results/paper",
                    help="where bus_thresholds.csv and bus_lambda_summary.csv are read")

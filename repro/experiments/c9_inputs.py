@@ -86,9 +86,10 @@ def score(env_cfg, checkpoint, clamps: tuple, episodes: int, env_seed: int,
     from repro.learn.run_folder import load_checkpoint
     from repro.learn.trained_policy import policy_from_state
 
-    policy = Clamped(policy_from_state(load_checkpoint(checkpoint), np.random.default_rng(stream)),
-                     clamps, env_cfg.n_observed)
     env = make_env(env_cfg)
+    state = load_checkpoint(checkpoint, "--runs-dir", obs_dim=env.obs_dim, n_actions=env.n_actions)
+    policy = Clamped(policy_from_state(state, np.random.default_rng(stream)), clamps,
+                     env_cfg.n_observed)
     rollout = evaluate(env, policy, episodes, env_seed, keep_obs=False)
     return adr(rollout, env.gamma)[0], policy.changed / max(policy.decisions, 1)
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from repro.core.config import DEFAULT_SCALE, SCALES
+from repro.core.config import DEFAULT_SCALE, SCALES, for_scale
 from repro.core.errors import require
-from repro.core.io import open_figures, open_results
+from repro.core.io import note_departures, open_figures, open_results
 
 
 def add_common(parser: argparse.ArgumentParser, *, seed: int | None = 0,
@@ -41,6 +41,47 @@ def default_folders(args: argparse.Namespace) -> None:
     for kind in ("results", "figures"):
         if hasattr(args, "scale") and getattr(args, f"{kind}_dir", "") is None:
             setattr(args, f"{kind}_dir", str(scale_folder(kind, args.scale)))
+
+
+NEUTRAL = ("help", "config", "scale", "seed", "results_dir", "figures_dir", "runs_dir",
+           "overwrite", "n_jobs", "scheduler", "no_figure", "replot")
+"""Options that leave a run's numbers as the scale makes them: where files go, how many
+processes compute them, the root seed."""
+VARIANTS = ("learner",)
+"""Options that choose which study a driver runs, and so which result files it writes (the
+suite's learner: ``*_suite``), rather than its settings; a driver module names its own further
+ones in a ``VARIANTS`` tuple (``fig-transfer --sim-version``: ``*_20170422``)."""
+
+
+def scale_departures(parser: argparse.ArgumentParser, args: argparse.Namespace,
+                     variants: tuple[str, ...] = ()) -> list[str]:
+    """The options (their flags) whose values in ``args`` are not those of ``--scale``: a config
+    field's flag given with another value than the scale's, any other option that is not
+    :data:`NEUTRAL` nor a variant (:data:`VARIANTS` and ``variants``) given with another value
+    than its default. A run with any is not a run of its scale (:func:`repro.core.io.run_scale`)."""
+    out = []
+    for action in parser._actions:
+        dest = action.dest
+        if dest in (*NEUTRAL, *VARIANTS, *variants) or not hasattr(args, dest):
+            continue
+        setting = getattr(action, "setting", None)  # (config class, field): add_config_arguments
+        expected = (getattr(for_scale(setting[0], args.scale), setting[1]) if setting
+                    else action.default)
+        if _comparable(getattr(args, dest)) != _comparable(expected):
+            out.append(action.option_strings[0])
+    return out
+
+
+def _comparable(value: object) -> object:
+    return tuple(value) if isinstance(value, list) else value
+
+
+def note_scale_departures(module: object, parser: argparse.ArgumentParser,
+                          args: argparse.Namespace) -> None:
+    """Note, for the sidecars and the guards of this run, the options by which a driver's run
+    departs from its ``--scale`` (:func:`scale_departures`)."""
+    if hasattr(args, "scale") and hasattr(args, "results_dir"):
+        note_departures(scale_departures(parser, args, getattr(module, "VARIANTS", ())))
 
 
 def results_folder(args: argparse.Namespace) -> Path:

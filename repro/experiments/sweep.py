@@ -16,8 +16,9 @@ most the epoch in progress; the next sweep resumes from the client's folders. Ea
 building the environment and loading the checkpoint on the worker, tens of milliseconds. A cluster
 that stops answering mid-sweep (its scheduler lost, or no epoch finished for
 :data:`CLUSTER_SILENCE` seconds) ends the sweep in one line naming --scheduler; the same command
-run again resumes. So does a worker that dies, joblib's or Dask's (the system killed it, most
-often for want of memory), in one line that says so (:class:`~repro.core.errors.WorkerDied`).
+run again resumes. So does a worker that dies, joblib's or Dask's, in one line that says so and,
+for joblib's, names the signal and its usual cause (SIGKILL: most often memory; SIGSEGV: a crash
+in compiled code) (:class:`~repro.core.errors.WorkerDied`).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import asyncio
 import dataclasses
 import os
 import re
+import signal
 import socket
 import tempfile
 import threading
@@ -180,21 +182,51 @@ def _dask_result(future: Any, doing: str, then: str) -> Any:
                     f"of them), the last {worker}; its log says why", then) from None
 
 
+_SIGNAL_CAUSES = {
+    "SIGKILL": "most often the system out of memory (fewer --n-jobs need less), or a kill -9",
+    "SIGSEGV": "a crash in compiled code (an invalid memory access, not memory running out; "
+               "`make clean` removes numba's compiled kernels, should one be stale)",
+    "SIGBUS": "a crash in compiled code, or a file mapped into memory that shrank or a full disk",
+    "SIGILL": "compiled code for another CPU (numba's cache from another machine: `make clean`)",
+    "SIGFPE": "an arithmetic fault in compiled code",
+    "SIGABRT": "a library that aborted (its message is in the worker's output)",
+    "SIGTERM": "stopped from outside (kill, or the system shutting down)",
+    "SIGINT": "interrupted (Ctrl-C)",
+}
+"""What the signal that killed a worker usually means, by its name."""
+
+
+def _exit_causes(message: str) -> str:
+    """The exit codes in loky's TerminatedWorkerError ``message`` (``{SIGKILL(-9), EXIT(1)}``),
+    each with its usual cause."""
+    codes = [int(c) for c in re.findall(r"\((-?\d+)\)", message.split("exit codes", 1)[-1])]
+    if not codes:
+        return "killed, exit code unknown"
+    parts = []
+    for code in dict.fromkeys(codes):
+        if code >= 0:
+            parts.append(f"exit status {code}: the worker exited (its output says why)")
+            continue
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        parts.append(f"{name}: {_SIGNAL_CAUSES.get(name, 'a signal from outside')}")
+    return "; ".join(parts)
+
+
 def _on_joblib(fn: Callable[..., Any], tasks: list[tuple], workers: int, doing: str,
                then: str) -> list[Any]:
     """``[fn(*task) for task in tasks]`` on ``workers`` joblib (loky) worker processes;
-    :class:`WorkerDied` where one of them dies (the system killed it, most often for want of
-    memory)."""
+    :class:`WorkerDied` where one of them dies, naming the signal and what it usually means
+    (:func:`_exit_causes`)."""
     from joblib import Parallel, delayed
     from joblib.externals.loky.process_executor import TerminatedWorkerError
 
     try:
         return Parallel(n_jobs=workers, backend="loky")(delayed(fn)(*task) for task in tasks)
     except TerminatedWorkerError as err:
-        codes = re.search(r"exit codes of the workers are (\{[^}]*\})", str(err))
-        why = ("exit codes " + codes.group(1) if codes else "killed")
-        raise _died(doing, f"joblib: {why}; a signal such as SIGKILL is most often the system "
-                    f"out of memory, and fewer --n-jobs need less", then) from None
+        raise _died(doing, f"joblib: {_exit_causes(str(err))}", then) from None
 
 
 def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:

@@ -36,7 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
     """Add the chosen environment's own options (``--env`` decides which)."""
-    pre = argparse.ArgumentParser(add_help=False)
+    pre = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
     pre.add_argument("--env")
     name = pre.parse_known_args(argv)[0].env
     if name is not None:

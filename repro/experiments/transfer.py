@@ -277,14 +277,15 @@ def score_policy(env_cfg: WildfireConfig, checkpoint: bytes, kept: list[bytes], 
     from repro.learn.trained_policy import policy_from_state
 
     env = make_env(env_cfg)
+    sizes = dict(obs_dim=env.obs_dim, n_actions=env.n_actions)
     final, *kept_streams = children(policy_stream, 1 + len(kept))
-    policy = policy_from_state(load_checkpoint(io.BytesIO(checkpoint)),
+    policy = policy_from_state(load_checkpoint(io.BytesIO(checkpoint), "--runs-dir", **sizes),
                                np.random.default_rng(final))
     rollout = evaluate(env, policy, episodes, env_seed, keep_obs=False)
     kept_adr = []
     for data, stream in zip(kept, kept_streams):
         actions, episode = children(stream, 2)
-        kept_policy = policy_from_state(load_checkpoint(io.BytesIO(data)),
+        kept_policy = policy_from_state(load_checkpoint(io.BytesIO(data), "--runs-dir", **sizes),
                                         np.random.default_rng(actions))
         kept_adr.append(adr(env.rollout(kept_policy, 1, episode), env.gamma)[0])
     return (*adr(rollout, env.gamma), rollout.n_truncated,
@@ -352,6 +353,10 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem, sources)
 
 
+VARIANTS = ("corrected", "no_quirk", *QUIRKS, "sim_version", "no_fire_out_first")
+"""Options that choose the study, each writing result files of its own (``transfer_corrected*``,
+``*_no_q3*``, ``*_20170422``, ``*_no_fire_out_first``), not its settings
+(:func:`repro.experiments.options.scale_departures`)."""
 SIZES = ("seeds", "epochs", "test_episodes")
 """The TransferConfig fields that every study of the transfer family takes as flags, besides the
 learner and its batch sizes (:func:`repro.learn.config.add_study_learner_arguments`)."""

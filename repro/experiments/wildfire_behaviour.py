@@ -193,8 +193,8 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
     """One row per trained policy: its C6 frequencies, its ADR and the flowchart's on the same
     episodes; and one row of the flowchart's own frequencies on those episodes."""
     from repro.learn.config import learner_name
-    from repro.learn.run_folder import CHECKPOINT
-    from repro.learn.trained_policy import policy_from_checkpoint
+    from repro.learn.run_folder import CHECKPOINT, load_checkpoint
+    from repro.learn.trained_policy import policy_from_state
 
     env_cfg = cfg.env()
     env = make_env(env_cfg)
@@ -216,7 +216,9 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
     flow_shares, flow_adr, flow_sem, _ = observe(flowchart)
     rows = []
     for i, (job, folder) in enumerate(zip(jobs, folders), start=1):
-        policy = policy_from_checkpoint(folder / CHECKPOINT, rng(i))
+        policy = policy_from_state(load_checkpoint(folder / CHECKPOINT, "--runs-dir",
+                                                   obs_dim=env.obs_dim, n_actions=env.n_actions),
+                                   rng(i))
         learned, learned_adr, learned_sem, cut = observe(policy)
         rows.append(dict(train_seed=job.train.seed, epochs=job.train.epochs,
                          learner=learner_name(job.train), r_pen=env_cfg.r_pen,
@@ -234,6 +236,9 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
 
 
 FLAGS = ("seeds", "epochs", "sim_version", "test_episodes", "max_decisions")
+VARIANTS = ("sim_version",)
+"""The option that chooses the study (``*_20170422``), not its settings
+(:func:`repro.experiments.options.scale_departures`)."""
 """The BehaviourConfig fields the study takes as flags, besides the learner and its batch sizes
 (:func:`repro.learn.config.add_study_learner_arguments`)."""
 

@@ -237,7 +237,8 @@ def setting_tag(field: str, value: Any) -> str:
 def add_learner_option(p: Any, writes: str) -> None:
     """A study's ``--learner``; ``writes`` names the results another learner than the default
     writes (e.g. ``"beyond_mgae_suite*"``)."""
-    p.add_argument("--learner", help="named learner: " + ", ".join(LEARNERS)
+    p.add_argument("--learner", choices=tuple(LEARNERS), help="named learner: "
+                   + ", ".join(LEARNERS)
                    + f" (default {DEFAULT_LEARNER}: the released runner; suite writes {writes})")
 
 
@@ -267,7 +268,7 @@ def add_learner_arguments(p: Any) -> None:
     """``--learner`` and a flag for every TrainConfig setting (each overrides the named learner's,
     the environment's and the scale's value of that setting; docs/semantics.md section 5.7).
     Studies take :func:`add_study_learner_arguments`."""
-    p.add_argument("--learner", default=DEFAULT_LEARNER,
+    p.add_argument("--learner", default=DEFAULT_LEARNER, choices=tuple(LEARNERS),
                    help="named learner: " + ", ".join(LEARNERS) + " (default %(default)s: the "
                         "released runner that trained the paper's policies)")
     add_config_arguments(p, TrainConfig, show_defaults=False)

@@ -55,6 +55,7 @@ from repro.core.kernels import describe as describe_kernels
 from repro.core.kernels import record as kernel_record
 from repro.core.locks import folder_lock, is_locked
 from repro.learn.config import TrainConfig
+from repro.learn.policy import DTYPE
 
 CONFIG = "config.json"
 PROGRESS = "progress.csv"
@@ -130,11 +131,17 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     missing = [k for k in ACTING_KEYS + (TRAINING_KEYS if whole else ()) if k not in state]
     if missing:
         return f"it lacks {', '.join(missing)}"
+    unknown = sorted(map(str, set(state) - {"format", *ACTING_KEYS, *TRAINING_KEYS}))
+    if unknown:
+        return f"it holds entries this suite does not write: {', '.join(unknown)}"
     epoch, config = state["epoch"], state["run_config"]
     if not isinstance(epoch, int) or isinstance(epoch, bool) or epoch < 0:
         return f"its epoch is {epoch!r}, not a whole number >= 0"
     train = config.get("train") if isinstance(config, dict) else None
     hidden = train.get("hidden") if isinstance(train, dict) else None
+    planned = train.get("epochs") if isinstance(train, dict) else None  # a kept policy has none
+    if isinstance(planned, int) and epoch > planned:
+        return f"its epoch is {epoch}, beyond its run's {planned} epochs"
     if (not isinstance(hidden, (list, tuple)) or not hidden
             or not all(isinstance(h, int) and h >= 1 for h in hidden)):
         return "its run config has no hidden layer sizes"
@@ -144,9 +151,7 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     if not (_is_tensor(first, 2) and _is_tensor(last, 2)):
         return f"its policy is not an MLP of hidden sizes {list(hidden)}"
     sizes = [first.shape[1], *hidden, last.shape[0]]
-    expect = {**{f"net.{2 * i}.weight": (b, a) for i, (a, b) in enumerate(zip(sizes, sizes[1:]))},
-              **{f"net.{2 * i}.bias": (b,) for i, b in enumerate(sizes[1:])}}
-    problem = _tensors_problem("policy", policy, expect)
+    problem = _tensors_problem("policy", policy, _mlp_shapes(sizes))
     if problem:
         return problem
     for name, want, have in (("inputs", obs_dim, sizes[0]), ("actions", n_actions, sizes[-1])):
@@ -158,7 +163,7 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     if not isinstance(count, int) or isinstance(count, bool) or count < 0:
         return "its normaliser has no count of observations"
     problem = _tensors_problem("normaliser", {k: v for k, v in norm.items() if k != "count"},
-                               {"mean": (d,), "var": (d,)})
+                               {"mean": ((d,), F64), "var": ((d,), F64)})
     if problem or bool((norm["var"] < 0).any()):
         return problem or "its normaliser has a negative variance"
     if not whole:
@@ -166,12 +171,10 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     kind = train.get("baseline", "linear")
     if kind == "mlp":
         bh = list(train.get("baseline_hidden", (32, 32)))
-        bs = [d, *bh, 1]
-        expect = {**{f"net.{2 * i}.weight": (b, a) for i, (a, b) in enumerate(zip(bs, bs[1:]))},
-                  **{f"net.{2 * i}.bias": (b,) for i, b in enumerate(bs[1:])},
-                  "target_mean": (), "target_std": (), "fitted": ()}
+        expect = {**_mlp_shapes([d, *bh, 1]), "target_mean": ((), F64),
+                  "target_std": ((), F64), "fitted": ((), torch.bool)}
     else:
-        expect = {"coeffs": (2 * d + 4,)}
+        expect = {"coeffs": ((2 * d + 4,), F64)}
     problem = _tensors_problem("baseline", state["baseline"], expect)
     if problem:
         return problem
@@ -196,16 +199,33 @@ def _is_tensor(x: Any, ndim: int) -> bool:
     return isinstance(x, torch.Tensor) and x.dim() == ndim
 
 
-def _tensors_problem(what: str, tensors: Any, shapes: dict[str, tuple[int, ...]]) -> str | None:
-    """What is wrong with ``tensors`` (a dict of tensors with exactly the keys and shapes of
-    ``shapes``, all finite), or None."""
+F64 = torch.float64
+"""The dtype of the normaliser's and the baselines' statistics; the networks' is
+:data:`repro.learn.policy.DTYPE` (float32)."""
+
+
+def _mlp_shapes(sizes: list[int]) -> dict[str, tuple[tuple[int, ...], torch.dtype]]:
+    """The entries of an MLP of layer ``sizes`` (inputs first): each layer's weight and bias, in
+    the networks' dtype."""
+    return {**{f"net.{2 * i}.weight": ((b, a), DTYPE) for i, (a, b) in
+               enumerate(zip(sizes, sizes[1:]))},
+            **{f"net.{2 * i}.bias": ((b,), DTYPE) for i, b in enumerate(sizes[1:])}}
+
+
+def _tensors_problem(what: str, tensors: Any,
+                     shapes: dict[str, tuple[tuple[int, ...], torch.dtype]]) -> str | None:
+    """What is wrong with ``tensors`` (a dict of tensors with exactly the keys, shapes and dtypes
+    of ``shapes``, all finite), or None: a network saved in another dtype would act with other
+    arithmetic than it was trained with."""
     if not isinstance(tensors, dict) or set(tensors) != set(shapes):
         return f"its {what} does not have the entries {', '.join(sorted(shapes))}"
-    for key, shape in shapes.items():
+    for key, (shape, dtype) in shapes.items():
         t = tensors[key]
         if not isinstance(t, torch.Tensor) or tuple(t.shape) != shape:
             got = tuple(t.shape) if isinstance(t, torch.Tensor) else type(t).__name__
             return f"its {what}'s {key} is {got}, not of shape {shape}"
+        if t.dtype != dtype:
+            return f"its {what}'s {key} is {t.dtype}, not {dtype} as trained"
         if t.dtype != torch.bool and not bool(torch.isfinite(t).all()):
             return f"its {what}'s {key} holds NaN or Inf"
     return None
@@ -348,10 +368,17 @@ def resume_state(folder: Path, mine: dict[str, Any], defaults: dict[str, Any],
     diff = run_difference(state.get("run_config") or {}, mine, defaults, aliases)
     require(diff is None, param, f"a run folder whose {CHECKPOINT} belongs to its run ({diff}; "
             f"delete {CHECKPOINT} to start again)", str(folder))
-    rows = _rows(folder / PROGRESS)
+    rows = progress_rows(folder)
     epochs = int(state["epoch"])
-    require(rows >= epochs, param, f"a run folder whose {PROGRESS} holds the {epochs} epochs of "
-            f"its {CHECKPOINT} (it holds {rows}; delete {CHECKPOINT} to start again)", str(folder))
+    # one row more where a run stopped between an epoch's row and its checkpoint, never more
+    require(epochs <= rows <= epochs + 1, param, f"a run folder whose {PROGRESS} holds the "
+            f"{epochs} epochs of its {CHECKPOINT} (it holds {rows}; delete {CHECKPOINT} to start "
+            "again)", str(folder))
+    # a checkpoint never goes back: the last finished call left one of its epochs_after
+    finished = (_read_object(folder / PROVENANCE, param) or {}).get("epochs_after")
+    require(not isinstance(finished, int) or epochs >= finished, param, f"a run folder whose "
+            f"{CHECKPOINT} holds the {finished} epochs its last call finished with (it holds "
+            f"{epochs}; delete {CHECKPOINT} to start again)", str(folder))
     check_kernels(folder, param)
     return state
 
@@ -386,7 +413,9 @@ def check_kernels(folder: Path, param: str = "--out") -> None:
             "folder)", str(folder))
 
 
-def _rows(path: Path) -> int:
+def progress_rows(folder: Path) -> int:
+    """The epochs the progress.csv of the run in ``folder`` holds (0 without one)."""
+    path = folder / PROGRESS
     return max(len(path.read_text().splitlines()) - 1, 0) if path.exists() else 0
 
 
@@ -472,18 +501,19 @@ def append_row(folder: Path, row: dict[str, Any], columns: list[str]) -> None:
     append_csv(folder / PROGRESS, pd.DataFrame([row], columns=columns))
 
 
-def epochs_done(folder: str | Path) -> int:
-    """Epochs the checkpoint of the run in ``folder`` holds (0 if it has none)."""
+def epochs_done(folder: str | Path, param: str = "--runs-dir") -> int:
+    """Epochs the checkpoint of the run in ``folder`` holds (0 if it has none); a damaged one is
+    a UsageError naming ``param``, the option that named the folder (a sweep's)."""
     path = Path(folder) / CHECKPOINT
-    return int(load_checkpoint(path)["epoch"]) if path.exists() else 0
+    return int(load_checkpoint(path, param)["epoch"]) if path.exists() else 0
 
 
-def is_finished(folder: str | Path, epochs: int) -> bool:
+def is_finished(folder: str | Path, epochs: int, param: str = "--runs-dir") -> bool:
     """Whether the run in ``folder`` has ``epochs`` epochs and its last ``train`` call ended
     (its provenance sidecar is written last, and no write was left half done)."""
     folder = Path(folder)
     return ((folder / PROVENANCE).exists() and not _leftovers(folder)
-            and epochs_done(folder) >= epochs)
+            and epochs_done(folder, param) >= epochs)
 
 
 # --- one writer ----------------------------------------------------------------------------------

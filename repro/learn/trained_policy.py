@@ -10,8 +10,8 @@ import numpy as np
 from repro.core.errors import UsageError, require
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.core.io import note_trained_under
-from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, load_checkpoint, recorded_kernels,
-                                    state_problem)
+from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, PROGRESS, load_checkpoint,
+                                    progress_rows, recorded_kernels, state_problem)
 from repro.core.config import saved_defaults
 
 C = TypeVar("C")
@@ -29,6 +29,10 @@ def load_trained_run(path: str | Path, env_name: str,
     require(state.get("run_config", {}).get("env_name") == env_name, param, allowed, str(path))
     folder = Path(path).parent
     folder = folder.parent if folder.name == KEPT else folder  # a kept policy's run folder
+    if (folder / PROGRESS).is_file():
+        rows = progress_rows(folder)
+        require(state["epoch"] <= rows, param, f"{allowed} whose epoch ({state['epoch']}) its "
+                f"run's {PROGRESS} holds (it holds {rows} epochs)", str(path))
     if (folder / CONFIG).is_file():
         note_trained_under(recorded_kernels(folder, param))
     return state

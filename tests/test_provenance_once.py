@@ -1,0 +1,79 @@
+"""A sidecar is written once, by its run: a later correction is a dated note beside it, and the
+reader shows both (repro.core.io.write_correction, shown_provenance)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pandas as pd
+import pytest
+
+from repro.core.errors import UsageError
+from repro.core.io import (correction_paths, read_provenance, shown_provenance, source_records,
+                           write_correction)
+from tests.conftest import ROOT, tree_snapshot, write_result_csv
+
+
+def _git(*args: str) -> str:
+    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True,
+                          check=True).stdout
+
+
+def _as_run_wrote_it(side: str) -> dict | None:
+    """The sidecar ``side`` (a path in the repository) as the commit that first held its run (its
+    ``finished_utc``) recorded it; None where its history is not in this clone."""
+    now = json.loads((ROOT / side).read_text())
+    for commit in reversed(_git("log", "--format=%H", "--", side).split()):
+        try:
+            then = json.loads(_git("show", f"{commit}:{side}"))
+        except subprocess.CalledProcessError:  # removed in that commit
+            continue
+        if then.get("finished_utc") == now.get("finished_utc"):
+            return then
+    return None
+
+
+def test_every_committed_sidecar_is_as_its_run_wrote_it():
+    """Six transfer sidecars had their git_commit rewritten by hand after the run; they hold the
+    run's value again, and the correction is a note beside each."""
+    if _git("rev-parse", "--is-shallow-repository").strip() != "false":
+        pytest.skip("a shallow clone has not the sidecars' history")
+    sides = _git("ls-files", "results/*.provenance.json").split()
+    compared = 0
+    for side in sides:
+        then = _as_run_wrote_it(side)
+        if then is not None:
+            assert json.loads((ROOT / side).read_text()) == then, side
+            compared += 1
+    assert compared == len(sides) > 50
+
+
+def test_the_transfer_sidecars_show_their_recorded_and_their_corrected_commit():
+    for stem in ("transfer", "transfer_summary", "transfer_20170422", "transfer_20170422_summary",
+                 "transfer_corrected", "transfer_corrected_summary"):
+        result = ROOT / "results" / "paper" / f"{stem}.csv"
+        shown = shown_provenance(result)
+        assert shown["git_commit"].startswith("b38ab40")
+        [note] = shown["corrections"]
+        assert note["field"] == "git_commit" and note["recorded"] == shown["git_commit"]
+        assert note["value"].startswith("c7da876") and note["date"] == "2026-11-26"
+        assert note["corrects"] == f"{stem}.provenance.json"
+
+
+def test_a_correction_is_a_note_of_its_own_written_once(tmp_path):
+    result = tmp_path / "r.csv"
+    write_result_csv(pd.DataFrame(dict(x=[1])), result, git_commit="aaa")
+    side = (tmp_path / "r.provenance.json").read_bytes()
+    note = write_correction(result, "git_commit", "bbb", "wrong checkout", date="2026-01-02")
+    assert note.name == "r.correction-2026-01-02.json" and correction_paths(result) == [note]
+    assert (tmp_path / "r.provenance.json").read_bytes() == side
+    assert read_provenance(result)["git_commit"] == "aaa"
+    assert shown_provenance(result)["corrections"][0]["value"] == "bbb"
+    assert source_records([result])[0]["corrections"][0]["recorded"] == "aaa"
+    before = tree_snapshot(tmp_path)
+    with pytest.raises(UsageError, match="date"):
+        write_correction(result, "git_commit", "ccc", "again", date="2026-01-02")
+    with pytest.raises(UsageError, match="field"):
+        write_correction(result, "no_such_field", "ccc", "none", date="2026-01-03")
+    assert tree_snapshot(tmp_path) == before
