@@ -34,14 +34,14 @@ BATCH = {  # learner: batch size of every run, in its unit
 }
 DIGESTS = {
     "suite": {
-        "wildfire ED": "29ff09df5d3d19ef45dc7be3cecee749f9a70871a97b853ae4bedc1078c5ea8d",
-        "wildfire FS-1": "ba07b78975b3930cfb807faf0b5f73870b9289821e09594f50afa9361699dd07",
-        "bus": "0091a0d5995f3c80aba7d06f6df204cba4ff67c7d9f48bfc9ecbf0ea9a01bce4",
+        "wildfire ED": "43d3f7839004339751b87908e5495e983b99a16c387a5e83293e40444ef31740",
+        "wildfire FS-1": "10e50b06b122d77fbcd2cb0cb5b69dc36f263e44540e3680e24cf99b966dee64",
+        "bus": "776241dc80b90454a2d8d933cf738fc0e6be1ff9f40ca769bec876c7bd03d5a9",
     },
     "authors": {
-        "wildfire ED": "2a540ad2b87b1171e45241d5e0212522f0f0de50b3075b97813bc2427684286f",
-        "wildfire FS-1": "0ea6b11784e451d87d21d36433583e4f2f58672acbf0677722228a69a2e27dcd",
-        "bus": "6cfd05b74fedc1e5dfb618fb3855f7a88e226b40afa49b2414fac1b615627bc9",
+        "wildfire ED": "bc258411f299262d0399fbb676ae69e2ed65e99652497b5f49633cf8504e4578",
+        "wildfire FS-1": "677c52671e8520929c6af9b8f621c765735bef1e2a271403d0a1913e5815343b",
+        "bus": "b11b77540f9bd3d493ada7907f20b65e32671b1a28ffadef25fb9b06e413ccca",
     },
 }
 """Computed by the ``__main__`` block below (see the module docstring)."""
