@@ -115,6 +115,8 @@ ACTING_KEYS = ("epoch", "policy", "normalizer", "run_config")
 """The entries of a kept policy (besides ``format``): what acting needs."""
 TRAINING_KEYS = ("baseline", "sampler_rng", "torch_rng")
 """The further entries of a run's checkpoint: what training on needs."""
+POOL_KEYS = ("pool_offsets",)
+"""The entries of a run on the released pool, besides those (its workers' stream positions)."""
 
 
 # long: one check after another in the order the state is read, each returning its own line
@@ -131,7 +133,7 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     missing = [k for k in ACTING_KEYS + (TRAINING_KEYS if whole else ()) if k not in state]
     if missing:
         return f"it lacks {', '.join(missing)}"
-    unknown = sorted(map(str, set(state) - {"format", *ACTING_KEYS, *TRAINING_KEYS}))
+    unknown = sorted(map(str, set(state) - {"format", *ACTING_KEYS, *TRAINING_KEYS, *POOL_KEYS}))
     if unknown:
         return f"it holds entries this suite does not write: {', '.join(unknown)}"
     epoch, config = state["epoch"], state["run_config"]
