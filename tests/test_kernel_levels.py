@@ -1,5 +1,5 @@
 """Training gives the same bytes under every kernel level of an x86-64 CPU with AVX2
-(repro.core.kernels): a short wildfire run of each learner through the real entry point under two
+(repro.runs.kernels): a short wildfire run of each learner through the real entry point under two
 levels, which stand in for two machines.
 
 The levels: torch's scalar kernels (``ATEN_CPU_CAPABILITY=default``) against the AVX2 ones of
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from repro.core import kernels
 from repro.learn.trainer import TIMING_COLUMNS
+from repro.runs import kernels
 from tests.conftest import ROOT, env_without_pins
 
 RUN = ("train", "--env", "wildfire", "--scale", "smoke", "--epochs", "3")

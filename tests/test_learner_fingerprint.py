@@ -1,5 +1,5 @@
 """Both learners pinned bit for bit: a short run of each, in the bytes it gives on every x86-64
-CPU with AVX2 (the CPU kernels are pinned: repro.core.kernels; tests/test_kernel_levels.py). The
+CPU with AVX2 (the CPU kernels are pinned: repro.runs.kernels; tests/test_kernel_levels.py). The
 digests were computed by this module (``python -m tests.test_learner_fingerprint [authors]``) on
 the code that pinned the kernels; on this project's AVX-512 machine they differ in the last bits
 from the unpinned code's (CHANGELOG.md, 2026-11-26). They hold for the installed torch, numpy and

@@ -1,4 +1,4 @@
-"""numba's cache file under concurrent saves (repro.core.numba_cache): two writers of one
+"""numba's cache file under concurrent saves (repro.runs.numba_cache): two writers of one
 function's cache that read its index at the same time must not both take one data file."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import time
 from numba.core.caching import IndexDataCacheFile
 
 import repro  # noqa: F401  (installs the lock, as every process of the suite does)
-from repro.core import numba_cache
+from repro.runs import numba_cache
 
 
 def _save_concurrently(tmp_path, monkeypatch) -> dict:

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 import scipy.stats as sps
 
-from repro.experiments.plot_runs import curve, groups, read_runs
+from repro.studies.training.plot_runs import curve, groups, read_runs
 from tests.conftest import run_cli, tree_snapshot
 
 

@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import Callable
 
 from repro.core.errors import require
-from repro.core.io import check_names, check_writable_dir, read_provenance, write_text
+from repro.runs.files import check_names, check_writable_dir, write_text
+from repro.runs.results import read_provenance
 
 NOT_RUN = "not yet run"
 AMBIGUOUS = "AMBIGUOUS"

@@ -1,7 +1,7 @@
 """C1-C5: the bus-holding claims, checked from the result CSVs of the bus drivers.
 
 A run's final return is the mean average return of its last ``final_epochs`` epochs (see
-``repro.experiments.bus_sweeps``); intervals are 95% stratified-bootstrap CIs over seeds of the IQM.
+``repro.studies.bus.sweeps``); intervals are 95% stratified-bootstrap CIs over seeds of the IQM.
 The baselines are deterministic (one exact episode each), so they carry no interval. Verdicts:
 PASS when the intervals separate as the claim says, PARTIAL when only the point estimates do, FAIL
 otherwise.
@@ -12,19 +12,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from repro.core.io import read_result
 from repro.claims import (LEARNER_READINGS, Claim, IncompleteResult, Verdict, is_incomplete,
                           scale_of, side_by_side)
-from repro.core.stats import bootstrap_ci, iqm
 from repro.envs.bus import BusConfig
-from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_SHARE,
-                                    UNIFORM_WINDOW_MIN, l1_per_point, load_variance_per_record,
-                                    time_to_regularity, time_to_uniform)
+from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_SHARE, UNIFORM_WINDOW_MIN,
+                                    l1_per_point, load_variance_per_record, time_to_regularity,
+                                    time_to_uniform)
+from repro.paper import BUS_LAMBDA, BUS_REGULARITY_MIN
+from repro.runs.results import read_result
+from repro.runs.stats import bootstrap_ci, iqm
 
-PAPER_LAMBDA = 2.0
-"""The paper's bus lambda: C1 compares the MLP trained with it."""
-PAPER_REGULARITY_MIN = {"mlp": 100.0, "thresholds": 200.0}
-"""Paper: uniform arrivals after about 100 min (MLP) and 200 min (Optimized Thresholds)."""
 
 
 def _verdict(strict: bool, loose: bool) -> str:
@@ -45,14 +42,14 @@ def _fmt(row: pd.Series) -> str:
 def check_c1(results: Path, suffix: str = "") -> Verdict:
     """MLP (lambda = 2) > Optimized Thresholds > No Holding."""
     table, base, path = _summary(results, f"lambda{suffix}")
-    mlp = table[(table.policy == "mlp") & (table["lambda"] == PAPER_LAMBDA)].iloc[0]
+    mlp = table[(table.policy == "mlp") & (table["lambda"] == BUS_LAMBDA)].iloc[0]
     order = base["thresholds"] > base["nohold"]
     v = _verdict(order and mlp.ci_low > base["thresholds"],
                  order and mlp.final_iqm > base["thresholds"])
     ours = (f"MLP {_fmt(mlp)} > thresholds {base['thresholds']:.0f} > no holding "
             f"{base['nohold']:.0f}")
     return Verdict(ours, v, f"final return, IQM over {int(mlp.runs)} seeds with 95% bootstrap CI, "
-                   f"lambda = {PAPER_LAMBDA:g}; baselines exact", scale_of(path))
+                   f"lambda = {BUS_LAMBDA:g}; baselines exact", scale_of(path))
 
 
 def check_c2(results: Path, suffix: str = "") -> Verdict:
@@ -133,7 +130,7 @@ def check_c5(results: Path, suffix: str = "") -> Verdict:
 
     ours = (f"uniform from: MLP {fmt(t_uni['mlp'])}, {thr} thresholds {fmt(t_uni[thr])}; load "
             f"variance across buses: MLP {var['mlp']:.0f}, {thr} thresholds {var[thr]:.0f} pax^2")
-    paper = PAPER_REGULARITY_MIN
+    paper = BUS_REGULARITY_MIN
     return Verdict(ours, _verdict(sooner and lower, sooner or lower),
                    f"paper: {paper['mlp']:.0f} vs {paper['thresholds']:.0f} min, "
                    "MLP lower variance. One 6 h episode per policy (the paper's pictures), the "

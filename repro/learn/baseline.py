@@ -43,7 +43,7 @@ class Baseline(Protocol):
 
 class LinearFeatureBaseline:
     """rllab's linear feature baseline. numpy's BLAS and LAPACK, whose kernels depend on the CPU,
-    are kept out of it (:mod:`repro.core.kernels`): the features and the prediction are compiled
+    are kept out of it (:mod:`repro.runs.kernels`): the features and the prediction are compiled
     loops whose sums run in a fixed order, and the regression's matrix products and solve are
     torch's, whose MKL runs its pinned AVX2 branch."""
 

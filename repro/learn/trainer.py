@@ -6,7 +6,7 @@ them, or, counted in decisions, as the released runner's parallel workers collec
 advantages (or those of ``TrainConfig.advantage``) with the current baseline, take one TRPO step,
 update the observation normaliser, then fit the baseline to the batch's discounted returns (in the
 new normalisation, which it will be used with). Given a run folder, the trainer hands each epoch's
-row and state to :mod:`repro.learn.run_folder`, which records them so that running the same
+row and state to :mod:`repro.runs.run_folder`, which records them so that running the same
 command again resumes exactly.
 
 Threads and malloc: torch's thread count and malloc's thresholds are process-wide settings, which
@@ -16,7 +16,7 @@ Determinism: torch is seeded from the run seed; the policy's sampling draws come
 Generator owned by the trainer (its state is checkpointed); epoch e's environment seed is derived
 from (seed, e). Timing columns are the only run-to-run differences in the outputs. Across machines:
 on every x86-64 CPU with AVX2 the kernels of torch, its MKL and numpy are the pinned AVX2 ones
-(:mod:`repro.core.kernels`; the trainer warns where they are not), numpy's BLAS is not used, and
+(:mod:`repro.runs.kernels`; the trainer warns where they are not), numpy's BLAS is not used, and
 the outputs are the same bytes.
 """
 
@@ -32,8 +32,6 @@ import pandas as pd
 import torch
 
 from repro.core.errors import require
-from repro.core.kernels import check as check_kernels
-from repro.core.progress import progress
 from repro.core.rollout import BatchEnv
 from repro.learn import batch
 from repro.learn.baseline import make_baseline
@@ -41,9 +39,12 @@ from repro.learn.config import TrainConfig
 from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import DTYPE, CategoricalPolicy, ObsNormalizer, Sampler
-from repro.learn import run_folder
+from repro.learn.run_identity import run_config, saved_run_aliases, saved_run_defaults
 from repro.learn.sizes import check_training_size
 from repro.learn.trpo import normalize, trpo_step
+from repro.runs import run_folder
+from repro.runs.kernels import check as check_kernels
+from repro.runs.progress import progress
 
 # Independent child streams of the run seed.
 _TORCH_STREAM, _SAMPLER_STREAM, _ENV_STREAM, _FVP_STREAM = 0, 1, 2, 3
@@ -72,7 +73,7 @@ class Trainer:
         self.param = param
         """The option that named ``out`` (a sweep's is --runs-dir): refusals name it."""
         self.env_config = env_config
-        self.run_config = run_folder.run_config(cfg, env_config, env.name)
+        self.run_config = run_config(cfg, env_config, env.name)
         check_training_size(cfg, env)  # before the networks are built
         check_kernels()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
@@ -150,11 +151,11 @@ class Trainer:
         t_start = time.perf_counter()
         with run_folder.writer_lock(self.out, self.param):
             state, self.rows = run_folder.start(
-                self.out, self.run_config, run_folder.saved_run_defaults(self.env_config,
+                self.out, self.run_config, saved_run_defaults(self.env_config,
                                                                          self.env.name),
                 PROGRESS_COLUMNS, self.param, obs_dim=self.env.obs_dim,
                 n_actions=self.env.n_actions,
-                aliases=run_folder.saved_run_aliases(self.env_config))
+                aliases=saved_run_aliases(self.env_config))
             if state is not None:
                 self.load_state_dict(state)
             first_epoch = self.epoch
