@@ -183,8 +183,8 @@ def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic'
              "pictures: with it the authors' thresholds reproduce the paper's thresholds load "
              "panel at all 55 points, which the paper's prose (docs/semantics.md section "
              "4.9) does not. Each "
-             "departure from the prose is a switch, B1-B5 (README, 'Deviations from the "
-             "paper'); `--corrected` turns them all off.",
+             "departure from the prose is a switch, B1-B5 (docs/semantics.md section 4.9); "
+             "`--corrected` turns them all off.",
              "", "| id | released: verdict, ours | corrected: verdict, ours |", "|---|---|---|"]
     for c in CLAIMS:
         rel, cor = c.evaluate(results), c.evaluate(results / CORRECTED_DIR)
