@@ -20,7 +20,7 @@ from repro.studies.kit.options import default_folders
 
 S = "repro.studies."
 COMMANDS: dict[str, tuple[str, str]] = {
-    # transfer from fixed-step to event-driven simulation, and what explains it
+    # does a policy trained on fixed steps transfer to event-driven simulation, and why?
     "transfer": (S + "transfer.transfer", "train on ED and FS simulators, test on ED (C8, C9)"),
     "transfer-heuristics": (S + "transfer.heuristics",
                             "heuristics' ADR on the transfer study's test episodes (C8, C9)"),
@@ -31,7 +31,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
                           "transfer to ED, one learner setting at a time from the authors' (X5)"),
     "transfer-inputs": (S + "transfer.c9_inputs",
                         "C9's policies tested with out-of-range inputs clamped (the mechanism)"),
-    # the bus
+    # does the learned bus holding beat the baselines, as the paper's figures show?
     "bus-thresholds": (S + "bus.thresholds",
                        "Optimized Thresholds by differential evolution (bus baseline)"),
     "bus-lambda": (S + "bus.lambda_curves",
@@ -41,23 +41,23 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bus-arrivals": (S + "bus.arrivals", "bus arrival-time figure per policy"),
     "bus-loads": (S + "bus.loads", "bus 4th-cycle load figure per policy (C4)"),
     "bus-eval": (S + "bus.evaluate", "evaluate a bus policy (return, loads, regularity)"),
-    # races and the compute they cost
+    # when do fixed steps cause races, and what does event-driven simulation save?
     "race": (S + "races.race", "race-condition Monte Carlo table and figure (C10)"),
     "wildfire-races": (S + "races.wildfire_races",
                        "races in the wildfire simulator, dT against N (X2)"),
     "scaling": (S + "races.scaling", "event-driven vs time-stepped compute against N (C11)"),
-    # the wildfire's policies
+    # how does a learned wildfire policy behave?
     "wildfire-behaviour": (S + "wildfire.behaviour",
                            "frequencies of a long ED-trained policy vs the flowchart (C6, C7)"),
     "wildfire-eval": (S + "wildfire.evaluate", "ADR of a heuristic wildfire policy"),
     "render": (S + "wildfire.render", "an animation (GIF) of one episode of a policy"),
-    # the learner
+    # training, and does M-GAE matter?
     "advantage-estimators": (S + "advantage.estimators",
                              "M-GAE against two other advantage estimators, bus and wildfire (X1)"),
     "train": (S + "training.train", "train a shared policy with PS-TRPO and M-GAE"),
     "plot-runs": (S + "training.plot_runs",
                   "training curves of run folders, runs grouped by setting, seed intervals"),
-    # speed
+    # how fast are the engines and the learner?
     "bench-bus": (S + "bench.bus", "episodes/s of the fast and SimPy bus engines"),
     "bench-wildfire": (S + "bench.wildfire",
                        "decisions/s of the fast and SimPy wildfire engines (MLP policy)"),

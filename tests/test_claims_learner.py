@@ -85,7 +85,7 @@ def test_committed_results_name_the_learner_their_sidecars_record():
 
 def test_every_result_of_trained_policies_was_made_under_the_pinned_kernels():
     """Every committed result of trained policies records pinned kernels in its sidecar, so it is
-    regenerated bit for bit on any x86-64 CPU with AVX2 (README, "What it found")."""
+    regenerated bit for bit on any x86-64 CPU with AVX2 (docs/findings.md)."""
     results = trained_results()
     unpinned = [csv.name for csv in results
                 if not read_provenance(csv).get("machine", {}).get("kernels", {}).get("pinned")]
