@@ -111,7 +111,7 @@ def policy_of(model: PPO):
 def main(argv: list[str] | None = None) -> dict:
     """Train; returns each update's ADR of its training batch (average discounted return of its
     paths), the discount used and the test ADR with its standard error."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     p.add_argument("--updates", type=int, default=20, help="PPO updates")
     p.add_argument("--n-steps", type=int, default=10_000, help="decisions per update")
     p.add_argument("--lam", type=float, default=1.0, help="the paper's lambda (wildfire: 1)")

@@ -181,7 +181,18 @@ def parse_arguments(module: Any, parser: argparse.ArgumentParser,
     if hasattr(module, "extend_arguments"):
         module.extend_arguments(parser, file_argv(parser, settings, argv, path, True)[0] + argv)
     tokens, keys = file_argv(parser, settings, argv, path)
+    show_defaults(parser)
     return parser.parse_args(tokens + argv), {flag: f"{path}: {key}" for flag, key in keys.items()}
+
+
+def show_defaults(parser: argparse.ArgumentParser) -> None:
+    """End the help of every option that has a default, and does not say it yet, with it (a
+    switch's default, off, goes unsaid)."""
+    for action in parser._actions:
+        default = action.default
+        if (action.help and "default" not in action.help and default not in (None, False, [])
+                and default is not argparse.SUPPRESS and action.nargs != 0):
+            action.help += " (default: %(default)s)"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -69,6 +69,14 @@ def read_runs(folders: list[str]) -> list[tuple[dict[str, Any], pd.DataFrame]]:
     return runs
 
 
+def shown(key: str, value: Any) -> str:
+    """A setting as a label shows it: ``lam=2.0``; the simulator as the paper names it, ED where
+    ``dt`` is None (event-driven) and ``FS-dT`` otherwise."""
+    if key == "env.dt":
+        return "ED" if value is None else f"FS-{value:g}"
+    return f"{key.split('.', 1)[-1]}={value}"
+
+
 def groups(runs: list[tuple[dict[str, Any], pd.DataFrame]]) -> list[tuple[str, list[pd.DataFrame]]]:
     """The runs grouped by setting, in the order of their first run; each group's label names
     the settings in which the groups differ (the environment if there is one group)."""
@@ -81,7 +89,7 @@ def groups(runs: list[tuple[dict[str, Any], pd.DataFrame]]) -> list[tuple[str, l
     differ = [k for k in keys if len({json.dumps(c.get(k), default=str) for c in configs}) > 1]
     labelled = []
     for config, tables in keyed.values():
-        parts = [f"{k.split('.', 1)[-1]}={config.get(k)}" for k in differ] or [
+        parts = [shown(k, config.get(k)) for k in differ] or [
             str(config["env_name"])]
         labelled.append((", ".join(parts) + f" ({len(tables)} run{'s' * (len(tables) > 1)})",
                          tables))

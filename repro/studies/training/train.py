@@ -25,12 +25,22 @@ TENSORBOARD_INSTALL = "pip install tensorboard"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scale", default="quick", help="one of " + ", ".join(SCALES))
+    p.add_argument("--scale", default="quick",
+                   help="one of " + ", ".join(SCALES) + " (default %(default)s; " + scale_text()
+                        + ")")
     p.add_argument("--out", help="run folder (default runs/<env>/seed<seed>); rerun to resume")
     p.add_argument("--tensorboard", metavar="DIR",
                    help="also log each epoch's progress row as TensorBoard scalars in DIR "
                         f"(needs the tensorboard package: {TENSORBOARD_INSTALL})")
     add_learner_arguments(p)
+
+
+def scale_text() -> str:
+    """What each scale changes in a training run (TrainConfig.SCALES), as ``--help`` says it."""
+    same = [scale for scale, fields in TrainConfig.SCALES.items() if not fields]
+    other = [f"{scale}: " + ", ".join(f"{k} {v}" for k, v in fields.items())
+             for scale, fields in TrainConfig.SCALES.items() if fields]
+    return "; ".join([f"{' and '.join(same)} train with the settings below", *other])
 
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
