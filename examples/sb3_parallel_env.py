@@ -35,7 +35,7 @@ from stable_baselines3.common.logger import configure
 
 from repro.envs.wildfire import WildfireConfig, make_env
 from repro.envs.wildfire.pettingzoo_env import parallel_env
-from repro.studies.wildfire.evaluate import adr
+from repro.studies.wildfire.study import adr
 
 
 class Spaces(gymnasium.Env):

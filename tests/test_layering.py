@@ -147,3 +147,17 @@ def test_each_simpy_reference_stands_apart_from_its_fast_engine():
             if target.startswith(package) and target != f"{package}.params":
                 borrowed.append(f"{package}.reference imports {target}")
     assert borrowed == []
+
+
+def test_no_module_imports_a_commands_module():
+    """A study's module is its command: what several commands share lives in a module of their
+    group (``repro.studies.<group>.study``, ...) or in ``repro.studies.kit``, never in another
+    command, so a command can change without its neighbours (the CLI imports commands by name;
+    the claims, above the studies, read what a command writes)."""
+    from repro.cli import COMMANDS
+
+    commands = {module for module, _ in COMMANDS.values()}
+    borrowed = sorted(f"{module} imports {target}" for module, targets in graph().items()
+                      for target in targets if target in commands
+                      and module.startswith("repro.studies."))
+    assert borrowed == []

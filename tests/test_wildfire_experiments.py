@@ -20,7 +20,7 @@ from repro.paper import TRANSFER_ADR
 from repro.studies.kit.sweep import run_sweep
 from repro.studies.transfer.study import TransferConfig, evaluate_policies, make_jobs
 from repro.studies.wildfire.behaviour import frequencies
-from repro.studies.wildfire.evaluate import evaluate
+from repro.studies.wildfire.study import evaluate
 from tests.conftest import tree_snapshot, write_result_csv
 
 

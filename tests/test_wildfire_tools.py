@@ -16,7 +16,7 @@ from repro.envs.wildfire import WildfireConfig
 from repro.envs.wildfire.policies import (FLOWCHART_HOLD_ALONE, FLOWCHART_HOLD_SHARED,
                                           FLOWCHART_TARGET, FlowchartPolicy, NearestPolicy,
                                           RandomPolicy)
-from repro.studies.wildfire.evaluate import adr
+from repro.studies.wildfire.study import adr
 
 HOLD = 5
 ROOT = Path(__file__).resolve().parents[1]

@@ -13,7 +13,8 @@ from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_par
 from repro.claims.wildfire import C9_PAPER
 from repro.paper import RACE_BETA
 from repro.runs.results import read_result
-from repro.studies.races.wildfire_races import FIT, RACES, c10_beta
+from repro.studies.races.study import FIT, RACES
+from repro.studies.races.wildfire_races import c10_beta
 from repro.studies.transfer.order import NAME as ORDER
 
 X2_TOLERANCE = 0.2

@@ -36,8 +36,8 @@ from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, normali
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.runs.run_folder import config_dict
+from repro.studies.kit.environments import add_chosen_env_arguments
 from repro.studies.kit.options import add_common, results_folder
-from repro.studies.training import train
 
 
 @dataclass(frozen=True)
@@ -156,7 +156,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
-    train.extend_arguments(p, argv if "--env" in argv else [*argv, "--env", "toy"])
+    add_chosen_env_arguments(p, argv if "--env" in argv else [*argv, "--env", "toy"])
 
 
 def run(args: argparse.Namespace) -> int:

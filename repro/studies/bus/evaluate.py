@@ -11,7 +11,6 @@ policies built in code (its per-episode figures come from episode 0).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 
 import numpy as np
@@ -20,31 +19,14 @@ import pandas as pd
 from repro.core.errors import require
 from repro.core.rollout import Policy
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
-from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, arrival_table, record_loads,
-                                    time_to_regularity, time_to_uniform)
+from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, record_loads, time_to_regularity,
+                                    time_to_uniform)
 from repro.learn.config import LEARNERS
-from repro.studies.bus.policies import POLICIES, make_policy
-
-PICTURE_HORIZON = 6 * 3600.0
-"""The episode length of the paper's bus pictures (s): the released code's PLOTTING runs."""
-
-
-def policy_from_args(name: str, args: argparse.Namespace, cfg: BusConfig) -> Policy:
-    """The named policy on corridor ``cfg``; --thresholds / --mlp-run, else the optimised
-    thresholds and the best trained run recorded in --results-dir."""
-    thresholds = None if args.thresholds is None else np.array(args.thresholds, float)
-    return make_policy(name, cfg, thresholds=thresholds, results_dir=args.results_dir,
-                       mlp_run=args.mlp_run, learner=args.learner)
+from repro.studies.bus.policies import POLICIES, picture_arrivals, policy_from_args
 
 
 def _finite_or_none(x: float) -> float | None:
     return x if np.isfinite(x) else None
-
-
-def picture_arrivals(policy: Policy, cfg: BusConfig, n_episodes: int = 1) -> pd.DataFrame:
-    """The arrival table of ``n_episodes`` episodes of the paper's pictures (6 h)."""
-    pic = dataclasses.replace(cfg, horizon=PICTURE_HORIZON)
-    return arrival_table(make_env(pic).rollout(policy, n_episodes), cfg.n_stops)
 
 
 def evaluate(policy: Policy, cfg: BusConfig, n_episodes: int = 1) -> tuple[dict, pd.DataFrame]:
@@ -98,4 +80,4 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-__all__ = ["PICTURE_HORIZON", "evaluate", "picture_arrivals", "policy_from_args"]
+__all__ = ["evaluate"]

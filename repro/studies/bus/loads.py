@@ -30,10 +30,10 @@ from repro.learn.config import DEFAULT_LEARNER
 from repro.paper import BUS_BUSES_DRAWN, PAPER_RECORDS, PAPER_STOPS, paper_loads
 from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
-from repro.studies.bus.arrivals import (add_policy_arguments, learner_csv, policy_grid,
+from repro.studies.bus.pictures import (add_policy_arguments, learner_csv, policy_grid,
                                         run_policy_figure)
-from repro.studies.bus.evaluate import picture_arrivals
-from repro.studies.bus.policies import GreedyPolicy, lambda_summary_csv, make_policy
+from repro.studies.bus.policies import (GreedyPolicy, lambda_summary_csv, make_policy,
+                                        picture_arrivals)
 
 LOAD_CSV = "bus_load.csv"
 SWITCHES_CSV = "bus_load_switches.csv"

@@ -3,6 +3,8 @@ made from the result files and run folders where they come from."""
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +13,7 @@ import pandas as pd
 from repro.core.errors import UsageError, require
 from repro.core.rollout import DecisionBatch, Policy
 from repro.envs.bus import make_env
+from repro.envs.bus.metrics import arrival_table
 from repro.envs.bus.params import SWITCHES, BusConfig
 from repro.envs.bus.policies import (AUTHORS_THRESHOLDS, ThresholdPolicy, check_thresholds,
                                      no_holding)
@@ -121,3 +124,21 @@ def make_policy(name: str, cfg: BusConfig, *, thresholds: np.ndarray | None = No
     elif thresholds is None:
         thresholds = read_thresholds(results_dir, results_param or "--thresholds")
     return ThresholdPolicy(thresholds, headway_in_minutes=not cfg.b2_headway)
+
+
+PICTURE_HORIZON = 6 * 3600.0
+"""The episode length of the paper's bus pictures (s): the released code's PLOTTING runs."""
+
+
+def policy_from_args(name: str, args: argparse.Namespace, cfg: BusConfig) -> Policy:
+    """The named policy on corridor ``cfg``; --thresholds / --mlp-run, else the optimised
+    thresholds and the best trained run recorded in --results-dir."""
+    thresholds = None if args.thresholds is None else np.array(args.thresholds, float)
+    return make_policy(name, cfg, thresholds=thresholds, results_dir=args.results_dir,
+                       mlp_run=args.mlp_run, learner=args.learner)
+
+
+def picture_arrivals(policy: Policy, cfg: BusConfig, n_episodes: int = 1) -> pd.DataFrame:
+    """The arrival table of ``n_episodes`` episodes of the paper's pictures (6 h)."""
+    pic = dataclasses.replace(cfg, horizon=PICTURE_HORIZON)
+    return arrival_table(make_env(pic).rollout(policy, n_episodes), cfg.n_stops)

@@ -1,7 +1,7 @@
 """The race study's mathematics, which the race commands share (``race``, ``wildfire-races``,
 ``scaling``): the probability that two of N renewal processes' events fall within dT of each
 other, by Monte Carlo and exactly, the largest dT that keeps it below delta, and the power law
-dT ~ N^-beta."""
+dT ~ N^-beta; and the names of the result files they share."""
 
 from __future__ import annotations
 
@@ -10,6 +10,10 @@ from scipy import optimize
 
 from repro.envs.renewal.distributions import Distribution
 from repro.runs.progress import progress
+
+RACES, FIT = "races", "races_fit"
+"""Stems of the result files of the races in the wildfire simulator (``wildfire-races``: the
+per-cell table and the fit), which ``transfer-dt`` reads too."""
 
 
 def race_probability_mc(sorted_times: np.ndarray, dt: float) -> float:

@@ -34,11 +34,9 @@ from repro.runs.results import read_result, save_figure, write_result
 from repro.studies.kit.options import (add_common, add_replot, figures_folder, read_for_replot,
                                        replot_figures, results_folder)
 from repro.studies.kit.sweep import check_sweep_arguments, map_tasks
-from repro.studies.races.study import fit_power_law
-from repro.studies.wildfire.evaluate import evaluate
+from repro.studies.races.study import FIT, RACES, fit_power_law
+from repro.studies.wildfire.study import evaluate
 
-RACES, FIT = "races", "races_fit"
-"""Stems of the result files (the per-cell table and the fit)."""
 MIN_FIT_POINTS = 3
 """Crossings an OLS fit needs for a standard error of its slope."""
 _ENV_STREAM, _POLICY_STREAM = 0, 1

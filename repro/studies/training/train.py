@@ -20,6 +20,7 @@ from repro.learn.process import configure_process
 from repro.learn.run_identity import saved_run_defaults
 from repro.learn.trainer import Trainer
 from repro.runs.files import check_writable_dir
+from repro.studies.kit.environments import add_chosen_env_arguments
 
 TENSORBOARD_INSTALL = "pip install tensorboard"
 
@@ -45,11 +46,7 @@ def scale_text() -> str:
 
 def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
     """Add the chosen environment's own options (``--env`` decides which)."""
-    pre = argparse.ArgumentParser(add_help=False)
-    pre.add_argument("--env")
-    name = pre.parse_known_args(argv)[0].env
-    if name is not None:
-        env_package(name).add_env_arguments(p)
+    add_chosen_env_arguments(p, argv)
 
 
 def saved_settings(data: dict[str, Any]) -> dict[str, Any]:

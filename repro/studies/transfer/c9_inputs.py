@@ -36,7 +36,7 @@ from repro.runs.stats import bootstrap_ci
 from repro.studies.kit.sweep import check_study_arguments, run_sweep
 from repro.studies.transfer.study import (add_size_arguments, make_jobs, runs_folder, study_config,
                                           test_env_seed)
-from repro.studies.wildfire.evaluate import adr, evaluate
+from repro.studies.wildfire.study import adr, evaluate
 
 NAME = "c9_inputs"
 """Stem of the result files."""

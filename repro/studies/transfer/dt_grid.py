@@ -35,10 +35,10 @@ from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, read_result, save_figure, write_result
 from repro.studies.kit.options import add_replot, read_for_replot, replot_figures
 from repro.studies.kit.sweep import add_study_arguments, check_study_arguments
-from repro.studies.races import wildfire_races as beyond_races
+from repro.studies.races import study as races
 from repro.studies.transfer import study as transfer
 
-RACES = f"{beyond_races.RACES}.csv"
+RACES = f"{races.RACES}.csv"
 """Claim X2's result (``beyond-races``): at least the columns policy, n_agents, dt,
 p_race_episode and races_per_decision."""
 RACE_POLICIES = {"nearest": "-", "random": "--"}

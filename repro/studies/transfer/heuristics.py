@@ -24,7 +24,7 @@ from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.kit.options import add_common, results_folder
 from repro.studies.transfer.study import TransferConfig, test_env_seed
-from repro.studies.wildfire.evaluate import adr, evaluate
+from repro.studies.wildfire.study import adr, evaluate
 
 POLICY_STREAM = 3
 """Child of the root seed that drives the heuristics' random draws (the transfer study uses

@@ -28,7 +28,7 @@ from repro.runs.files import check_writable_dir
 from repro.runs.stats import bootstrap_ci, iqm, sem
 from repro.studies.kit.options import add_common
 from repro.studies.kit.sweep import TrainJob, add_sweep_arguments, map_tasks, run_sweep
-from repro.studies.wildfire.evaluate import adr, evaluate
+from repro.studies.wildfire.study import adr, evaluate
 
 
 

@@ -62,7 +62,7 @@ from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.kit.options import add_common, results_folder
 from repro.studies.kit.sweep import TrainJob, add_sweep_arguments, check_sweep_arguments, run_sweep
-from repro.studies.wildfire.evaluate import adr, evaluate
+from repro.studies.wildfire.study import adr, evaluate
 
 PAPER = dict(**BEHAVIOUR_FREQUENCIES, flowchart_worse=FLOWCHART_WORSE)
 """The paper's numbers (section "Wildfire, Results", :mod:`repro.paper`) as the sidecar records

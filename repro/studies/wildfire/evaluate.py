@@ -12,52 +12,16 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import replace
-from typing import Callable
 
 import numpy as np
 
 from repro.core.errors import require
-from repro.core.rollout import Policy, Rollout, concat, rollout_bytes
 from repro.envs.wildfire import (QUIRKS, add_env_arguments, config_from_args, make_env,
                                  make_reference_env)
 from repro.envs.wildfire.policies import POLICIES
-from repro.runs.memory import require_memory
-from repro.runs.stats import sem
+from repro.studies.wildfire.study import adr, evaluate
 
-BATCH_EPISODES = 1000
-"""Episodes per engine call (bounds memory; the fast engine's throughput is flat beyond this)."""
 ENGINES = ("fast", "reference")
-
-
-def adr(rollout: Rollout, gamma: float) -> tuple[float, float]:
-    """Average discounted return over all paths, and its standard error."""
-    r = rollout.discounted_path_returns(gamma)
-    return float(np.mean(r)), sem(r)
-
-
-def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = True,
-             on_batch: Callable[[Rollout], object] | None = None,
-             param: str = "--test-episodes") -> Rollout:
-    """Roll out ``n_episodes`` in batches seeded from children of ``seed``. ``keep_obs=False`` drops
-    each batch's observations and engine log (``info``) as soon as it is done (the result's ``obs``
-    has 0 columns): ADR does not need them, and a learned policy that keeps flying to the fire it is
-    at can take tens of millions of decisions over 10,000 test episodes; with their observations,
-    one paper-scale transfer test filled the machine's 24 GB. ``on_batch`` sees each whole batch
-    first. A number of episodes whose rollouts cannot fit in memory is refused first
-    (UsageError naming ``param``)."""
-    require_memory(rollout_bytes(env, n_episodes, keep_obs=keep_obs, batch=BATCH_EPISODES),
-                   param, n_episodes, "the rollouts")
-    n_batches = -(-n_episodes // BATCH_EPISODES)
-    children = np.random.SeedSequence(seed).spawn(n_batches)
-    sizes = [min(BATCH_EPISODES, n_episodes - c * BATCH_EPISODES) for c in range(n_batches)]
-    batches = []
-    for n, ss in zip(sizes, children):
-        batch = env.rollout(policy, n, ss)
-        if on_batch is not None:
-            on_batch(batch)
-        batches.append(batch if keep_obs else replace(batch, obs=batch.obs[:, :0], info={}))
-    return concat(batches)
 
 
 def _cut(n_truncated: int) -> str:
