@@ -23,7 +23,6 @@ from repro.runs.results import read_result
 from repro.runs.stats import bootstrap_ci, iqm
 
 
-
 def _verdict(strict: bool, loose: bool) -> str:
     return "PASS" if strict else "PARTIAL" if loose else "FAIL"
 

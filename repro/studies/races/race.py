@@ -89,17 +89,6 @@ class RaceConfig(Validated):
                    "one or more integers >= 2")
 
 
-# --- Monte Carlo ---------------------------------------------------------------------------------
-
-
-# --- Exact ---------------------------------------------------------------------------------------
-
-
-# --- Fit -----------------------------------------------------------------------------------------
-
-
-# --- Driver --------------------------------------------------------------------------------------
-
 def run_study(cfg: RaceConfig, seed: int) -> dict[str, pd.DataFrame]:
     """Compute every table of the study (pure: no files are touched)."""
     streams = np.random.SeedSequence(seed).spawn(len(cfg.distributions))

@@ -31,7 +31,6 @@ from repro.studies.kit.sweep import TrainJob, add_sweep_arguments, map_tasks, ru
 from repro.studies.wildfire.study import adr, evaluate
 
 
-
 # Independent child streams of the root seed.
 _TEST_ENV_STREAM, _TEST_POLICY_STREAM, _BOOT_STREAM = 0, 1, 2
 
