@@ -114,7 +114,6 @@ TRAINING_KEYS = ("baseline", "sampler_rng", "torch_rng")
 """The further entries of a run's checkpoint: what training on needs."""
 
 
-# long: one check after another in the order the state is read, each returning its own line
 def state_problem(state: dict[str, Any], obs_dim: int | None = None,
                   n_actions: int | None = None, training: bool = False) -> str | None:
     """What is wrong with a loaded checkpoint or kept policy, or None: every entry there (those of
@@ -136,22 +135,39 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     if (not isinstance(hidden, (list, tuple)) or not hidden
             or not all(isinstance(h, int) and h >= 1 for h in hidden)):
         return "its run config has no hidden layer sizes"
-    policy = state["policy"]
+    problem, sizes = _policy_problem(state["policy"], list(hidden), obs_dim, n_actions)
+    problem = problem or _normaliser_problem(state["normalizer"], sizes[0])
+    if problem or not whole:
+        return problem
+    return _training_problem(state, train, sizes[0])
+
+
+def _mlp_shapes(sizes: list[int]) -> dict[str, tuple[int, ...]]:
+    """The tensors of an MLP of layer ``sizes`` (inputs, hidden..., outputs), by their names in a
+    state dict, with their shapes."""
+    return {**{f"net.{2 * i}.weight": (b, a) for i, (a, b) in enumerate(zip(sizes, sizes[1:]))},
+            **{f"net.{2 * i}.bias": (b,) for i, b in enumerate(sizes[1:])}}
+
+
+def _policy_problem(policy: Any, hidden: list[int], obs_dim: int | None,
+                    n_actions: int | None) -> tuple[str | None, list[int]]:
+    """What is wrong with a state's policy (:func:`state_problem`), and its layer sizes."""
     first = policy.get("net.0.weight") if isinstance(policy, dict) else None
     last = policy.get(f"net.{2 * len(hidden)}.weight") if isinstance(policy, dict) else None
     if not (_is_tensor(first, 2) and _is_tensor(last, 2)):
-        return f"its policy is not an MLP of hidden sizes {list(hidden)}"
+        return f"its policy is not an MLP of hidden sizes {hidden}", [0]
     sizes = [first.shape[1], *hidden, last.shape[0]]
-    expect = {**{f"net.{2 * i}.weight": (b, a) for i, (a, b) in enumerate(zip(sizes, sizes[1:]))},
-              **{f"net.{2 * i}.bias": (b,) for i, b in enumerate(sizes[1:])}}
-    problem = _tensors_problem("policy", policy, expect)
+    problem = _tensors_problem("policy", policy, _mlp_shapes(sizes))
     if problem:
-        return problem
+        return problem, sizes
     for name, want, have in (("inputs", obs_dim, sizes[0]), ("actions", n_actions, sizes[-1])):
         if want is not None and have != want:
-            return f"its policy has {have} {name}, the environment {want}"
-    d = sizes[0]
-    norm = state["normalizer"]
+            return f"its policy has {have} {name}, the environment {want}", sizes
+    return None, sizes
+
+
+def _normaliser_problem(norm: Any, d: int) -> str | None:
+    """What is wrong with a state's observation normaliser of ``d`` inputs."""
     count = norm.get("count") if isinstance(norm, dict) else None
     if not isinstance(count, int) or isinstance(count, bool) or count < 0:
         return "its normaliser has no count of observations"
@@ -159,14 +175,14 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
                                {"mean": (d,), "var": (d,)})
     if problem or bool((norm["var"] < 0).any()):
         return problem or "its normaliser has a negative variance"
-    if not whole:
-        return None
-    kind = train.get("baseline", "linear")
-    if kind == "mlp":
-        bh = list(train.get("baseline_hidden", (32, 32)))
-        bs = [d, *bh, 1]
-        expect = {**{f"net.{2 * i}.weight": (b, a) for i, (a, b) in enumerate(zip(bs, bs[1:]))},
-                  **{f"net.{2 * i}.bias": (b,) for i, b in enumerate(bs[1:])},
+    return None
+
+
+def _training_problem(state: dict[str, Any], train: dict[str, Any], d: int) -> str | None:
+    """What is wrong with what a checkpoint holds to train on: the baseline (of ``d`` inputs) and
+    the generator states."""
+    if train.get("baseline", "linear") == "mlp":
+        expect = {**_mlp_shapes([d, *train.get("baseline_hidden", (32, 32)), 1]),
                   "target_mean": (), "target_std": (), "fitted": ()}
     else:
         expect = {"coeffs": (2 * d + 4,)}

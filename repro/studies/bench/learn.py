@@ -76,7 +76,6 @@ def median_cpu_seconds(fns: list[Callable[[], Any]], repeats: int) -> list[float
     return np.median(times, axis=0).tolist()
 
 
-# long: the table of an epoch's pieces, whose closures share the one batch built first
 def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
     """What each piece of the run's next epoch costs (the run itself is left as it was).
 
@@ -135,12 +134,19 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
         ("trpo", "line-search trial", trials,
          lambda: surrogate_and_kl(net, obs, actions, adv_n, logp_old)),
     ]
+    return timed(pieces, repeats, ro.n_decisions)
+
+
+def timed(pieces: list[tuple[str, str, int, Callable[[], Any]]], repeats: int,
+          n_decisions: int) -> pd.DataFrame:
+    """The table of :func:`epoch_pieces`: each piece (part, name, calls per epoch, the call)
+    timed, against an epoch of ``n_decisions`` decisions and the first piece, the simulation."""
     table = pd.DataFrame([piece[:3] for piece in pieces], columns=["part", "piece", "calls"])
     table["seconds"] = median_cpu_seconds([piece[3] for piece in pieces], repeats)
     table["seconds_per_epoch"] = table.calls * table.seconds
-    table["us_per_decision"] = 1e6 * table.seconds_per_epoch / ro.n_decisions
+    table["us_per_decision"] = 1e6 * table.seconds_per_epoch / n_decisions
     table["vs_simulation"] = table.seconds_per_epoch / table.seconds_per_epoch[0]
-    table.insert(0, "decisions", ro.n_decisions)
+    table.insert(0, "decisions", n_decisions)
     return table
 
 
