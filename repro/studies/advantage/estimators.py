@@ -44,10 +44,10 @@ from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, l
 from repro.learn.m_gae import ESTIMATORS
 from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
-from repro.runs.results import read_provenance, save_figure, write_result
+from repro.runs.results import save_figure, write_result
 from repro.runs.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.studies.bus import sweeps as bus_sweeps
-from repro.studies.kit.options import add_replot, read_for_replot, replot_figures
+from repro.studies.kit.options import add_replot, replot_pair
 from repro.studies.kit.sweep import (TrainJob, add_study_arguments, check_study_arguments, run_dir,
                                      run_sweep)
 from repro.studies.transfer import study as transfer
@@ -223,15 +223,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def replot(cfg: MgaeStudyConfig, args: argparse.Namespace) -> int:
     """``--replot``: the figure of ``cfg``'s learner from its CSVs, titled with the settings their
     sidecar records."""
-    names = (f"{cfg.stem}.csv", f"{cfg.stem}_summary.csv")
-    runs, summary = read_for_replot(args, *names)
-    prov = read_provenance(Path(args.results_dir) / f"{cfg.stem}.csv")
-    recorded = from_recorded(MgaeStudyConfig, prov["config"]["study"])
-    figures, sources = replot_figures(args, *names)
-    stem = figures / cfg.stem
-    plot(runs, summary, stem, title(recorded, prov["scale"]), sources)
-    print(f"wrote {stem}.png/.pdf")
-    return 0
+    return replot_pair(args, cfg.stem, plot=plot, title=lambda prov: title(
+        from_recorded(MgaeStudyConfig, prov["config"]["study"]), prov["scale"]))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any, Callable
 
 from repro.core.config import DEFAULT_SCALE, SCALES
 from repro.core.errors import require
@@ -69,6 +70,22 @@ def replot_figures(args: argparse.Namespace, *names: str) -> tuple[Path, list[Pa
     sources = [Path(args.results_dir) / name for name in names]
     return figures_folder(args, figure_scale(source_records(sources[:1]))), sources
 
+
+
+def replot_pair(args: argparse.Namespace, stem: str, title: Callable[[dict[str, Any]], str],
+                plot: Callable[..., None]) -> int:
+    """``--replot`` of a study whose results are ``<stem>.csv`` and ``<stem>_summary.csv``: its
+    figure ``<stem>`` drawn again from them, ``plot(table, summary, figure stem, title, sources)``,
+    titled from what their sidecar records (``title(provenance)``)."""
+    from repro.runs.results import read_provenance
+
+    names = (f"{stem}.csv", f"{stem}_summary.csv")
+    table, summary = read_for_replot(args, *names)
+    text = title(read_provenance(Path(args.results_dir) / names[0]))
+    figures, sources = replot_figures(args, *names)
+    plot(table, summary, figures / stem, text, sources)
+    print(f"wrote {figures / stem}.png/.pdf")
+    return 0
 
 def add_replot(parser: argparse.ArgumentParser) -> None:
     """``--replot``: a figure drawn again from its driver's result CSVs, without rerunning."""

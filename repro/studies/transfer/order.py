@@ -37,8 +37,8 @@ import pandas as pd
 
 from repro.learn.config import learner_label, learner_stem
 from repro.runs.provenance import provenance
-from repro.runs.results import read_provenance, save_figure, write_result
-from repro.studies.kit.options import add_replot, read_for_replot, replot_figures
+from repro.runs.results import save_figure, write_result
+from repro.studies.kit.options import add_replot, replot_pair
 from repro.studies.kit.sweep import check_jobs, check_study_arguments
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, effects,
                                           make_jobs, recorded_config, runs_folder, study_config,
@@ -105,15 +105,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def replot(base: TransferConfig, args: argparse.Namespace) -> int:
     """``--replot``: the figure of ``base``'s learner from its CSVs, titled with the settings
     their sidecar records."""
-    stem = learner_stem(NAME, base.learner)
-    names = (f"{stem}.csv", f"{stem}_summary.csv")
-    per_policy, summary = read_for_replot(args, *names)
-    prov = read_provenance(Path(args.results_dir) / f"{stem}.csv")
-    figures, sources = replot_figures(args, *names)
-    out = figures / stem
-    plot(per_policy, summary, out, title(recorded_config(prov), prov["scale"]), sources)
-    print(f"wrote {out}.png/.pdf")
-    return 0
+    return replot_pair(args, learner_stem(NAME, base.learner), plot=plot,
+                       title=lambda prov: title(recorded_config(prov), prov["scale"]))
 
 
 def run(args: argparse.Namespace) -> int:

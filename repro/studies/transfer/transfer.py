@@ -39,8 +39,8 @@ from repro.core.config import add_config_arguments, given_fields
 from repro.envs.wildfire import QUIRKS, SIM_VERSIONS, WildfireConfig
 from repro.learn.config import learner_label
 from repro.runs.provenance import provenance
-from repro.runs.results import read_provenance, save_figure, write_result
-from repro.studies.kit.options import add_replot, read_for_replot, replot_figures
+from repro.runs.results import save_figure, write_result
+from repro.studies.kit.options import add_replot, replot_pair
 from repro.studies.kit.sweep import check_study_arguments
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, fs_label,
                                           make_jobs, recorded_config, study_config, summarise,
@@ -132,15 +132,8 @@ def figure_title(cfg: TransferConfig, scale: str) -> str:
 def replot(cfg: TransferConfig, args: argparse.Namespace) -> int:
     """``--replot``: the figure of the study ``cfg`` names, from its CSVs and the settings its
     sidecar records."""
-    names = (f"{cfg.name}.csv", f"{cfg.name}_summary.csv")
-    per_policy, summary = read_for_replot(args, *names)
-    prov = read_provenance(Path(args.results_dir) / f"{cfg.name}.csv")
-    recorded = recorded_config(prov)
-    figures, sources = replot_figures(args, *names)
-    stem = figures / cfg.name
-    plot(per_policy, summary, stem, figure_title(recorded, prov["scale"]), sources)
-    print(f"wrote {stem}.png/.pdf")
-    return 0
+    return replot_pair(args, cfg.name, plot=plot, title=lambda prov: figure_title(
+        recorded_config(prov), prov["scale"]))
 
 
 def run(args: argparse.Namespace) -> int:
