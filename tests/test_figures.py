@@ -14,14 +14,14 @@ from pathlib import Path
 
 import pytest
 
-from repro.paper import RACE_BETA
 import repro.runs.results as io_module
 from repro.core.errors import UsageError
+from repro.paper import RACE_BETA
 from repro.runs.locks import folder_lock
 from repro.runs.results import (CSV_HASH, FIGURES_LOCK, figure_sidecar, open_figures,
                                 read_provenance, read_result, release_results, save_figure)
 from repro.studies.advantage import estimators as beyond_mgae
-from repro.studies.bus import arrivals as fig_bus_arrivals, loads as fig_bus_load
+from repro.studies.bus import arrivals as fig_bus_arrivals, loads as fig_bus_load, pictures
 from repro.studies.races import race
 from repro.studies.transfer import learner_ablation, order as beyond_order, transfer
 from tests.conftest import ROOT, run_cli, tree_snapshot
@@ -55,7 +55,7 @@ def test_bus_panels_fit_a_column_with_the_legend_inside(drawn, module, csv, all_
     table = read_result(PAPER / csv)
     module.plot(table, "unused", all_buses, [])
     fig = drawn[0]
-    assert fig.get_figwidth() == fig_bus_arrivals.COLUMN_WIDTH
+    assert fig.get_figwidth() == pictures.COLUMN_WIDTH
     axes = [ax for ax in fig.axes if ax.get_visible()]
     assert len(axes) == table.policy.nunique() == 4
     corners = {(round(ax.get_position().x0, 2), round(ax.get_position().y0, 2)) for ax in axes}

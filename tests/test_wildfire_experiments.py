@@ -423,7 +423,7 @@ def test_fs1_trained_with_t_health_2_9999_transfers_worse_than_with_3(tmp_path, 
 def test_frequency_counts_of_separate_batches_add_up_to_the_whole(monkeypatch):
     """The behaviour driver counts batch by batch (to drop observations); that must give exactly
     the frequencies of the joined rollout."""
-    from repro.studies.wildfire import evaluate as wildfire_eval
+    from repro.studies.wildfire import study as wildfire_eval
     from repro.studies.wildfire.behaviour import frequency_counts, shares
 
     monkeypatch.setattr(wildfire_eval, "BATCH_EPISODES", 20)

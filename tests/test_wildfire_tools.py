@@ -228,7 +228,7 @@ def test_pettingzoo_rewards_match_the_reference(engine):
 
 def test_evaluate_without_observations_keeps_everything_adr_needs(monkeypatch):
     from repro.envs.wildfire import make_env
-    from repro.studies.wildfire import evaluate as wildfire_eval
+    from repro.studies.wildfire import study as wildfire_eval
 
     monkeypatch.setattr(wildfire_eval, "BATCH_EPISODES", 10)  # several batches to join
     env = make_env(WildfireConfig())
