@@ -25,7 +25,7 @@ def python(code: str, **env: str) -> str:
     return out.stdout
 
 
-REPORT = ("import json, os, repro; from repro.core import kernels; "
+REPORT = ("import json, os, repro; from repro.runs import kernels; "
           "print(json.dumps({'env': {k: os.environ.get(k) for k in %r}, "
           "'state': kernels.state(), 'problems': kernels.problems()}))")
 
