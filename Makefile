@@ -12,13 +12,15 @@ ARGS   ?=
 TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
 
-# Each command of `python -m repro` has the target of its name (tests/test_make.py checks it); the
-# paper's names of three (table-race, table-thresholds, fig-scaling) are aliases.
-.PHONY: help setup reproduce test lint claims race bus-thresholds bus-eval fig-bus-lambda \
-	fig-bus-batch fig-bus-arrivals fig-bus-load wildfire-heuristics bench-bus bench-wildfire \
-	wildfire-eval bench-learn plot-runs scaling fig-transfer wildfire-behaviour render train \
-	beyond-races beyond-mgae beyond-order beyond-transfer-dt learner-ablation c9-inputs interval-coverage clean \
-	table-race table-thresholds fig-scaling
+# Each command of `python -m repro` has the target of its name, and each of its other names an
+# alias target (tests/test_make.py checks both).
+.PHONY: help setup reproduce test lint claims transfer transfer-heuristics transfer-dt \
+	transfer-order transfer-ablation transfer-inputs bus-thresholds bus-lambda bus-batch \
+	bus-arrivals bus-loads bus-eval race wildfire-races scaling wildfire-behaviour wildfire-eval \
+	render advantage-estimators train plot-runs bench-bus bench-wildfire bench-learn clean \
+	table-race table-thresholds fig-scaling fig-transfer wildfire-heuristics beyond-transfer-dt \
+	beyond-order learner-ablation c9-inputs fig-bus-lambda fig-bus-batch fig-bus-arrivals \
+	fig-bus-load beyond-races beyond-mgae interval-coverage
 .DEFAULT_GOAL := help
 
 help:
@@ -49,32 +51,32 @@ lint: $(STAMP) ## ruff: style (100 columns) and likely bugs (pyproject.toml says
 reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke check below paper scale
 	$(MAKE) race SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) bus-thresholds SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) fig-bus-lambda SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) fig-bus-batch SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) fig-bus-arrivals SCALE=$(SCALE)
-	$(MAKE) fig-bus-load SCALE=$(SCALE)
+	$(MAKE) bus-lambda SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) bus-batch SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) bus-arrivals SCALE=$(SCALE)
+	$(MAKE) bus-loads SCALE=$(SCALE)
 	$(MAKE) scaling SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS="--sim-version 2017-04-22"
-	$(MAKE) fig-transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
-	$(MAKE) wildfire-heuristics SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED) ARGS="--sim-version 2017-04-22"
+	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
+	$(MAKE) transfer-heuristics SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) beyond-races SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) beyond-mgae SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) beyond-order SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) beyond-transfer-dt SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) learner-ablation SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) c9-inputs SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) wildfire-races SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) advantage-estimators SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) transfer-order SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) transfer-dt SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) transfer-ablation SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) transfer-inputs SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) interval-coverage SCALE=$(SCALE) SEED=$(SEED)
 	$(REPRO) claims --results-dir results/$(SCALE)
 
 claims: $(STAMP) ## render paper_claims.md from results/paper/ (ARGS="--results-dir results/quick": a smoke check; "--interval percentile": decided with the percentile bootstrap)
 	$(REPRO) claims $(ARGS)
 
-race: $(STAMP) ## race-condition table and figure (C10; alias table-race)
+race: $(STAMP) ## race-condition table and figure (C10)
 	$(REPRO) race --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-bus-thresholds: $(STAMP) ## Optimized Thresholds by differential evolution (bus baseline; alias table-thresholds)
+bus-thresholds: $(STAMP) ## Optimized Thresholds by differential evolution (bus baseline)
 	$(REPRO) bus-thresholds --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 bus-eval: $(STAMP) ## return, loads and regularity of a bus policy (ARGS="--policy thresholds")
@@ -83,17 +85,17 @@ bus-eval: $(STAMP) ## return, loads and regularity of a bus policy (ARGS="--poli
 train: $(STAMP) ## train a shared policy with PS-TRPO and M-GAE (ARGS="--env bus --epochs 10 --out runs/b")
 	$(REPRO) train --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-fig-bus-lambda: $(STAMP) ## bus training curves over lambda (C1, C2; needs bus-thresholds)
-	$(REPRO) fig-bus-lambda --scale $(SCALE) --seed $(SEED) $(ARGS)
+bus-lambda: $(STAMP) ## bus training curves over lambda (C1, C2; needs bus-thresholds)
+	$(REPRO) bus-lambda --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-fig-bus-batch: $(STAMP) ## bus training curves over the batch size (C3; needs bus-thresholds)
-	$(REPRO) fig-bus-batch --scale $(SCALE) --seed $(SEED) $(ARGS)
+bus-batch: $(STAMP) ## bus training curves over the batch size (C3; needs bus-thresholds)
+	$(REPRO) bus-batch --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-fig-bus-arrivals: $(STAMP) ## bus arrival times per policy (C5; needs bus-thresholds, fig-bus-lambda)
-	$(REPRO) fig-bus-arrivals --scale $(SCALE) $(ARGS)
+bus-arrivals: $(STAMP) ## bus arrival times per policy (C5; needs bus-thresholds, bus-lambda)
+	$(REPRO) bus-arrivals --scale $(SCALE) $(ARGS)
 
-fig-bus-load: $(STAMP) ## bus loads at the paper's records per policy (C4, C5; needs bus-thresholds, fig-bus-lambda)
-	$(REPRO) fig-bus-load --scale $(SCALE) $(ARGS)
+bus-loads: $(STAMP) ## bus loads at the paper's records per policy (C4, C5; needs bus-thresholds, bus-lambda)
+	$(REPRO) bus-loads --scale $(SCALE) $(ARGS)
 
 bench-bus: $(STAMP) ## episodes/s of the fast bus engine and its SimPy reference
 	$(REPRO) bench-bus --scale $(SCALE) --seed $(SEED) $(ARGS)
@@ -113,43 +115,56 @@ bench-learn: $(STAMP) ## seconds per training epoch, simulation vs update (ARGS=
 plot-runs: $(STAMP) ## training curves of run folders with seed intervals (ARGS="runs/wildfire/seed0 runs/wildfire/seed1 --out runs.png")
 	$(REPRO) plot-runs $(ARGS)
 
-scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and figure (C11; alias fig-scaling)
+scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and figure (C11)
 	$(REPRO) scaling --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-fig-transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARGS="--sim-version 2017-04-22", "--learner suite", "--corrected")
-	$(REPRO) fig-transfer --scale $(SCALE) --seed $(SEED) $(ARGS)
+transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARGS="--sim-version 2017-04-22", "--learner suite", "--corrected")
+	$(REPRO) transfer --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-wildfire-heuristics: $(STAMP) ## heuristic policies on the transfer study's ED test episodes (C8, C9)
-	$(REPRO) wildfire-heuristics --scale $(SCALE) --seed $(SEED) $(ARGS)
+transfer-heuristics: $(STAMP) ## heuristic policies on the transfer study's ED test episodes (C8, C9)
+	$(REPRO) transfer-heuristics --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the flowchart (C6, C7)
 	$(REPRO) wildfire-behaviour --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-beyond-races: $(STAMP) ## X2: races in the wildfire simulator, dT against N, beside C10 (after race)
-	$(REPRO) beyond-races --scale $(SCALE) --seed $(SEED) $(ARGS)
+wildfire-races: $(STAMP) ## X2: races in the wildfire simulator, dT against N, beside C10 (after race)
+	$(REPRO) wildfire-races --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 interval-coverage: $(STAMP) ## coverage of the claims' interval kinds at 3, 5 and 10 runs (after the studies whose per-seed scores it pools)
 	$(REPRO) interval-coverage --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-beyond-order: $(STAMP) ## X4: C9's pair under both same-instant orders (reuses fig-transfer's runs)
-	$(REPRO) beyond-order --scale $(SCALE) --seed $(SEED) $(ARGS)
+transfer-order: $(STAMP) ## X4: C9's pair under both same-instant orders (reuses transfer's runs)
+	$(REPRO) transfer-order --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-learner-ablation: $(STAMP) ## X5: the transfer study, one learner setting at a time from the authors' (reuses fig-transfer's runs)
-	$(REPRO) learner-ablation --scale $(SCALE) --seed $(SEED) $(ARGS)
+transfer-ablation: $(STAMP) ## X5: the transfer study, one learner setting at a time from the authors' (reuses transfer's runs)
+	$(REPRO) transfer-ablation --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-c9-inputs: $(STAMP) ## C9's policies tested with health and sojourn clamped (after fig-transfer --sim-version 2017-04-22)
-	$(REPRO) c9-inputs --scale $(SCALE) --seed $(SEED) $(ARGS)
+transfer-inputs: $(STAMP) ## C9's policies tested with health and sojourn clamped (after transfer --sim-version 2017-04-22)
+	$(REPRO) transfer-inputs --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-beyond-mgae: $(STAMP) ## X1: M-GAE vs two other advantage estimators (reuses fig-bus-lambda's, fig-transfer's runs)
-	$(REPRO) beyond-mgae --scale $(SCALE) --seed $(SEED) $(ARGS)
+advantage-estimators: $(STAMP) ## X1: M-GAE vs two other advantage estimators (reuses bus-lambda's, transfer's runs)
+	$(REPRO) advantage-estimators --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-beyond-transfer-dt: $(STAMP) ## X3: transfer to ED against 13 dT, race rate beside it (reuses fig-transfer's runs)
-	$(REPRO) beyond-transfer-dt --scale $(SCALE) --seed $(SEED) $(ARGS)
+transfer-dt: $(STAMP) ## X3: transfer to ED against 13 dT, race rate beside it (reuses transfer's runs)
+	$(REPRO) transfer-dt --scale $(SCALE) --seed $(SEED) $(ARGS)
 
-# the paper's names
-table-race: race
-table-thresholds: bus-thresholds
-fig-scaling: scaling
+# other names of the commands (repro/cli.py's ALIASES: the paper's names of its tables and figures,
+# and the names the commands had before they were grouped by question)
+table-race: race ## alias of race
+table-thresholds: bus-thresholds ## alias of bus-thresholds
+fig-scaling: scaling ## alias of scaling
+fig-transfer: transfer ## alias of transfer
+wildfire-heuristics: transfer-heuristics ## alias of transfer-heuristics
+beyond-transfer-dt: transfer-dt ## alias of transfer-dt
+beyond-order: transfer-order ## alias of transfer-order
+learner-ablation: transfer-ablation ## alias of transfer-ablation
+c9-inputs: transfer-inputs ## alias of transfer-inputs
+fig-bus-lambda: bus-lambda ## alias of bus-lambda
+fig-bus-batch: bus-batch ## alias of bus-batch
+fig-bus-arrivals: bus-arrivals ## alias of bus-arrivals
+fig-bus-load: bus-loads ## alias of bus-loads
+beyond-races: wildfire-races ## alias of wildfire-races
+beyond-mgae: advantage-estimators ## alias of advantage-estimators
 
 clean: ## remove the virtual environment and caches, numba's compiled kernels too (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -29,7 +29,8 @@ def mlp(n_in: int, n_out: int, hidden: int = 32) -> nn.Module:
 
 def main(argv: list[str] | None = None) -> list[float]:
     """Train; returns the mean undiscounted path return of every update's paths."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    p = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()),
+                                allow_abbrev=False)
     p.add_argument("--env", default="wildfire", choices=["wildfire", "bus"])
     p.add_argument("--n-envs", type=int, default=32, help="episodes stepped at once")
     p.add_argument("--paths", type=int, default=400, help="ended paths per update")

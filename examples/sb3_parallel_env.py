@@ -35,7 +35,7 @@ from stable_baselines3.common.logger import configure
 
 from repro.envs.wildfire import WildfireConfig, make_env
 from repro.envs.wildfire.pettingzoo_env import parallel_env
-from repro.experiments.wildfire_eval import adr
+from repro.studies.wildfire.study import adr
 
 
 class Spaces(gymnasium.Env):
@@ -111,7 +111,8 @@ def policy_of(model: PPO):
 def main(argv: list[str] | None = None) -> dict:
     """Train; returns each update's ADR of its training batch (average discounted return of its
     paths), the discount used and the test ADR with its standard error."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    p = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()),
+                                allow_abbrev=False)
     p.add_argument("--updates", type=int, default=20, help="PPO updates")
     p.add_argument("--n-steps", type=int, default=10_000, help="decisions per update")
     p.add_argument("--lam", type=float, default=1.0, help="the paper's lambda (wildfire: 1)")

@@ -4,10 +4,10 @@ table."""
 
 __version__ = "0.1.0"
 
-from repro.core.kernels import pin as _pin_kernels
+from repro.runs.kernels import pin as _pin_kernels
 
-_pin_kernels()  # before numpy is imported and torch computes (repro.core.kernels says why)
+_pin_kernels()  # before numpy is imported and torch computes (repro.runs.kernels says why)
 
-from repro.core.numba_cache import install as _install_numba_cache_lock  # noqa: E402
+from repro.runs.numba_cache import install as _install_numba_cache_lock  # noqa: E402
 
 _install_numba_cache_lock()  # before any kernel compiles, in every process (workers import repro)

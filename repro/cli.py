@@ -14,56 +14,80 @@ from typing import Any
 
 from repro.core.config import flat_settings, read_config_file
 from repro.core.errors import UsageError, WorkerDied, require
-from repro.core.io import check_names, release_results
-from repro.experiments.options import default_folders, note_scale_departures
+from repro.runs.files import check_names
+from repro.runs.results import release_results
+from repro.studies.kit.options import default_folders, note_scale_departures
 
+S = "repro.studies."
 COMMANDS: dict[str, tuple[str, str]] = {
-    "race": ("repro.experiments.race", "race-condition Monte Carlo table and figure (C10)"),
-    "bus-eval": ("repro.experiments.bus_eval", "evaluate a bus policy (return, loads, regularity)"),
-    "bus-thresholds": ("repro.experiments.bus_thresholds",
-                       "Optimized Thresholds by differential evolution (bus baseline)"),
-    "fig-bus-arrivals": ("repro.experiments.fig_bus_arrivals",
-                         "bus arrival-time figure per policy"),
-    "fig-bus-load": ("repro.experiments.fig_bus_load", "bus 4th-cycle load figure per policy (C4)"),
-    "fig-bus-lambda": ("repro.experiments.fig_bus_lambda",
-                       "bus training curves over lambda, with the baselines (C1, C2)"),
-    "fig-bus-batch": ("repro.experiments.fig_bus_batch",
-                      "bus training curves over the batch size, with the baselines (C3)"),
-    "bench-bus": ("repro.experiments.bench_bus", "episodes/s of the fast and SimPy bus engines"),
-    "wildfire-eval": ("repro.experiments.wildfire_eval", "ADR of a heuristic wildfire policy"),
-    "bench-wildfire": ("repro.experiments.bench_wildfire",
-                       "decisions/s of the fast and SimPy wildfire engines (MLP policy)"),
-    "scaling": ("repro.experiments.scaling",
-                "event-driven vs time-stepped compute against N (C11)"),
-    "fig-transfer": ("repro.experiments.transfer",
-                     "train on ED and FS simulators, test on ED (C8, C9)"),
-    "wildfire-heuristics": ("repro.experiments.wildfire_heuristics",
+    # does a policy trained on fixed steps transfer to event-driven simulation, and why?
+    "transfer": (S + "transfer.transfer", "train on ED and FS simulators, test on ED (C8, C9)"),
+    "transfer-heuristics": (S + "transfer.heuristics",
                             "heuristics' ADR on the transfer study's test episodes (C8, C9)"),
-    "wildfire-behaviour": ("repro.experiments.wildfire_behaviour",
+    "transfer-dt": (S + "transfer.dt_grid",
+                    "transfer to ED against dT on a log grid, race rate beside it (X3)"),
+    "transfer-order": (S + "transfer.order", "C9 under both same-instant orders (X4)"),
+    "transfer-ablation": (S + "transfer.learner_ablation",
+                          "transfer to ED, one learner setting at a time from the authors' (X5)"),
+    "transfer-inputs": (S + "transfer.c9_inputs",
+                        "C9's policies tested with out-of-range inputs clamped (the mechanism)"),
+    # does the learned bus holding beat the baselines, as the paper's figures show?
+    "bus-thresholds": (S + "bus.thresholds",
+                       "Optimized Thresholds by differential evolution (bus baseline)"),
+    "bus-lambda": (S + "bus.lambda_curves",
+                   "bus training curves over lambda, with the baselines (C1, C2)"),
+    "bus-batch": (S + "bus.batch_curves",
+                  "bus training curves over the batch size, with the baselines (C3)"),
+    "bus-arrivals": (S + "bus.arrivals", "bus arrival-time figure per policy"),
+    "bus-loads": (S + "bus.loads", "bus 4th-cycle load figure per policy (C4)"),
+    "bus-eval": (S + "bus.evaluate", "evaluate a bus policy (return, loads, regularity)"),
+    # when do fixed steps cause races, and what does event-driven simulation save?
+    "race": (S + "races.race", "race-condition Monte Carlo table and figure (C10)"),
+    "wildfire-races": (S + "races.wildfire_races",
+                       "races in the wildfire simulator, dT against N (X2)"),
+    "scaling": (S + "races.scaling", "event-driven vs time-stepped compute against N (C11)"),
+    # how does a learned wildfire policy behave?
+    "wildfire-behaviour": (S + "wildfire.behaviour",
                            "frequencies of a long ED-trained policy vs the flowchart (C6, C7)"),
-    "beyond-mgae": ("repro.experiments.beyond_mgae",
-                    "M-GAE against two other advantage estimators, bus and wildfire (X1)"),
-    "beyond-transfer-dt": ("repro.experiments.transfer_dt",
-                           "transfer to ED against dT on a log grid, race rate beside it (X3)"),
-    "beyond-races": ("repro.experiments.beyond_races",
-                     "races in the wildfire simulator, dT against N (X2)"),
-    "learner-ablation": ("repro.experiments.learner_ablation",
-                         "transfer to ED, one learner setting at a time from the authors' (X5)"),
-    "c9-inputs": ("repro.experiments.c9_inputs",
-                  "C9's policies tested with out-of-range inputs clamped (the mechanism)"),
-    "beyond-order": ("repro.experiments.beyond_order",
-                     "C9 under both same-instant orders (X4)"),
-    "interval-coverage": ("repro.experiments.interval_coverage",
-                          "coverage of the claims' interval kinds at 3, 5 and 10 runs"),
-    "claims": ("repro.claims", "render paper_claims.md from the result files"),
-    "train": ("repro.experiments.train", "train a shared policy with PS-TRPO and M-GAE"),
-    "render": ("repro.experiments.render", "an animation (GIF) of one episode of a policy"),
-    "bench-learn": ("repro.experiments.bench_learn",
-                    "seconds per training epoch: simulation vs update"),
-    "plot-runs": ("repro.experiments.plot_runs",
+    "wildfire-eval": (S + "wildfire.evaluate", "ADR of a heuristic wildfire policy"),
+    "render": (S + "wildfire.render", "an animation (GIF) of one episode of a policy"),
+    # training, and does M-GAE matter?
+    "advantage-estimators": (S + "advantage.estimators",
+                             "M-GAE against two other advantage estimators, bus and wildfire (X1)"),
+    "train": (S + "training.train", "train a shared policy with PS-TRPO and M-GAE"),
+    "plot-runs": (S + "training.plot_runs",
                   "training curves of run folders, runs grouped by setting, seed intervals"),
+    # how fast are the engines and the learner?
+    "bench-bus": (S + "bench.bus", "episodes/s of the fast and SimPy bus engines"),
+    "bench-wildfire": (S + "bench.wildfire",
+                       "decisions/s of the fast and SimPy wildfire engines (MLP policy)"),
+    "bench-learn": (S + "bench.learn", "seconds per training epoch: simulation vs update"),
+    # the verdicts, and how far their intervals can be trusted
+    "claims": ("repro.claims", "render paper_claims.md from the result files"),
+    "interval-coverage": (S + "verdicts.interval_coverage",
+                          "coverage of the claims' interval kinds at 3, 5 and 10 runs"),
 }
 """command -> (module, one-line description)."""
+ALIASES: dict[str, str] = {
+    "table-race": "race",
+    "table-thresholds": "bus-thresholds",
+    "fig-scaling": "scaling",
+    "fig-transfer": "transfer",
+    "wildfire-heuristics": "transfer-heuristics",
+    "beyond-transfer-dt": "transfer-dt",
+    "beyond-order": "transfer-order",
+    "learner-ablation": "transfer-ablation",
+    "c9-inputs": "transfer-inputs",
+    "fig-bus-lambda": "bus-lambda",
+    "fig-bus-batch": "bus-batch",
+    "fig-bus-arrivals": "bus-arrivals",
+    "fig-bus-load": "bus-loads",
+    "beyond-races": "wildfire-races",
+    "beyond-mgae": "advantage-estimators",
+}
+"""Every other name of a command (the paper's names of its tables and figures, and the names the
+commands had before they were grouped by question) -> the command. The Makefile has a target of
+each (tests/test_make.py checks it), and ``python -m repro --help`` lists them."""
 
 
 DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
@@ -189,24 +213,37 @@ def parse_arguments(module: Any, parser: argparse.ArgumentParser,
     if hasattr(module, "extend_arguments"):
         module.extend_arguments(parser, file_argv(parser, settings, argv, path, True)[0] + argv)
     tokens, keys = file_argv(parser, settings, argv, path)
+    show_defaults(parser)
     return parser.parse_args(tokens + argv), {flag: f"{path}: {key}" for flag, key in keys.items()}
+
+
+def show_defaults(parser: argparse.ArgumentParser) -> None:
+    """End the help of every option that has a default, and does not say it yet, with it (a
+    switch's default, off, goes unsaid)."""
+    for action in parser._actions:
+        default = action.default
+        if (action.help and "default" not in action.help and default not in (None, False, [])
+                and default is not argparse.SUPPRESS and action.nargs != 0):
+            action.help += " (default: %(default)s)"
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
         usage = "usage: python -m repro <command> [options]\n\ncommands:\n" + "".join(
-            f"  {name:<18} {desc}\n" for name, (_, desc) in COMMANDS.items())
+            f"  {name:<20} {desc}\n" for name, (_, desc) in COMMANDS.items()) + (
+            "\nother names:\n" + "".join(f"  {old:<20} {new}\n" for old, new in ALIASES.items()))
         # asked for: the standard output; a missing command is an error
         print(usage, end="", file=sys.stdout if argv else sys.stderr)
         return 0 if argv else 2
-    name = argv[0]
+    typed = argv[0]  # the name the user gave (messages use it), maybe an alias
+    name = ALIASES.get(typed, typed)
     if name not in COMMANDS:
-        print(f"repro: error: command: must be one of {', '.join(COMMANDS)}, got {name!r}",
-              file=sys.stderr)
+        print(f"repro: error: command: must be one of {', '.join([*COMMANDS, *ALIASES])}, got "
+              f"{typed!r}", file=sys.stderr)
         return 2
     module = importlib.import_module(COMMANDS[name][0])
-    parser = OneLineParser(prog=f"repro {name}", description=COMMANDS[name][1])
+    parser = OneLineParser(prog=f"repro {typed}", description=COMMANDS[name][1])
     keys: dict[str, str] = {}  # flag -> "FILE: key" of the --config file that gave it
     try:
         module.add_arguments(parser)
@@ -227,21 +264,21 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as err:
         if err.param in keys:  # a bad value from the --config file: named by its key there
             err = UsageError(keys[err.param], err.allowed, err.got)
-        print(f"repro {name}: error: {err}", file=sys.stderr)
+        print(f"repro {typed}: error: {err}", file=sys.stderr)
         return 2
     except WorkerDied as err:
-        print(f"repro {name}: error: {err}", file=sys.stderr)
+        print(f"repro {typed}: error: {err}", file=sys.stderr)
         return 1
     except OSError as err:
         # a full or read-only disk, or a folder without permission: the system's reason, one line
         if err.errno not in DISK_ERRORS:
             raise
         where = "" if err.filename is None else f": {err.filename}"
-        print(f"repro {name}: error: {err.strerror}{where}", file=sys.stderr)
+        print(f"repro {typed}: error: {err.strerror}{where}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print(f"repro {name}: interrupted; the same command resumes a training run or sweep from "
+        print(f"repro {typed}: interrupted; the same command resumes a training run or sweep from "
               "its last checkpoint", file=sys.stderr)
         return 130
     finally:
-        release_results()  # the results folder a driver held (repro.core.io.open_results)
+        release_results()  # the results folder a driver held (repro.runs.results.open_results)

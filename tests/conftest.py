@@ -21,9 +21,9 @@ def run_cli(*args: str, cwd: Path | None = None,
 
 def env_without_pins(**extra: str) -> dict[str, str]:
     """This process's environment without the variables that importing repro sets (so it holds
-    the pinned values; repro.core.kernels), plus ``extra``: what a fresh shell would hand a
+    the pinned values; repro.runs.kernels), plus ``extra``: what a fresh shell would hand a
     child process."""
-    from repro.core.kernels import NUMPY_VARIABLES, TORCH_PINS
+    from repro.runs.kernels import NUMPY_VARIABLES, TORCH_PINS
 
     env = {k: v for k, v in os.environ.items() if k not in (*TORCH_PINS, *NUMPY_VARIABLES)}
     return {**env, "PYTHONPATH": str(ROOT), **extra}
@@ -45,7 +45,7 @@ def write_result_csv(frame, path: Path, scale: str = "paper", **provenance) -> N
     without one as missing); ``provenance``: more sidecar fields."""
     import json
 
-    from repro.core.io import sidecar_path
+    from repro.runs.results import sidecar_path
 
     frame.to_csv(path, index=False)
     sidecar_path(path).write_text(json.dumps({"scale": scale, **provenance}))

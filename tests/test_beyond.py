@@ -13,10 +13,11 @@ import pytest
 from repro.claims import NOT_RUN, beyond, registry, render
 from repro.cli import main
 from repro.core.config import for_scale
-from repro.experiments import bus_sweeps, transfer
-from repro.experiments.beyond_mgae import MgaeStudyConfig, estimator_jobs
-from repro.experiments.transfer_dt import TransferDtConfig
 from repro.envs.bus import BusConfig
+from repro.studies.advantage.estimators import MgaeStudyConfig, estimator_jobs
+from repro.studies.bus import sweeps as bus_sweeps
+from repro.studies.transfer import study as transfer
+from repro.studies.transfer.dt_grid import TransferDtConfig
 from tests.conftest import write_result_csv
 
 

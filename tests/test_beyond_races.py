@@ -11,9 +11,9 @@ import pytest
 
 from repro.claims import NOT_RUN, registry
 from repro.cli import main
-from repro.experiments.beyond_order import studies
-from repro.experiments.beyond_races import cell, crossing, fit
-from repro.experiments.transfer import TransferConfig
+from repro.studies.races.wildfire_races import cell, crossing, fit
+from repro.studies.transfer.order import studies
+from repro.studies.transfer.study import TransferConfig
 from tests.conftest import tree_snapshot, write_result_csv
 
 

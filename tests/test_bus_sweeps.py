@@ -66,7 +66,7 @@ def test_runs_from_before_the_switches_count_as_corrected(tmp_path):
     from repro.core.errors import UsageError
     from repro.envs.bus import BusConfig
     from repro.learn.config import TrainConfig
-    from repro.learn.run_folder import check_run_folder, run_config
+    from repro.learn.run_identity import check_run_folder, run_config
     saved = run_config(TrainConfig(), BusConfig.corrected(), "bus")
     for name in ("b1_reward", "b2_headway", "b3_boarding", "b4_round_half_even", "b5_timing"):
         del saved["env"][name]

@@ -19,7 +19,7 @@ def claim(check) -> Claim:
 
 def check_mean(results: Path) -> Verdict:
     """A check that reads column ``x`` of ``table.csv``."""
-    from repro.core.io import read_result
+    from repro.runs.results import read_result
 
     table = read_result(results / "table.csv")
     return Verdict(f"{table.x.mean():.1f}", "PASS" if table["x"].iloc[0] == 1 else "FAIL")

@@ -8,8 +8,8 @@ from pathlib import Path
 import pandas as pd
 
 from repro.claims import NOT_RUN, Reading, Verdict, intervals_of, learner_of, side_by_side
-from repro.core.io import read_provenance
 from repro.claims.learner import check_x5
+from repro.runs.results import read_provenance
 from tests.conftest import ROOT, write_result_csv
 
 

@@ -142,7 +142,7 @@ def test_result_files_get_the_permissions_of_an_ordinary_write(tmp_path):
     import os
     import stat
 
-    from repro.core.io import write_csv
+    from repro.runs.files import write_csv
 
     write_csv(tmp_path / "a.csv", pd.DataFrame({"x": [1]}))
     (tmp_path / "b.csv").write_text("x\n1\n")
@@ -153,7 +153,7 @@ def test_result_files_get_the_permissions_of_an_ordinary_write(tmp_path):
 def test_git_commit_is_dirty_for_code_changes_not_for_outputs(tmp_path):
     import subprocess
 
-    from repro.core.io import git_commit
+    from repro.runs.provenance import git_commit
 
     def git(*args):
         subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
@@ -199,10 +199,10 @@ def _parser(name: str):
 def test_a_smaller_scale_never_writes_the_paper_folders(scale, monkeypatch):
     """Every driver's default folders are results/<scale> and figures/<scale>, so that `make
     reproduce` (quick) and the tests (smoke) leave the committed paper-scale files alone."""
-    from repro.experiments.options import default_folders
+    from repro.studies.kit.options import default_folders
 
     commands = driver_commands()
-    assert {"race", "fig-transfer", "fig-bus-lambda", "bench-learn"} <= set(commands)
+    assert {"race", "transfer", "bus-lambda", "bench-learn"} <= set(commands)
     for name in commands:
         args = _parser(name).parse_args(["--scale", scale])
         default_folders(args)
@@ -254,7 +254,7 @@ def test_sweep_workers_die_with_their_driver(tmp_path):
     import time
 
     code = ("import sys; from pathlib import Path; from repro.envs import toy\n"
-            "from repro.experiments.sweep import TrainJob, run_sweep\n"
+            "from repro.studies.kit.sweep import TrainJob, run_sweep\n"
             "from repro.learn.config import train_config\n"
             "jobs = [TrainJob(f's{s}', train_config('quick', 'toy', epochs=100000, "
             "batch_episodes=50, seed=s), toy.ToyConfig()) for s in (0, 1)]\n"
@@ -293,7 +293,7 @@ def test_sweep_workers_die_with_their_driver(tmp_path):
 def test_a_result_interrupted_before_its_sidecar_reads_not_yet_run(tmp_path, monkeypatch):
     """write_result replaces a result's pair so that an interrupted write leaves a CSV without a
     sidecar (never a sidecar of another run), which claims takes for missing; rerunning heals."""
-    import repro.core.io as io
+    import repro.runs.results as io
 
     argv = ["race", *SMALL, "--results-dir", str(tmp_path), "--figures-dir",
             str(tmp_path / "fig")]

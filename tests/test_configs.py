@@ -10,9 +10,9 @@ from repro.core.errors import UsageError
 from repro.envs.bus import BusConfig
 from repro.envs.toy import ToyConfig
 from repro.envs.wildfire import WildfireConfig
-from repro.experiments.race import RaceConfig
-from repro.experiments.transfer import TransferConfig
 from repro.learn.config import TrainConfig
+from repro.studies.races.race import RaceConfig
+from repro.studies.transfer.study import TransferConfig
 
 
 @pytest.mark.parametrize("make, param", [
@@ -30,17 +30,17 @@ def test_a_bad_value_cannot_be_constructed(make, param):
 
 
 def _study_configs() -> list[type]:
-    """Every config class of the studies (repro.experiments): dataclasses that validate and have
-    their sizes by scale (a bare base like bench_common.BenchConfig has none)."""
+    """Every config class of the studies (repro.studies): dataclasses that validate and have
+    their sizes by scale (a bare base like bench.common.BenchConfig has none)."""
     import importlib
     import pkgutil
 
-    import repro.experiments as pkg
+    import repro.studies as pkg
     from repro.core.config import Validated
 
     found = set()
-    for info in pkgutil.iter_modules(pkg.__path__):
-        module = importlib.import_module(f"{pkg.__name__}.{info.name}")
+    for info in pkgutil.walk_packages(pkg.__path__, prefix=f"{pkg.__name__}."):
+        module = importlib.import_module(info.name)
         found |= {c for c in vars(module).values() if isinstance(c, type)
                   and issubclass(c, Validated) and dataclasses.is_dataclass(c)
                   and hasattr(c, "SCALES")

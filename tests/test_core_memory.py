@@ -8,14 +8,14 @@ import sys
 
 import pytest
 
-from repro.core.memory import keep_freed_memory
+from repro.runs.memory import keep_freed_memory
 
 glibc_only = pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="a no-op without glibc")
 
 _FAULTS = """
 import resource, sys
 import numpy as np
-from repro.core.memory import keep_freed_memory
+from repro.runs.memory import keep_freed_memory
 if sys.argv[1] == "keep":
     keep_freed_memory()
 for _ in range(2):

@@ -1,4 +1,4 @@
-"""The policy evaluated row by row in compiled code (repro.core.policy_kernel) against numpy, torch
+"""The policy evaluated row by row in compiled code (repro.learn.policy_kernel) against numpy, torch
 and the sampler."""
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ import numpy as np
 import torch
 from numba import njit
 
-from repro.core.policy_kernel import act_row, logits_row, tanh32
 from repro.core.rollout import DecisionBatch
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.policy_kernel import act_row, logits_row, tanh32
 
 
 @njit  # not cached: numba's cache would not see a change of tanh32's file

@@ -14,14 +14,16 @@ from pathlib import Path
 
 import pytest
 
-from repro.claims.race import PAPER_BETA
-import repro.core.io as io_module
+import repro.runs.results as io_module
 from repro.core.errors import UsageError
-from repro.core.io import (CSV_HASH, FIGURES_LOCK, figure_sidecar, open_figures, read_provenance,
-                           read_result, release_results, save_figure)
-from repro.core.locks import folder_lock
-from repro.experiments import (beyond_mgae, beyond_order, fig_bus_arrivals, fig_bus_load,
-                               learner_ablation, race, transfer)
+from repro.paper import RACE_BETA
+from repro.runs.locks import folder_lock
+from repro.runs.results import (CSV_HASH, FIGURES_LOCK, figure_sidecar, open_figures,
+                                read_provenance, read_result, release_results, save_figure)
+from repro.studies.advantage import estimators as beyond_mgae
+from repro.studies.bus import arrivals as fig_bus_arrivals, loads as fig_bus_load, pictures
+from repro.studies.races import race
+from repro.studies.transfer import learner_ablation, order as beyond_order, transfer
 from tests.conftest import ROOT, run_cli, tree_snapshot
 
 PAPER = Path(__file__).resolve().parents[1] / "results" / "paper"
@@ -53,7 +55,7 @@ def test_bus_panels_fit_a_column_with_the_legend_inside(drawn, module, csv, all_
     table = read_result(PAPER / csv)
     module.plot(table, "unused", all_buses, [])
     fig = drawn[0]
-    assert fig.get_figwidth() == fig_bus_arrivals.COLUMN_WIDTH
+    assert fig.get_figwidth() == pictures.COLUMN_WIDTH
     axes = [ax for ax in fig.axes if ax.get_visible()]
     assert len(axes) == table.policy.nunique() == 4
     corners = {(round(ax.get_position().x0, 2), round(ax.get_position().y0, 2)) for ax in axes}
@@ -74,7 +76,7 @@ def test_race_figure_draws_the_papers_betas_beside_ours(drawn):
     race.plot({n: read_result(PAPER / f"{n}.csv") for n in names}, Path("unused"), [])
     labels = [t.get_text() for t in drawn[0].axes[0].get_legend().get_texts()]
     ours = read_result(PAPER / "table_race.csv")
-    for name, (beta, se) in PAPER_BETA.items():
+    for name, (beta, se) in RACE_BETA.items():
         row = ours[ours.distribution == name].iloc[0]
         label = next(label for label in labels if label.startswith(name))
         assert f"{row.beta:.3f} ({row.beta_se:.3f})" in label

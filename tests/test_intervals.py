@@ -8,7 +8,7 @@ import pytest
 from scipy import stats as sps
 
 from repro.claims import intervals_of
-from repro.core.stats import INTERVALS, coverage, expanded_level, interval
+from repro.runs.stats import INTERVALS, coverage, expanded_level, interval
 from tests.conftest import tree_snapshot, write_result_csv
 
 

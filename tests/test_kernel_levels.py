@@ -1,4 +1,4 @@
-"""Training gives the same bytes whatever kernels the CPU would choose (repro.core.kernels): a
+"""Training gives the same bytes whatever kernels the CPU would choose (repro.runs.kernels): a
 short wildfire run of each learner through the real entry point on two set-ups that stand in for
 two machines of different vendors and instruction sets.
 
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from repro.core import kernels
 from repro.learn.trainer import TIMING_COLUMNS
+from repro.runs import kernels
 from tests.conftest import ROOT, env_without_pins
 
 RUN = ("train", "--env", "wildfire", "--scale", "smoke", "--epochs", "3")

@@ -1,4 +1,4 @@
-"""The CPU kernels pinned when repro is imported (repro.core.kernels): what is set, what is left
+"""The CPU kernels pinned when repro is imported (repro.runs.kernels): what is set, what is left
 alone, and that the pin takes in the processes the suite starts."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from repro.core import kernels
+from repro.runs import kernels
 from tests.conftest import ROOT, env_without_pins
 
 PINNABLE = kernels.pinnable()
@@ -26,7 +26,7 @@ def python(code: str, **env: str) -> str:
     return out.stdout
 
 
-REPORT = ("import json, os, repro; from repro.core import kernels; "
+REPORT = ("import json, os, repro; from repro.runs import kernels; "
           "print(json.dumps({'env': {k: os.environ.get(k) for k in %r}, "
           "'state': kernels.state(), 'problems': kernels.problems()}))")
 
@@ -103,6 +103,6 @@ def test_the_pin_needs_avx2_and_fma(monkeypatch):
 def test_provenance_records_the_kernels():
     import torch  # noqa: F401  (machine() reports the kernels where torch is loaded)
 
-    from repro.core.io import machine
+    from repro.runs.provenance import machine
 
     assert machine()["kernels"] == kernels.state()

@@ -13,11 +13,11 @@ import torch
 from repro.cli import main
 from repro.envs import toy
 from repro.learn import batch
-from repro.learn.config import (LEARNER_FIELDS, LEARNERS, TrainConfig, learner_name,
+from repro.learn.config import (LEARNERS, LEARNER_FIELDS, TrainConfig, learner_name,
                                 study_train_config, train_config)
 from repro.learn.policy import CategoricalPolicy
-from repro.learn.run_folder import KEPT, load_checkpoint
 from repro.learn.trainer import Trainer
+from repro.runs.run_folder import KEPT, load_checkpoint
 from tests.conftest import tree_snapshot
 
 

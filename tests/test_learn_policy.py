@@ -85,7 +85,7 @@ def test_linear_baseline_recovers_linear_features_and_mlp_fits():
 
 
 def test_inverse_cdf_sampling_by_hand():
-    from repro.core.policy_kernel import sample_row
+    from repro.learn.policy_kernel import sample_row
 
     # probabilities 1/4, 1/4, 1/2: the CDF's steps are at u = 0.25 and 0.5
     logits = np.log(np.array([1.0, 1.0, 2.0], np.float32))

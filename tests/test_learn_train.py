@@ -15,14 +15,14 @@ import pytest
 import torch
 
 from repro.cli import main
-from repro.core.io import read_provenance
-from tests.conftest import tree_snapshot
 from repro.envs import toy
-from repro.learn.policy import Sampler
 from repro.learn.config import train_config
-from repro.learn.run_folder import CHECKPOINT, load_checkpoint
+from repro.learn.policy import Sampler
 from repro.learn.trained_policy import policy_from_checkpoint
 from repro.learn.trainer import PROGRESS_COLUMNS, TIMING_COLUMNS, Trainer
+from repro.runs.results import read_provenance
+from repro.runs.run_folder import CHECKPOINT, load_checkpoint
+from tests.conftest import tree_snapshot
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,6 +1,6 @@
 """Both learners pinned bit for bit: a short run of each, in the bytes it gives on every x86-64
 CPU with AVX2 and FMA, of any vendor (the learner's arithmetic is compiled loops in a fixed order:
-repro.core.kernels; tests/test_kernel_levels.py). The digests were computed by this module
+repro.runs.kernels; tests/test_kernel_levels.py). The digests were computed by this module
 (``python -m tests.test_learner_fingerprint [authors]``) on an AMD EPYC (Zen 5, AVX-512), and were
 the same there with numba compiling for a generic x86-64, for Haswell and for the host, with and
 without the pin. They hold for the installed torch, numpy and numba and glibc's libm. Where the pin

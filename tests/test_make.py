@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from repro.cli import COMMANDS
+from repro.cli import ALIASES, COMMANDS
 from tests.conftest import ROOT
 
 MAKEFILE = (ROOT / "Makefile").read_text()
@@ -46,15 +46,19 @@ def test_each_command_has_the_target_of_its_name(command):
 
 
 def test_make_help_lists_every_command_and_alias():
-    listed = {line.split("\t")[0] for line in make_help().splitlines() if "\t" in line}
-    missing = [c for c in COMMANDS if c not in listed]
+    listed = dict(line.split("\t", 1) for line in make_help().splitlines() if "\t" in line)
+    missing = [c for c in [*COMMANDS, *ALIASES] if c not in listed]
     assert not missing
-    # an alias is a target without a recipe of its own; `make help` names it beside its command
-    aliases = {t: deps.split()[0] for t, deps in recipes().items()
+    for alias, command in ALIASES.items():
+        assert listed[alias] == f"alias of {command}", (alias, listed[alias])
+
+
+def test_the_aliases_of_the_makefile_are_those_of_the_cli():
+    """An alias is a target without a recipe of its own whose one prerequisite is its command: the
+    Makefile has one for each of the CLI's aliases, and no other."""
+    aliases = {t: deps.split("##")[0].split()[0] for t, deps in recipes().items()
                if "\n" not in deps and deps.split() and deps.split()[0] in COMMANDS}
-    assert aliases, "the paper's names are aliases"
-    for alias, command in aliases.items():
-        assert f"alias {alias}" in make_help(), (alias, command)
+    assert aliases == ALIASES
 
 
 @pytest.mark.parametrize("command", COMMANDS)

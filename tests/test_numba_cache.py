@@ -1,4 +1,4 @@
-"""numba's cache (repro.core.numba_cache): two writers of one function's cache that read its index
+"""numba's cache (repro.runs.numba_cache): two writers of one function's cache that read its index
 at the same time must not both take one data file, and kernels compiled by different processes
 must not share a symbol."""
 
@@ -15,7 +15,7 @@ import pytest
 from numba.core.caching import IndexDataCacheFile
 
 import repro  # noqa: F401  (installs the lock, as every process of the suite does)
-from repro.core import numba_cache
+from repro.runs import numba_cache
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,7 +56,7 @@ def test_without_the_lock_one_signature_gets_the_others_code(tmp_path, monkeypat
 _CELLS = """
 import sys
 import repro
-from repro.experiments.beyond_races import cell
+from repro.studies.races.wildfire_races import cell
 for n in sys.argv[1:]:
     r = cell("nearest", int(n), -1.0, 2, 0)
     print(n, r["decisions"], r["races"])

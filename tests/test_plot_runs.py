@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 import scipy.stats as sps
 
-from repro.experiments.plot_runs import curve, groups, read_runs
+from repro.studies.training.plot_runs import curve, groups, read_runs
 from tests.conftest import run_cli, tree_snapshot
 
 
@@ -59,6 +59,11 @@ def test_groups_by_setting_and_names_the_difference(two_runs, tmp_path):
     labelled = groups(read_runs([str(two_runs[0]), str(other), str(two_runs[1])]))
     assert [(label, len(tables)) for label, tables in labelled] == [
         ("lam=1.0 (2 runs)", 2), ("lam=2.0 (1 run)", 1)]
+    # the simulators, as the paper names them
+    config["train"]["lam"], config["env"]["dt"] = 1.0, 1.0
+    (other / "config.json").write_text(json.dumps(config))
+    labelled = groups(read_runs([str(two_runs[0]), str(other)]))
+    assert [label for label, _ in labelled] == ["ED (1 run)", "FS-1 (1 run)"]
 
 
 @pytest.mark.parametrize("args, message", [

@@ -1,7 +1,7 @@
 """One spec of the policy network, and each form of it checked against the spec layer by layer:
 the torch module (:func:`repro.learn.policy.mlp`), the forward pass the derivative products reuse
 (:class:`repro.learn.network.TanhMLP`), and the sampler's evaluation, row by row in compiled code
-(:func:`repro.core.policy_kernel.logits_row`, :meth:`Sampler.logits`); for hidden sizes the
+(:func:`repro.learn.policy_kernel.logits_row`, :meth:`Sampler.logits`); for hidden sizes the
 config allows and both initialisations."""
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ import pytest
 import torch
 from torch import nn
 
-from repro.core.policy_kernel import logits_row
 from repro.learn.config import INITS
 from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.policy_kernel import logits_row
 
 OBS_DIM, N_ACTIONS, ROWS = 7, 5, 64
 HIDDEN = [(32,), (32, 32), (5,), (4, 6, 3)]

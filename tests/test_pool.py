@@ -16,7 +16,7 @@ from repro.envs import bus
 from repro.learn.config import train_config
 from repro.learn.policy import Sampler
 from repro.learn.pool import ReleasedPool, collect
-from repro.learn.run_folder import CHECKPOINT, load_checkpoint
+from repro.runs.run_folder import CHECKPOINT, load_checkpoint
 from repro.learn.trainer import TIMING_COLUMNS, Trainer
 
 

@@ -1,5 +1,5 @@
 """A sidecar is written once, by its run: a later correction is a dated note beside it, and the
-reader shows both (repro.core.io.write_correction, shown_provenance)."""
+reader shows both (repro.runs.results.write_correction, shown_provenance)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from repro.core.errors import UsageError
-from repro.core.io import (correction_paths, read_provenance, shown_provenance, source_records,
-                           write_correction)
+from repro.runs.results import (correction_paths, read_provenance, shown_provenance, source_records,
+                                write_correction)
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from repro.core.config import for_scale
-from repro.experiments.race import (DISTRIBUTIONS, RaceConfig, largest_safe_dt,
-                                    no_race_probabilities, race_probability_exact,
-                                    race_probability_mc, run_study, safe_dt_exact)
+from repro.studies.races.race import DISTRIBUTIONS, RaceConfig, run_study
+from repro.studies.races.study import (bin_probabilities, largest_safe_dt, no_race_probabilities,
+                                       race_probability_exact, race_probability_mc, safe_dt_exact)
 
 EXP = DISTRIBUTIONS["exponential"]
 
@@ -45,8 +45,7 @@ def test_exact_matches_brute_force_elementary_symmetric_polynomial():
     # Direct DP for e_N over the bins, on a coarse grid where it is cheap.
     for key in DISTRIBUTIONS:
         dist, dt, n_max = DISTRIBUTIONS[key], 0.7, 8
-        p = np.concatenate(list(__import__("repro.experiments.race", fromlist=["x"])
-                                .bin_probabilities(dist, dt)))
+        p = np.concatenate(list(bin_probabilities(dist, dt)))
         e = np.zeros(n_max + 1)
         e[0] = 1.0
         for pb in p:

@@ -1,4 +1,4 @@
-"""The run folder's promises (repro.learn.run_folder): checkpoints that cannot run code, exact
+"""The run folder's promises (repro.runs.run_folder): checkpoints that cannot run code, exact
 resume whichever write a kill interrupts (injected, not raced), one writer per folder, one-line
 refusals of damaged or foreign folders, and the same bytes for the same run."""
 
@@ -16,18 +16,18 @@ import pandas as pd
 import pytest
 import torch
 
-import repro.learn.run_folder as run_folder
+import repro.runs.run_folder as run_folder
 import repro.learn.trainer as trainer
-from repro.core import kernels
-from repro.core.errors import UsageError
 from repro.cli import main
-from repro.core.io import atomic_path
+from repro.core.errors import UsageError
 from repro.envs import toy
-from repro.experiments.sweep import TrainJob, run_sweep
-from repro.learn.run_folder import CHECKPOINT, LOCK, PROGRESS, writer_lock
 from repro.learn.config import train_config
 from repro.learn.trained_policy import load_trained_run
 from repro.learn.trainer import TIMING_COLUMNS
+from repro.runs import kernels
+from repro.runs.files import atomic_path
+from repro.runs.run_folder import CHECKPOINT, LOCK, PROGRESS, writer_lock
+from repro.studies.kit.sweep import TrainJob, run_sweep
 from tests.conftest import tree_snapshot
 
 TRAIN = ["train", "--env", "toy", "--batch-episodes", "6", "--seed", "3", "--horizon", "10"]
@@ -199,7 +199,7 @@ def test_a_second_writer_is_refused_naming_the_holder(tmp_path, whole, capsys):
 def test_a_lock_left_by_a_killed_process_is_taken_over(tmp_path, whole):
     run = tmp_path / "run"
     code = ("import os, signal, sys; from pathlib import Path; "
-            "from repro.learn.run_folder import writer_lock\n"
+            "from repro.runs.run_folder import writer_lock\n"
             "with writer_lock(Path(sys.argv[1])): os.kill(os.getpid(), signal.SIGKILL)")
     res = subprocess.run([sys.executable, "-c", code, str(run)], cwd=Path(__file__).parents[1])
     assert res.returncode == -9 and (run / LOCK).exists()
@@ -331,7 +331,8 @@ def test_a_run_from_before_the_record_is_taken_at_its_provenance(tmp_path, whole
 def test_a_sweeps_sidecars_name_the_kernels_its_runs_were_trained_under(tmp_path):
     """Every run's kernels go into the command's sidecars (``trained_under``), with a warning
     where some are not this process's, until the command ends."""
-    from repro.core.io import provenance, release_results
+    from repro.runs.provenance import provenance
+    from repro.runs.results import release_results
 
     jobs = [TrainJob(name, train_config("quick", "toy", epochs=1, batch_episodes=6, seed=seed),
                      toy.ToyConfig()) for seed, name in enumerate("ab")]
@@ -355,7 +356,8 @@ def test_a_sweeps_sidecars_name_the_kernels_its_runs_were_trained_under(tmp_path
 def test_a_loaded_policy_names_the_kernels_of_its_run(whole):
     """A checkpoint (or kept policy) of a run folder, loaded to act, puts its run's kernels into
     the command's sidecars."""
-    from repro.core.io import provenance, release_results
+    from repro.runs.provenance import provenance
+    from repro.runs.results import release_results
 
     for path in (whole / CHECKPOINT, sorted((whole / run_folder.KEPT).iterdir())[-1]):
         try:

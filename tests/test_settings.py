@@ -14,7 +14,7 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from repro.cli import COMMANDS, OneLineParser, main
+from repro.cli import ALIASES, COMMANDS, OneLineParser, main
 from repro.core.config import (Validated, add_config_arguments, field_docs, field_help, flag,
                                given_fields, numba_record)
 from repro.envs.bus import BusConfig
@@ -22,12 +22,12 @@ from repro.envs.bus.engine import params_record as bus_record
 from repro.envs.toy import ToyConfig
 from repro.envs.wildfire import WildfireConfig
 from repro.envs.wildfire.engine import params_record as wildfire_record
-from repro.experiments import train
-from repro.experiments.beyond_races import BeyondRacesConfig
-from repro.experiments.race import RaceConfig
-from repro.experiments.scaling import ScalingConfig
-from repro.experiments.wildfire_behaviour import BehaviourConfig
 from repro.learn.config import TrainConfig
+from repro.studies.races.race import RaceConfig
+from repro.studies.races.scaling import ScalingConfig
+from repro.studies.races.wildfire_races import BeyondRacesConfig
+from repro.studies.training import train
+from repro.studies.wildfire.behaviour import BehaviourConfig
 
 CONFIGS = (WildfireConfig, BusConfig, ToyConfig, TrainConfig, RaceConfig, ScalingConfig,
            BeyondRacesConfig, BehaviourConfig)
@@ -246,7 +246,7 @@ def test_a_study_takes_a_config_file_and_refuses_a_key_it_has_no_flag_for(tmp_pa
 def parsed(argv: list[str]) -> argparse.Namespace:
     """What ``main`` hands a command: the parsed arguments (the command not run)."""
     seen = {}
-    module = importlib.import_module(COMMANDS[argv[0]][0])
+    module = importlib.import_module(COMMANDS[ALIASES.get(argv[0], argv[0])][0])
 
     def grab(args):
         seen["args"] = args
@@ -347,7 +347,7 @@ def test_the_numba_record_of_a_config_is_its_fields_and_nothing_hand_listed():
 ])
 def test_a_study_spells_a_quirk_as_train_does_and_takes_the_old_spellings(argv, tmp_path):
     """fig-transfer switches a quirk off by train's flag; the old ones give the same study."""
-    from repro.experiments.transfer import config_from_args
+    from repro.studies.transfer.transfer import config_from_args
 
     cfg = config_from_args(parsed(["fig-transfer", "--scale", "smoke", *argv]))
     assert cfg.quirks_off == ("q3", "q5") and cfg.name == "transfer_no_q3_no_q5"

@@ -22,16 +22,16 @@ import torch
 
 from repro.claims import NOT_RUN, registry
 from repro.cli import main
-from repro.core import memory
 from repro.core.errors import UsageError, require
-from repro.core.io import (CSV_HASH, RESULTS_LOCK, csv_bytes, read_provenance, read_result,
-                           sidecar_path, write_result)
-from repro.core.locks import folder_lock
 from repro.core.rollout import rollout_bytes
-from repro.experiments import sweep
-from repro.learn.run_folder import (CHECKPOINT, load_checkpoint, save_checkpoint, state_problem,
-                                    writer_lock)
 from repro.learn.trained_policy import policy_from_checkpoint
+from repro.runs import memory
+from repro.runs.locks import folder_lock
+from repro.runs.results import (CSV_HASH, RESULTS_LOCK, csv_bytes, read_provenance, read_result,
+                                sidecar_path, write_result)
+from repro.runs.run_folder import (CHECKPOINT, load_checkpoint, save_checkpoint, state_problem,
+                                   writer_lock)
+from repro.studies.kit import sweep
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
 
@@ -196,7 +196,7 @@ WRITER = """
 import sys
 import pandas as pd
 from pathlib import Path
-from repro.core.io import write_result
+from repro.runs.results import write_result
 folder, me = Path(sys.argv[1]), int(sys.argv[2])
 for i in range(60):
     write_result(folder / f"slot{i % 6}.csv", pd.DataFrame(dict(writer=[me] * 50, i=range(50))),
@@ -290,7 +290,7 @@ def _departures(command: str, *argv: str) -> list[str]:
     import importlib
 
     from repro.cli import COMMANDS, OneLineParser
-    from repro.experiments.options import scale_departures
+    from repro.studies.kit.options import scale_departures
 
     module = importlib.import_module(COMMANDS[command][0])
     parser = OneLineParser(prog=command)
@@ -301,7 +301,7 @@ def _departures(command: str, *argv: str) -> list[str]:
 def test_the_settings_of_a_run_are_compared_with_its_scales():
     """A flag given with the scale's own value, or one that chooses another study (its own
     result files), leaves a run at its scale; a subset of the study's simulators does not."""
-    from repro.experiments.race import RaceConfig
+    from repro.studies.races.race import RaceConfig
 
     paper_sets = str(RaceConfig.SCALES["paper"].get("n_sets", RaceConfig.n_sets))
     assert _departures("race", "--scale", "paper", "--n-sets", paper_sets) == []
@@ -449,8 +449,8 @@ def test_a_studys_damaged_run_is_refused_naming_runs_dir(wildfire_run, tmp_path)
     """A sweep's finished run whose checkpoint is damaged, or acts on another number of actions,
     is refused in one line naming --runs-dir (not train's --out), before a study tests it."""
     from repro.envs.wildfire import WildfireConfig
-    from repro.experiments.transfer import score_policy
-    from repro.learn.run_folder import is_finished
+    from repro.studies.transfer.study import score_policy
+    from repro.runs.run_folder import is_finished
 
     run = tmp_path / "run"
     shutil.copytree(wildfire_run, run)
@@ -490,10 +490,10 @@ REQUIRED = {"train": ["--env", "toy"], "render": ["--out", "x.gif"],
 def _path_options(command: str) -> list[str]:
     import importlib
 
-    from repro.cli import COMMANDS, PATH_OPTIONS, OneLineParser
+    from repro.cli import ALIASES, COMMANDS, PATH_OPTIONS, OneLineParser
 
     parser = OneLineParser(prog=command)
-    module = importlib.import_module(COMMANDS[command][0])
+    module = importlib.import_module(COMMANDS[ALIASES.get(command, command)][0])
     module.add_arguments(parser)
     if hasattr(module, "extend_arguments"):
         module.extend_arguments(parser, REQUIRED.get(command, []))
@@ -599,7 +599,7 @@ def test_the_sizes_of_the_paper_scale_fit():
     from repro.core.config import for_scale
     from repro.envs.bus import make_env as bus_env
     from repro.envs.wildfire import WildfireConfig, make_env
-    from repro.experiments.scaling import ScalingConfig, check_work
+    from repro.studies.races.scaling import check_work, ScalingConfig
     from repro.learn.config import train_config
     from repro.learn.sizes import training_bytes
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from repro.envs.wildfire import WildfireConfig
-from repro.learn.trained_policy import load_trained_run
-from repro.experiments.bench_wildfire import WildfireBenchConfig, measure
 from repro.learn.config import TrainConfig
+from repro.learn.trained_policy import load_trained_run
+from repro.studies.bench.wildfire import WildfireBenchConfig, measure
 
 MLP = "mlp-" + "x".join(map(str, TrainConfig.hidden)) + "-tanh"
 """The benchmarks' policy: the default learner's network."""

@@ -12,23 +12,22 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from repro.claims import at_most_partial
-from repro.claims import wildfire as claims
-from repro.envs.wildfire import WildfireConfig, make_env
+from repro.claims import at_most_partial, wildfire as claims
+from repro.envs.wildfire import QUIRKS, WildfireConfig, make_env
 from repro.envs.wildfire.policies import (FLOWCHART_HOLD_ALONE, FLOWCHART_HOLD_SHARED,
                                           FLOWCHART_TARGET, FlowchartPolicy)
-from repro.experiments.sweep import run_sweep
-from repro.experiments.transfer import PAPER, TransferConfig, make_jobs, evaluate_policies
-from repro.envs.wildfire import QUIRKS
-from repro.experiments.wildfire_behaviour import frequencies
-from repro.experiments.wildfire_eval import evaluate
 from repro.learn.trainer import TIMING_COLUMNS
+from repro.paper import TRANSFER_ADR
+from repro.studies.kit.sweep import run_sweep
+from repro.studies.transfer.study import TransferConfig, evaluate_policies, make_jobs
+from repro.studies.wildfire.behaviour import frequencies
+from repro.studies.wildfire.study import evaluate
 from tests.conftest import tree_snapshot, write_result_csv
 
 
 def test_simulators_are_the_papers():
     sims = TransferConfig().simulators()
-    assert list(sims) == list(PAPER)
+    assert list(sims) == list(TRANSFER_ADR)
     assert [s.dt for s in sims.values()] == [None, *(10.0 ** x for x in (-1, -0.5, 0, 0.5, 1)),
                                              1.0]
     assert [s.t_health for s in sims.values()] == [3.0] * 6 + [2.9999]
@@ -153,8 +152,8 @@ def test_a_dask_sweep_whose_scheduler_goes_away_stops_in_one_line_and_resumes(tm
     """The cluster closes once the first epoch of two is in its run folder: one line naming
     --scheduler, exit 2, within seconds; the same command on another cluster resumes from the
     run folder and trains only the epoch left."""
-    from repro.experiments import sweep
-    from repro.learn.run_folder import epochs_done
+    from repro.studies.kit import sweep
+    from repro.runs.run_folder import epochs_done
 
     distributed = pytest.importorskip("dask.distributed")
     monkeypatch.setenv("REPRO_QUIET", "1")
@@ -196,8 +195,8 @@ def test_a_dask_sweep_whose_workers_go_away_stops_after_the_silence(tmp_path, mo
     epoch finishes any more, and the sweep stops (UsageError naming --scheduler) once
     CLUSTER_SILENCE has passed, here 3 s, instead of waiting for ever."""
     from repro.core.errors import UsageError
-    from repro.experiments import sweep
-    from repro.learn.run_folder import epochs_done
+    from repro.studies.kit import sweep
+    from repro.runs.run_folder import epochs_done
 
     distributed = pytest.importorskip("dask.distributed")
     monkeypatch.setattr(sweep, "CLUSTER_SILENCE", 3.0)
@@ -235,7 +234,7 @@ def test_map_tasks_on_dask_keeps_the_order_and_stops_when_the_workers_go_away(mo
     tasks pending, the call stops (UsageError naming --scheduler) once CLUSTER_SILENCE has
     passed, here 3 s: it waited in client.gather for ever."""
     from repro.core.errors import UsageError
-    from repro.experiments import sweep
+    from repro.studies.kit import sweep
 
     distributed = pytest.importorskip("dask.distributed")
     with _cluster(distributed) as cluster:
@@ -265,7 +264,8 @@ def test_a_worker_that_dies_is_one_line_on_joblib_and_on_dask(monkeypatch, capsy
     """joblib's TerminatedWorkerError and Dask's KilledWorker become WorkerDied, which the command
     line prints as one line (exit 1)."""
     from repro.core.errors import WorkerDied
-    from repro.experiments import race, sweep
+    from repro.studies.kit import sweep
+    from repro.studies.races import race
 
     with pytest.raises(WorkerDied, match="joblib: SIGKILL: most often the system out of memory "
                        r"\(fewer --n-jobs") as caught:
@@ -320,7 +320,7 @@ def test_fig_transfer_cli_smoke(tmp_path, monkeypatch):
                      for n in ("transfer.csv", "transfer_summary.csv")])
     assert outs[0] == outs[1]
     summary = pd.read_csv(tmp_path / "r0" / "transfer_summary.csv")
-    assert list(summary.simulator) == list(PAPER) and (summary.n_policies == 1).all()
+    assert list(summary.simulator) == list(TRANSFER_ADR) and (summary.n_policies == 1).all()
     assert all((tmp_path / "fig" / f"transfer.{ext}").exists() for ext in ("png", "pdf"))
 
 
@@ -359,7 +359,7 @@ def test_sweep_refuses_finished_runs_made_with_other_settings(tmp_path, capsys):
 def test_max_decisions_0_lifts_the_decision_limit():
     import argparse
 
-    from repro.experiments import wildfire_behaviour
+    from repro.studies.wildfire import behaviour as wildfire_behaviour
 
     parser = argparse.ArgumentParser()
     wildfire_behaviour.add_arguments(parser)
@@ -379,10 +379,10 @@ def _summary(means: dict[str, float], half_width: float, n: int = 5) -> pd.DataF
 
 
 def test_c8_c9_verdicts_follow_the_intervals():
-    paper = {k: m for k, (m, _) in PAPER.items()}
+    paper = {k: m for k, (m, _) in TRANSFER_ADR.items()}
     s = _summary(paper, 0.03)
     assert claims.c8_verdict(s)[0] == "PASS" and claims.c9_verdict(s)[0] == "PASS"
-    flat = _summary({k: 2.7 for k in PAPER}, 0.03)
+    flat = _summary({k: 2.7 for k in TRANSFER_ADR}, 0.03)
     assert claims.c8_verdict(flat)[0] == "PARTIAL"  # the small-dT part holds, degradation not
     assert claims.c9_verdict(flat)[0] == "FAIL"
     inverted = _summary({**paper, "ED": 1.0}, 0.03)
@@ -431,8 +431,8 @@ def test_fs1_trained_with_t_health_2_9999_transfers_worse_than_with_3(tmp_path, 
 def test_frequency_counts_of_separate_batches_add_up_to_the_whole(monkeypatch):
     """The behaviour driver counts batch by batch (to drop observations); that must give exactly
     the frequencies of the joined rollout."""
-    from repro.experiments import wildfire_eval
-    from repro.experiments.wildfire_behaviour import frequency_counts, shares
+    from repro.studies.wildfire import study as wildfire_eval
+    from repro.studies.wildfire.behaviour import frequency_counts, shares
 
     monkeypatch.setattr(wildfire_eval, "BATCH_EPISODES", 20)
     cfg = WildfireConfig()
@@ -452,7 +452,7 @@ def test_frequency_counts_of_separate_batches_add_up_to_the_whole(monkeypatch):
 def test_stay_flights_are_flights_to_the_fire_the_uav_is_at():
     """A stay flight (almost always) lasts one latency in ED; the frequencies without them count
     every other decision as before."""
-    from repro.experiments.wildfire_behaviour import frequency_counts
+    from repro.studies.wildfire.behaviour import frequency_counts
 
     cfg = WildfireConfig()
     ro = make_env(cfg).rollout(FlowchartPolicy(np.random.default_rng(5)), 40, 2)
@@ -501,7 +501,7 @@ def test_heuristics_play_the_transfer_studys_test_episodes(tmp_path):
 def test_an_ablation_trains_only_the_simulators_asked_with_the_quirks_asked_off(tmp_path):
     """fig-transfer --no-quirk q3 --simulator ...: transfer_no_q3*, those simulators only, Q3 off
     in training and test; claim C9 reports it."""
-    from repro.experiments.transfer import TransferConfig
+    from repro.studies.transfer.study import TransferConfig
 
     argv = ["fig-transfer", "--scale", "smoke", "--no-quirk", "q3", "--simulator", "FS-1",
             "--simulator", "FS-1 (T_health=2.9999)", "--results-dir", str(tmp_path / "r"),

@@ -16,7 +16,7 @@ from repro.envs.wildfire import WildfireConfig
 from repro.envs.wildfire.policies import (FLOWCHART_HOLD_ALONE, FLOWCHART_HOLD_SHARED,
                                           FLOWCHART_TARGET, FlowchartPolicy, NearestPolicy,
                                           RandomPolicy)
-from repro.experiments.wildfire_eval import adr
+from repro.studies.wildfire.study import adr
 
 HOLD = 5
 ROOT = Path(__file__).resolve().parents[1]
@@ -228,7 +228,7 @@ def test_pettingzoo_rewards_match_the_reference(engine):
 
 def test_evaluate_without_observations_keeps_everything_adr_needs(monkeypatch):
     from repro.envs.wildfire import make_env
-    from repro.experiments import wildfire_eval
+    from repro.studies.wildfire import study as wildfire_eval
 
     monkeypatch.setattr(wildfire_eval, "BATCH_EPISODES", 10)  # several batches to join
     env = make_env(WildfireConfig())

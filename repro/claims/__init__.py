@@ -4,8 +4,8 @@ paper, X1.., in a section of their own.
 
 Only a complete set of paper-scale results makes ``paper_claims.md``: every result file in the
 folder of the paper scale (its sidecar says so, and a run records the paper scale only with the
-paper scale's settings: :func:`repro.core.io.run_scale`), and every claim of the paper read from
-its files (none "not yet run" for want of them). The verdicts of a smaller scale's results
+paper scale's settings: :func:`repro.runs.provenance.run_scale`), and every claim of the paper
+read from its files (none "not yet run" for want of them). The verdicts of a smaller scale's results
 (``claims --results-dir results/quick``, the end of ``make reproduce SCALE=quick``) go to
 ``results/<scale>/claims.md``, marked as a smoke check: they show that every driver ran and every
 check reads its files, and are no evidence for or against a claim (:data:`SMOKE_NOTE`).
@@ -34,10 +34,10 @@ import numpy as np
 import pandas as pd
 
 from repro.core.errors import require
-from repro.core.io import (check_names, check_writable_dir, read_provenance, read_result,
-                           write_text)
-from repro.core.stats import interval, t_limits
-from repro.experiments.interval_coverage import NAME as COVERAGE
+from repro.runs.files import check_names, check_writable_dir, write_text
+from repro.runs.results import read_provenance, read_result
+from repro.runs.stats import interval, t_limits
+from repro.studies.verdicts.interval_coverage import NAME as COVERAGE
 
 INTERVALS = ("t", "percentile")
 """The intervals a claim that compares intervals is decided with (``claims --interval``, default

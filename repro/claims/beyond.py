@@ -12,12 +12,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from repro.core.io import read_result
 from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_partial,
                           interval_name, scale_of, side_by_side, with_intervals)
-from repro.core.stats import ci_side
-from repro.experiments.beyond_mgae import REFERENCE
-from repro.experiments.transfer_dt import RACES, TransferDtConfig, read_races
+from repro.runs.results import read_result
+from repro.runs.stats import ci_side
+from repro.studies.advantage.estimators import REFERENCE
+from repro.studies.transfer.dt_grid import RACES, TransferDtConfig, read_races
 
 RACE_ONSET = 0.1
 """Races have begun at the dT where the nearest policy's races per decision reach 0.1, C10's

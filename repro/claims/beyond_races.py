@@ -8,17 +8,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from repro.core.io import read_result
 from repro.claims import (LEARNER_READINGS, NOT_RUN, Claim, Verdict, at_most_partial,
                           interval_name, scale_of, side_by_side, with_difference_intervals)
-from repro.claims.race import PAPER_BETA
-from repro.claims.wildfire import C9_PAIR
-from repro.experiments.beyond_order import NAME as ORDER
-from repro.experiments.beyond_races import FIT, RACES, c10_beta
+from repro.claims.wildfire import C9_PAPER
+from repro.paper import C9_PAIR, RACE_BETA
+from repro.runs.results import read_result
+from repro.studies.races.study import FIT, RACES
+from repro.studies.races.wildfire_races import c10_beta
+from repro.studies.transfer.order import NAME as ORDER
 
 X2_TOLERANCE = 0.2
 """X2: a policy's beta is near C10's within this (twice the width of C10's own band, 2.1-2.3)."""
-PAPER_C10_BETA = float(np.mean([b for b, _ in PAPER_BETA.values()]))
+PAPER_C10_BETA = float(np.mean([b for b, _ in RACE_BETA.values()]))
 """C10's beta in the paper (mean over its three distributions), when our C10 has not run."""
 
 
@@ -100,12 +101,13 @@ def check_x4(results: Path, suffix: str = "") -> Verdict:
 CLAIMS = [
     Claim("X2", "In the wildfire simulator itself (N UAVs, N clusters), dT must shrink as "
           "alpha N^-beta to keep P(race per episode) below 0.1, beta near C10's",
-          "C10: beta 2.21-2.22 (i.i.d. event times)",
+          f"C10: beta {min(b for b, _ in RACE_BETA.values()):.2f}-"
+          f"{max(b for b, _ in RACE_BETA.values()):.2f} (i.i.d. event times)",
           f"each policy's (nearest, random) beta within {X2_TOLERANCE} of C10's; PARTIAL: one",
           "make beyond-races", check_x2),
     Claim("X4", "C9's degradation (FS-1, T_health 2.9999) survives reversing, at one instant, a "
           "UAV's macro-action end and a fire's extinguishing",
-          "C9: 1.937 vs 2.789 (the order is not discussed)",
+          f"C9: {C9_PAPER} (the order is not discussed)",
           "where the released order degrades (95% CI of the ADR difference below 0), "
           "the reversed order's CI lies below 0 too; PARTIAL: in some semantics",
           "make beyond-order", side_by_side(check_x4, LEARNER_READINGS), intervals=True),

@@ -1,7 +1,7 @@
 """C1-C5: the bus-holding claims, checked from the result CSVs of the bus drivers.
 
 A run's final return is the mean average return of its last ``final_epochs`` epochs (see
-``repro.experiments.bus_sweeps``); intervals are 95% CIs over seeds of the IQM, of
+``repro.studies.bus.sweeps``); intervals are 95% CIs over seeds of the IQM, of
 :func:`repro.claims.interval_kind`: the trimmed-mean t, or the drivers' (stratified) percentile
 bootstrap. The baselines are deterministic (one exact episode each), so they carry no interval.
 Verdicts:
@@ -15,20 +15,16 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from repro.core.io import read_provenance, read_result
 from repro.claims import (LEARNER_READINGS, Claim, IncompleteResult, Verdict, interval_kind,
                           interval_name, is_incomplete, scale_of, side_by_side)
-from repro.core.stats import bootstrap_ci, interval, iqm
-from repro.experiments.bus_sweeps import final_returns
 from repro.envs.bus import BusConfig
-from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_SHARE,
-                                    UNIFORM_WINDOW_MIN, l1_per_point, load_variance_per_record,
-                                    time_to_regularity, time_to_uniform)
-
-PAPER_LAMBDA = 2.0
-"""The paper's bus lambda: C1 compares the MLP trained with it."""
-PAPER_REGULARITY_MIN = {"mlp": 100.0, "thresholds": 200.0}
-"""Paper: uniform arrivals after about 100 min (MLP) and 200 min (Optimized Thresholds)."""
+from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, REGULARITY_SHARE, UNIFORM_WINDOW_MIN,
+                                    l1_per_point, load_variance_per_record, time_to_regularity,
+                                    time_to_uniform)
+from repro.paper import BUS_LAMBDA, BUS_REGULARITY_MIN
+from repro.runs.results import read_provenance, read_result
+from repro.runs.stats import bootstrap_ci, interval, iqm
+from repro.studies.bus.sweeps import final_returns
 
 
 def _verdict(strict: bool, loose: bool) -> str:
@@ -65,7 +61,7 @@ def _fmt(row: pd.Series) -> str:
 def check_c1(results: Path, suffix: str = "") -> Verdict:
     """MLP (lambda = 2) > Optimized Thresholds > No Holding."""
     table, base, path = _summary(results, f"lambda{suffix}")
-    mlp = table[(table.policy == "mlp") & (table["lambda"] == PAPER_LAMBDA)].iloc[0]
+    mlp = table[(table.policy == "mlp") & (table["lambda"] == BUS_LAMBDA)].iloc[0]
     order = base["thresholds"] > base["nohold"]
     v = _verdict(order and mlp.ci_low > base["thresholds"],
                  order and mlp.final_iqm > base["thresholds"])
@@ -73,7 +69,7 @@ def check_c1(results: Path, suffix: str = "") -> Verdict:
             f"{base['nohold']:.0f}")
     return Verdict(ours, v, f"final return, IQM over {int(mlp.runs)} seeds with 95% "
                    f"{interval_name()} CI, "
-                   f"lambda = {PAPER_LAMBDA:g}; baselines exact", scale_of(path))
+                   f"lambda = {BUS_LAMBDA:g}; baselines exact", scale_of(path))
 
 
 def c2_intervals(scores: np.ndarray, thresholds: float) -> tuple[tuple[float, ...], ...]:
@@ -176,7 +172,7 @@ def check_c5(results: Path, suffix: str = "") -> Verdict:
 
     ours = (f"uniform from: MLP {fmt(t_uni['mlp'])}, {thr} thresholds {fmt(t_uni[thr])}; load "
             f"variance across buses: MLP {var['mlp']:.0f}, {thr} thresholds {var[thr]:.0f} pax^2")
-    paper = PAPER_REGULARITY_MIN
+    paper = BUS_REGULARITY_MIN
     return Verdict(ours, _verdict(sooner and lower, sooner or lower),
                    f"paper: {paper['mlp']:.0f} vs {paper['thresholds']:.0f} min, "
                    "MLP lower variance. One 6 h episode per policy (the paper's pictures), the "
@@ -230,8 +226,8 @@ def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic'
              "pictures: with it the authors' thresholds reproduce the paper's thresholds load "
              "panel at all 55 points, which the paper's prose (docs/semantics.md section "
              "4.9) does not. Each "
-             "departure from the prose is a switch, B1-B5 (README, 'Deviations from the "
-             "paper'); `--corrected` turns them all off.",
+             "departure from the prose is a switch, B1-B5 (docs/semantics.md section 4.9); "
+             "`--corrected` turns them all off.",
              "", "| id | released: verdict, ours | corrected: verdict, ours |", "|---|---|---|"]
     for c in CLAIMS:
         rel, cor = c.evaluate(results), c.evaluate(results / CORRECTED_DIR)

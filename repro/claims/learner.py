@@ -8,13 +8,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from repro.core.io import read_result
 from repro.claims import (Claim, Verdict, at_most_partial, interval_name, is_incomplete,
                           scale_of, with_difference_intervals)
-from repro.claims.wildfire import C9_PAIR
-from repro.experiments.c9_inputs import NAME as INPUTS
-from repro.experiments.learner_ablation import NAME as ABLATION
-from repro.experiments.transfer import PAPER, distance_in_se
+from repro.claims.wildfire import C9_PAPER
+from repro.paper import C9_PAIR, TRANSFER_ADR
+from repro.runs.results import read_result
+from repro.studies.transfer.c9_inputs import NAME as INPUTS
+from repro.studies.transfer.learner_ablation import NAME as ABLATION
+from repro.studies.transfer.study import distance_in_se
 
 X5_SETTING = "observation normalisation"
 """The ablation row X5's hypothesis is about."""
@@ -72,7 +73,7 @@ def _figure_table(results: Path) -> list[str]:
                      "learner is scored on the final policy (10,000 episodes) and, second, as the "
                      "released runner scored it (the last 40 epochs' policies, one episode each).",
                      ["trained on", "paper", *frames])
-    for label, (mean, err) in PAPER.items():
+    for label, (mean, err) in TRANSFER_ADR.items():
         cells = []
         for heading, s in frames.items():
             if label not in s.index:
@@ -155,7 +156,7 @@ def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic'
 CLAIMS = [
     Claim("X5", "C9's degradation is a property of the fixed time step, not of the learner: it "
           "survives observation normalisation",
-          "C9: 1.937 vs 2.789 (the paper's learner has no normalisation)",
+          f"C9: {C9_PAPER} (the paper's learner has no normalisation)",
           "with normalisation on, the 95% CI of FS-1 (2.9999) minus FS-1 lies below 0",
           "make learner-ablation", check_x5, where="Fig. 7", intervals=True),
 ]

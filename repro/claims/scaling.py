@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from repro.core.io import read_result
 from repro.claims import Claim, Verdict, scale_of
+from repro.runs.results import read_result
 
 STEPS_RANGE = (2.0, 2.4)
 """Accepted exponent of the time-stepped simulator's step count (paper: ~2.2)."""

@@ -2,7 +2,7 @@
 
 Interval estimates are over the trained policies (seeds). C8 and C9 compare the 95% CIs of the
 mean of :func:`repro.claims.interval_kind` (t, or the drivers' percentile bootstrap); C6 and C7,
-decided on means, show percentile bootstrap CIs (``repro.core.stats.bootstrap_ci``) with a fixed
+decided on means, show percentile bootstrap CIs (``repro.runs.stats.bootstrap_ci``) with a fixed
 generator, so the rendered table is reproducible.
 """
 
@@ -16,22 +16,23 @@ import pandas as pd
 
 from repro.claims import (NOT_RUN, Claim, Reading, Verdict, at_most_partial, interval_name,
                           scale_of, side_by_side, with_intervals)
-from repro.core.io import read_provenance, read_result
-from repro.core.stats import bootstrap_ci, ci_side
 from repro.envs.wildfire import FIGURE_VERSION, QUIRKS, version_suffix
+from repro.paper import BEHAVIOUR_FREQUENCIES, C9_PAIR, FLOWCHART_WORSE, TRANSFER_ADR
+from repro.runs.results import read_provenance, read_result
+from repro.runs.stats import bootstrap_ci, ci_side
 
 C6_TOLERANCE = 0.10
 """Each C6 frequency must lie within 10 percentage points of the paper's."""
 C7_BAND = (0.18, 0.38)
 """C7 reproduces fully when the flowchart is 28% +- 10 points worse than the learned policy."""
-C6_PAPER = dict(hold_shared=0.27, hold_alone=0.84, fly_rank_1=0.15, fly_rank_2=0.15,
-                fly_rank_3=0.68, closest_cluster=0.98)
-C7_PAPER = 0.28
 C8_SAME = ("FS-0.1", "FS-0.316", "FS-1")
 """FS simulators whose policies transfer as well as ED-trained ones (paper)."""
 C8_WORSE = ("FS-3.16", "FS-10")
 """FS simulators whose policies degrade on ED (paper)."""
-C9_PAIR = ("FS-1 (T_health=2.9999)", "FS-1")
+C9_PAPER = " vs ".join(f"{TRANSFER_ADR[label][0]:.3f}" for label in C9_PAIR)
+"""C9 as the paper gives it: the pair's ADR on ED."""
+_B = {key: round(100 * value) for key, value in BEHAVIOUR_FREQUENCIES.items()}
+"""C6's percentages."""
 
 
 RELEASED_SINCE = "2026-11-25T03:16:00Z"
@@ -73,13 +74,13 @@ def check_c6(results: Path, suffix: str = "") -> Verdict:
     path = results / f"wildfire_behaviour{suffix}.csv"
     t = read_result(path)
     parts, ok = [], []
-    for key, paper in C6_PAPER.items():
+    for key, paper in BEHAVIOUR_FREQUENCIES.items():
         mean, lo, hi = _ci(t[key].to_numpy())
         ok.append(abs(mean - paper) <= C6_TOLERANCE)
         parts.append(f"{key} {_pct(mean)} [{_pct(lo)}, {_pct(hi)}] (paper {_pct(paper)})")
     verdict = "PASS" if all(ok) else "PARTIAL" if any(ok) else "FAIL"
-    outside = [k for k, good in zip(C6_PAPER, ok) if not good]
-    ours = ", ".join(f"{_pct(t[k].mean())}" for k in C6_PAPER)
+    outside = [k for k, good in zip(BEHAVIOUR_FREQUENCIES, ok) if not good]
+    ours = ", ".join(f"{_pct(t[k].mean())}" for k in BEHAVIOUR_FREQUENCIES)
     limit = int(t.get("max_decisions", pd.Series([0])).iloc[0])
     detail = (f"{len(t)} policies x {t.epochs.iloc[0]} epochs x {_batch(t)} on ED{_limit(limit)}, "
               f"measured on {t.test_episodes.iloc[0]} ED episodes "
@@ -107,7 +108,7 @@ def _without_stays(t: pd.DataFrame, flow_path: Path) -> str:
         return ""
     flow = read_result(flow_path).iloc[0]
     pairs = "; ".join(f"{k} {_pct(t[k + '_ex_stay'].mean())} vs {_pct(flow[k + '_ex_stay'])}"
-                      for k in C6_PAPER)
+                      for k in BEHAVIOUR_FREQUENCIES)
     return (f" Stay flights (to the fire the UAV is at; they take no time) are "
             f"{_pct(t.stay_flight.mean())} of the learned policies' decisions and "
             f"{_pct(flow.stay_flight)} of the flowchart's. Without them, learned vs flowchart (the "
@@ -282,23 +283,28 @@ BEHAVIOUR_READINGS = (AUTHORS_HEAD, AUTHORS_APRIL, SUITE)
 (docs/semantics.md section 3.13)."""
 
 CLAIMS = [
-    Claim("C6", "Long ED training: hold shared 27%, alone 84%; fly 1st/2nd/3rd 15/15/68%; "
-          "closest cluster 98%",
-          "27%, 84%, 15/15/68%, 98%", "each within 10 percentage points (mean over policies)",
+    Claim("C6", f"Long ED training: hold shared {_B['hold_shared']}%, alone {_B['hold_alone']}%; "
+          f"fly 1st/2nd/3rd {_B['fly_rank_1']}/{_B['fly_rank_2']}/{_B['fly_rank_3']}%; "
+          f"closest cluster {_B['closest_cluster']}%",
+          f"{_B['hold_shared']}%, {_B['hold_alone']}%, "
+          f"{_B['fly_rank_1']}/{_B['fly_rank_2']}/{_B['fly_rank_3']}%, {_B['closest_cluster']}%",
+          "each within 10 percentage points (mean over policies)",
           "make wildfire-behaviour", side_by_side(on_current_semantics(check_c6, BEHAVIOUR),
                                                   BEHAVIOUR_READINGS),
           where="Sec. 5.2, Fig. 6"),
-    Claim("C7", "The flowchart of C6 does 28% worse than the learned policy (ADR)",
-          "28% worse", "PASS: 18-38% worse; PARTIAL: worse for every policy",
+    Claim("C7", f"The flowchart of C6 does {FLOWCHART_WORSE:.0%} worse than the learned policy "
+          "(ADR)",
+          f"{FLOWCHART_WORSE:.0%} worse", "PASS: 18-38% worse; PARTIAL: worse for every policy",
           "make wildfire-behaviour", side_by_side(on_current_semantics(check_c7, BEHAVIOUR),
                                                   BEHAVIOUR_READINGS), where="Sec. 5.2"),
     Claim("C8", "Trained on FS with dT <= 1 s transfers to ED; dT = 3.16, 10 s degrade",
-          "ED 2.780, FS-0.1 2.771, FS-0.316 2.745, FS-1 2.789, FS-3.16 2.212, FS-10 1.841",
+          ", ".join(f"{label} {mean:.3f}" for label, (mean, _) in TRANSFER_ADR.items()
+                    if label != C9_PAIR[0]),
           "95% CIs of FS-0.1/0.316/1 overlap ED's; those of FS-3.16/10 lie below ED's",
           "make fig-transfer ARGS='--sim-version 2017-04-22'",
           side_by_side(on_current_semantics(check_c8, TRANSFER), TRANSFER_READINGS),
           where="Fig. 7", intervals=True),
-    Claim("C9", "FS-1 with T_health = 2.9999 degrades on ED", "1.937 vs 2.789",
+    Claim("C9", "FS-1 with T_health = 2.9999 degrades on ED", C9_PAPER,
           "95% CI of FS-1(2.9999) entirely below FS-1(3.0)'s",
           "make fig-transfer ARGS='--sim-version 2017-04-22'",
           side_by_side(on_current_semantics(check_c9, TRANSFER), TRANSFER_READINGS),

@@ -201,7 +201,7 @@ def rollout_bytes(env: Any, n_episodes: int, *, keep_obs: bool = True,
     """A lower bound of the memory a rollout of ``n_episodes`` holds: per episode what the engine
     holds besides its decisions (``episode_bytes``, where the engine says; for ``batch`` episodes
     at a time if they run in batches), and per agent at least one decision (with its
-    observation, if kept). For up-front checks of sizes (:func:`repro.core.memory.
+    observation, if kept). For up-front checks of sizes (:func:`repro.runs.memory.
     require_memory`)."""
     at_once = n_episodes if batch is None else min(n_episodes, batch)
     per_decision = DECISION_BYTES + (8 * env.obs_dim if keep_obs else 0)

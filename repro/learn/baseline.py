@@ -44,7 +44,7 @@ class Baseline(Protocol):
 
 class LinearFeatureBaseline:
     """rllab's linear feature baseline. BLAS and LAPACK, whose kernels depend on the CPU (numpy's
-    OpenBLAS) or its vendor (torch's MKL), are kept out of it (:mod:`repro.core.kernels`): the
+    OpenBLAS) or its vendor (torch's MKL), are kept out of it (:mod:`repro.runs.kernels`): the
     features, the normal equations, their solve and the prediction are compiled loops whose sums
     run in a fixed order."""
 

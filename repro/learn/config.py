@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from repro.core.config import SCALES, Validated, add_config_arguments, given_fields
+from repro.core.config import SCALES, Validated, add_config_arguments, given_fields, settings
 from repro.core.errors import require
 from repro.envs import env_package, train_defaults
 from repro.learn.baseline import BASELINES
@@ -272,6 +272,42 @@ def add_learner_arguments(p: Any) -> None:
                    help="named learner: " + ", ".join(LEARNERS) + " (default %(default)s: the "
                         "released runner that trained the paper's policies)")
     add_config_arguments(p, TrainConfig, show_defaults=False)
+    shown = resolved_defaults()
+    for action in p._actions:
+        if action.dest in shown:
+            action.help = f"{action.help} (default: {shown[action.dest]})".replace("%", "%%")
+
+
+def resolved_defaults(scale: str = "quick") -> dict[str, str]:
+    """Each TrainConfig setting's value where no flag gives it (:func:`train_config` at ``scale``),
+    as ``train --help`` shows it: one value, or one per learner, per built-in environment, or both,
+    where they differ."""
+    from repro.envs import BUILT_IN
+
+    def shown(value: Any) -> str:
+        return " ".join(map(str, value)) if isinstance(value, tuple) else str(value)
+
+    configs = {(learner, env): train_config(scale, env, learner)
+               for learner in LEARNERS for env in BUILT_IN}
+    out = {}
+    for name in settings(TrainConfig):
+        if name == "env":
+            continue
+        values = {key: shown(getattr(cfg, name)) for key, cfg in configs.items()}
+        if len(set(values.values())) == 1:
+            out[name] = next(iter(values.values()))
+            continue
+        if all(len({values[lrn, env] for lrn in LEARNERS}) == 1 for env in BUILT_IN):
+            out[name] = ", ".join(f"{env} {values[DEFAULT_LEARNER, env]}" for env in BUILT_IN)
+            continue
+        by_learner = []
+        for learner in LEARNERS:
+            mine = {env: v for (lrn, env), v in values.items() if lrn == learner}
+            text = (next(iter(mine.values())) if len(set(mine.values())) == 1 else
+                    ", ".join(f"{env} {v}" for env, v in mine.items()))
+            by_learner.append(f"{learner}: {text}")
+        out[name] = "; ".join(by_learner)
+    return out
 
 
 def learner_overrides(args: Any) -> dict[str, Any]:

@@ -7,12 +7,12 @@ the CPU's vendor as well as its instruction set (its reproducibility modes hold 
 on its slowest, SSE2 path), so the same run gave other bits on an AMD CPU than on an Intel one.
 These loops call no library: without fast-math, LLVM neither reorders their sums nor fuses their
 multiply-adds, so they give the same bits on every CPU, whatever width it vectorises them to
-(:mod:`repro.core.kernels`). A Fisher-vector product is one pass over the batch (forward-mode
+(:mod:`repro.runs.kernels`). A Fisher-vector product is one pass over the batch (forward-mode
 product, KL weighting, backward product, weight gradient) while each chunk of it is in the cache.
 
 The order of the sums. Decisions are computed a chunk at a time, side by side: within a
 decision, a layer's sum runs in input order, then adds the bias (the sampler's order,
-:func:`repro.core.policy_kernel.logits_into`, so the step differentiates the logits the batch was
+:func:`repro.learn.policy_kernel.logits_into`, so the step differentiates the logits the batch was
 sampled with). A sum over decisions (a weight's gradient) keeps :data:`LANES` partial sums, adds
 each chunk's terms to them in decision order, and adds the lanes in order at the end.
 
@@ -39,7 +39,7 @@ from numba import njit, types
 from numba.extending import overload
 from torch import nn
 
-from repro.core.policy_kernel import tanh32
+from repro.learn.policy_kernel import tanh32
 
 LANES = 64
 """The partial sums that a sum over decisions keeps: with :data:`CHUNK`, this, not the CPU, fixes
@@ -50,7 +50,7 @@ decision the sums are the decision's own, so the chunk fixes only how sums over 
 
 
 def activation(v):
-    """tanh in the dtype of ``v``: the sampler's :func:`~repro.core.policy_kernel.tanh32` for a
+    """tanh in the dtype of ``v``: the sampler's :func:`~repro.learn.policy_kernel.tanh32` for a
     float32, libm's tanh for a float64 (the tests' networks). Compiled code only."""
     raise NotImplementedError("activation is compiled in; call it from njit code")
 

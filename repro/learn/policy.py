@@ -15,8 +15,8 @@ import torch
 from numba import njit
 from torch import nn
 
-from repro.core.policy_kernel import logits_into, sample_row, width
 from repro.core.rollout import DecisionBatch
+from repro.learn.policy_kernel import logits_into, sample_row, width
 
 DTYPE = torch.float32
 
@@ -175,10 +175,10 @@ class Sampler:
     Engines call it once per round, often for a handful of rows, where torch's per-operation
     overhead (tens of microseconds) would dominate. So the sampler evaluates a numpy snapshot of the
     network and normaliser, taken when it is created (the policy is fixed during a rollout), row
-    by row in one compiled loop (:func:`repro.core.policy_kernel.logits_into`, float32 like the
-    network; the sampling step :func:`~repro.core.policy_kernel.sample_row`). Its sums run in a
+    by row in one compiled loop (:func:`repro.learn.policy_kernel.logits_into`, float32 like the
+    network; the sampling step :func:`~repro.learn.policy_kernel.sample_row`). Its sums run in a
     fixed order, so the actions are the same on every CPU and for rounds of any size; numpy's BLAS,
-    whose kernels block their sums by CPU, is not used (:mod:`repro.core.kernels`).
+    whose kernels block their sums by CPU, is not used (:mod:`repro.runs.kernels`).
     """
 
     def __init__(self, policy: CategoricalPolicy, normalizer: ObsNormalizer,

@@ -4,7 +4,7 @@
   times 32 or 64 units), and on a machine shared with other work a thread that waits for a busy
   core slows every product; one thread also makes a run's bits independent of the machine's core
   count.
-- glibc's malloc keeps freed memory for reuse (:func:`repro.core.memory.keep_freed_memory` says
+- glibc's malloc keeps freed memory for reuse (:func:`repro.runs.memory.keep_freed_memory` says
   why).
 
 The commands that train in their own process (``train``, ``bench-learn``) make these settings
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import torch
 
-from repro.core.memory import keep_freed_memory
+from repro.runs.memory import keep_freed_memory
 
 
 def configure_process() -> None:

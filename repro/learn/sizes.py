@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from repro.core.memory import require_memory
 from repro.core.rollout import DECISION_BYTES, rollout_bytes
+from repro.runs.memory import require_memory
 
 PARAMETER_COPIES = 10
 """float32 copies of the policy's parameters a TRPO step holds at once (the network, its

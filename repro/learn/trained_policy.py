@@ -7,12 +7,12 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from repro.core.config import saved_defaults
 from repro.core.errors import UsageError, require
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
-from repro.core.io import note_trained_under
-from repro.learn.run_folder import (CHECKPOINT, CONFIG, KEPT, PROGRESS, load_checkpoint,
-                                    progress_rows, recorded_kernels, state_problem)
-from repro.core.config import saved_defaults
+from repro.runs.provenance import note_trained_under
+from repro.runs.run_folder import (CHECKPOINT, CONFIG, KEPT, PROGRESS, load_checkpoint,
+                                   progress_rows, recorded_kernels, state_problem)
 
 C = TypeVar("C")
 
@@ -22,7 +22,7 @@ def load_trained_run(path: str | Path, env_name: str,
     """The checkpoint at ``path`` of a training run on ``env_name``; a UsageError naming ``param``
     if it is none (missing, not a checkpoint, or a run on another environment). The kernels its
     run was trained under go into the command's sidecars
-    (:func:`repro.core.io.note_trained_under`) where the checkpoint is in a run folder."""
+    (:func:`repro.runs.provenance.note_trained_under`) where the checkpoint is in a run folder."""
     allowed = f"the {CHECKPOINT} of a {env_name} training run"
     require(Path(path).is_file(), param, allowed, str(path))
     state = load_checkpoint(path, param, allowed)

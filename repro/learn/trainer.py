@@ -7,7 +7,7 @@ them, or, counted in decisions, as the released runner's parallel workers collec
 advantages (or those of ``TrainConfig.advantage``) with the current baseline, take one TRPO step,
 update the observation normaliser, then fit the baseline to the batch's discounted returns (in the
 new normalisation, which it will be used with). Given a run folder, the trainer hands each epoch's
-row and state to :mod:`repro.learn.run_folder`, which records them so that running the same
+row and state to :mod:`repro.runs.run_folder`, which records them so that running the same
 command again resumes exactly.
 
 Threads and malloc: torch's thread count and malloc's thresholds are process-wide settings, which
@@ -17,7 +17,7 @@ Determinism: torch is seeded from the run seed; the policy's sampling draws come
 Generator owned by the trainer (its state is checkpointed); epoch e's environment seed is derived
 from (seed, e). Timing columns are the only run-to-run differences in the outputs. Across machines:
 the learner's arithmetic is compiled loops whose sums run in a fixed order, with no library that
-picks kernels by the CPU (:mod:`repro.core.kernels`; the trainer warns where the pin of what
+picks kernels by the CPU (:mod:`repro.runs.kernels`; the trainer warns where the pin of what
 remains did not take), so on every x86-64 CPU with AVX2 and FMA, of any vendor, the outputs are
 the same bytes. With the released pool the sampling draws come instead from the run's pool stream
 at the workers' positions, which the checkpoint keeps too.
@@ -35,8 +35,6 @@ import pandas as pd
 import torch
 
 from repro.core.errors import require
-from repro.core.kernels import check as check_kernels
-from repro.core.progress import progress
 from repro.core.rollout import BatchEnv, RunsToEnd
 from repro.learn import batch
 from repro.learn.baseline import make_baseline
@@ -45,9 +43,12 @@ from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn.pool import ReleasedPool
-from repro.learn import run_folder
+from repro.learn.run_identity import run_config, saved_run_aliases, saved_run_defaults
 from repro.learn.sizes import check_training_size
 from repro.learn.trpo import normalize, trpo_step
+from repro.runs import run_folder
+from repro.runs.kernels import check as check_kernels
+from repro.runs.progress import progress
 
 # Independent child streams of the run seed.
 _TORCH_STREAM, _SAMPLER_STREAM, _ENV_STREAM, _FVP_STREAM, _POOL_STREAM = 0, 1, 2, 3, 4
@@ -76,7 +77,7 @@ class Trainer:
         self.param = param
         """The option that named ``out`` (a sweep's is --runs-dir): refusals name it."""
         self.env_config = env_config
-        self.run_config = run_folder.run_config(cfg, env_config, env.name)
+        self.run_config = run_config(cfg, env_config, env.name)
         require(cfg.sampler != "released-pool" or isinstance(env, RunsToEnd), "--sampler",
                 "independent for an environment that draws random numbers itself (the released "
                 "pool is modelled where only the policy draws: bus)", cfg.sampler)
@@ -162,11 +163,11 @@ class Trainer:
         t_start = time.perf_counter()
         with run_folder.writer_lock(self.out, self.param):
             state, self.rows = run_folder.start(
-                self.out, self.run_config, run_folder.saved_run_defaults(self.env_config,
+                self.out, self.run_config, saved_run_defaults(self.env_config,
                                                                          self.env.name),
                 PROGRESS_COLUMNS, self.param, obs_dim=self.env.obs_dim,
                 n_actions=self.env.n_actions,
-                aliases=run_folder.saved_run_aliases(self.env_config))
+                aliases=saved_run_aliases(self.env_config))
             if state is not None:
                 self.load_state_dict(state)
             first_epoch = self.epoch

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from repro.core.rollout import Rollout
-from repro.envs.bus.paper_data import PAPER_RECORDS
+from repro.paper import PAPER_RECORDS
 
 REGULARITY_BAND_MIN = 1.0
 """Half-width (minutes) of the headway band around H that counts as regular."""

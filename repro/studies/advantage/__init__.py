@@ -1,0 +1,1 @@
+"""M-GAE against two other advantage estimators, bus and wildfire (X1)."""

@@ -1,0 +1,40 @@
+"""Speed of the fast bus engine against its SimPy reference, with the learner's policy in the loop.
+
+The cheap policy is No Holding. The engine is deterministic: the seed only drives the policy. See
+:mod:`repro.studies.bench.common` for what is timed and how.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import pandas as pd
+
+from repro.envs.bus import BusConfig, make_env, make_reference_env
+from repro.envs.bus.policies import no_holding
+from repro.learn.trained_policy import trained_env_config
+from repro.studies.bench import common as bench_common
+from repro.studies.bench.common import VARIANTS, BenchConfig, add_arguments
+
+__all__ = ["VARIANTS", "BusBenchConfig", "add_arguments", "measure", "run"]
+
+
+@dataclass(frozen=True)
+class BusBenchConfig(BenchConfig):
+    """Sizes of ``bench-bus`` (the fast engine runs the bus's training batch)."""
+
+    SCALES: ClassVar[dict[str, dict[str, int]]] = bench_common.scales("bus")
+
+
+def measure(cfg: BusBenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
+    """``trained``: a loaded checkpoint of a bus run (``trainer.load_trained_run``)."""
+    env_cfg = (BusConfig() if trained is None
+               else trained_env_config(trained, BusConfig))
+    return bench_common.measure(make_env(env_cfg), make_reference_env(env_cfg), "nohold",
+                                lambda env, rng: no_holding, cfg, seed, trained)
+
+
+def run(args: argparse.Namespace) -> int:
+    return bench_common.run(args, "bench-bus", BusBenchConfig, measure)

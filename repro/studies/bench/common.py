@@ -1,0 +1,230 @@
+"""What the engine benchmarks (``bench-bus``, ``bench-wildfire``) share: sizes, policies, timing.
+
+A benchmark runs an environment's fast engine and its SimPy reference under two policies:
+
+- ``mlp``: the learner's policy exactly as training runs it: a :class:`CategoricalPolicy` with the
+  trainer's default hidden layers, evaluated by the :class:`Sampler` the trainer hands to the
+  engines (one batched numpy forward per round, inverse-CDF sampling). Its normaliser is fitted to
+  the warm-up rollout, as the trainer's is after its first epoch, so the network sees observations
+  of the scale it sees in training;
+- a cheap policy of the environment, which shows what the engine costs nearly alone.
+
+The fast engine's step API (``make_vector_env``, engine ``fast-step-api``) runs the first policy
+too (the network, one call per step), on as many envs as the fast engine's batch
+has episodes, stepped until it has made as many decisions per batch as those rollouts did (ended
+episodes restart, so the batch stays full).
+
+With ``--checkpoint PATH`` (a training run's ``checkpoint.pt``) the trained policy, with its own
+normaliser, takes the fresh network's place (policy ``checkpoint``), and both engines run that
+run's environment settings; the CSV is then ``bench_<env>_checkpoint.csv``. Trained policies can
+make episodes far longer than a fresh one's (see the stay flights of the wildfire's C6 runs),
+which is a different regime for the engine.
+
+Each engine runs ``repeats`` batches per policy: the fast engine batches of ``fast_episodes`` (the
+environment's training batch), the reference smaller ones (its cost per episode does not depend on
+the batch). Batch r draws its episodes from child r of the seed, and each engine gets the same
+freshly seeded sampler. The warm-up rollout also compiles the fast engine (or loads it from cache).
+Everything runs on one thread, as in training.
+
+Rates are per second of this process's CPU time, which is what one core achieves when the machine
+is shared, and per wall second; each is the median over the batches, as other processes' bursts of
+load on a shared machine slow single batches by up to 3x, even in CPU time. Counts and seconds are
+totals. ``policy_cpu_seconds`` is the time inside the policy's calls, about the same
+per decision for both engines: ``speedup_vs_reference`` compares whole rollouts (decisions per CPU
+second), ``engine_speedup_vs_reference`` the time outside the policy's calls, what the engine
+itself costs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from dataclasses import dataclass, fields
+from typing import Any, Callable
+
+import numpy as np
+import pandas as pd
+import torch
+
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
+from repro.core.rollout import BatchEnv, DecisionBatch, Policy, rollout_bytes
+from repro.envs import env_package, make_vector_env, train_defaults
+from repro.learn.config import TrainConfig
+from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.trained_policy import check_fits, load_trained_run, policy_from_state
+from repro.runs.memory import require_memory
+from repro.runs.provenance import provenance
+from repro.runs.results import write_result
+from repro.studies.kit.options import add_common, results_folder
+
+
+CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
+"""Makes an environment's cheap policy from the benchmark's random source."""
+
+
+@dataclass(frozen=True)
+class BenchConfig(Validated):
+    """Sizes of an engine benchmark (the timings are its result; a scale changes only sizes)."""
+
+    fast_episodes: int
+    """Episodes per batch of the fast engine (the environment's training batch at every scale but
+    smoke)."""
+    reference_episodes: int
+    """Episodes per batch of the SimPy reference."""
+    repeats: int
+    """Batches each engine runs per policy."""
+
+    def validate(self) -> None:
+        self.check(self.fast_episodes >= 1, "fast_episodes", "an integer >= 1")
+        self.check(self.reference_episodes >= 1, "reference_episodes", "an integer >= 1")
+        self.check(self.repeats >= 1, "repeats", "an integer >= 1")
+
+
+def scales(env: str) -> dict[str, dict[str, int]]:
+    """The ``SCALES`` of ``env``'s benchmark config, from its training batch (the reference's
+    batches take seconds at the quick scale)."""
+    batch = train_defaults(env_package(env))["batch_episodes"]
+    return {
+        "smoke": dict(fast_episodes=batch // 10, reference_episodes=2, repeats=1),
+        "quick": dict(fast_episodes=batch, reference_episodes=batch // 20, repeats=5),
+        "paper": dict(fast_episodes=batch, reference_episodes=batch // 10, repeats=15),
+    }
+
+
+class _Timed:
+    """A policy that adds up the CPU time of its calls."""
+
+    def __init__(self, policy: Policy):
+        self.policy = policy
+        self.cpu = 0.0
+
+    def __call__(self, batch: DecisionBatch) -> np.ndarray:
+        t0 = time.process_time()
+        actions = self.policy(batch)
+        self.cpu += time.process_time() - t0
+        return actions
+
+
+def _time(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int) -> dict:
+    """A rollout of ``episodes`` per batch: totals over the batches, rates as medians."""
+    return _timed_batches(lambda timed, child: env.rollout(timed, episodes, child).n_decisions,
+                          policy, episodes, repeats, seed)
+
+
+def _time_steps(env: BatchEnv, policy: Policy, episodes: int, repeats: int, seed: int,
+                decisions: int) -> dict:
+    """The step API on ``episodes`` envs per batch, stepped until it has made ``decisions``."""
+    config = {f.name: getattr(env.cfg, f.name) for f in fields(env.cfg)}
+
+    def steps(timed: _Timed, child: np.random.SeedSequence) -> int:
+        vec = make_vector_env(env.name, episodes, child, **config)
+        batch, made = vec.reset(), 0
+        while made < decisions:
+            made += len(batch)
+            batch, _ = vec.step(timed(batch))
+        return made
+
+    return _timed_batches(steps, policy, episodes, repeats, seed)
+
+
+def _timed_batches(run: Callable[[_Timed, np.random.SeedSequence], int], policy: Policy,
+                   episodes: int, repeats: int, seed: int) -> dict:
+    """``run(policy, child)`` for the seed's children; totals over them, rates as medians."""
+    timed = _Timed(policy)
+    batches = []
+    for child in np.random.SeedSequence(seed).spawn(repeats):
+        policy_cpu = timed.cpu
+        cpu, wall = time.process_time(), time.perf_counter()
+        n_decisions = run(timed, child)
+        batches.append((n_decisions, time.perf_counter() - wall,
+                        time.process_time() - cpu, timed.cpu - policy_cpu))
+    d, wall, cpu, policy_cpu = np.array(batches).T
+    return dict(batch_episodes=episodes, batches=repeats, episodes=episodes * repeats,
+                decisions=int(d.sum()), wall_seconds=wall.sum(), cpu_seconds=cpu.sum(),
+                policy_cpu_seconds=policy_cpu.sum(), decisions_per_second=np.median(d / wall),
+                decisions_per_cpu_second=np.median(d / cpu),
+                episodes_per_cpu_second=np.median(episodes / cpu),
+                engine_decisions_per_cpu_second=np.median(d / (cpu - policy_cpu)))
+
+
+def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,
+            cfg: BenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
+    """One row per engine and policy (see the module docstring); ``trained``: a loaded
+    checkpoint (:func:`load_trained_run`) whose policy is timed instead of a fresh network.
+    Batches that cannot fit in memory are refused first."""
+    for env, episodes, param in ((fast, cfg.fast_episodes, "--fast-episodes"),
+                                 (reference, cfg.reference_episodes, "--reference-episodes")):
+        require_memory(rollout_bytes(env, episodes), param, episodes, "a batch of episodes")
+    if trained is None:
+        warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
+        normalizer = ObsNormalizer(fast.obs_dim)
+        normalizer.update(warm_up.obs)
+        hidden = TrainConfig.hidden
+        torch.manual_seed(seed)
+        network = CategoricalPolicy(fast.obs_dim, fast.n_actions, hidden)
+        policies: dict[str, CheapPolicy] = {
+            "mlp-" + "x".join(map(str, hidden)) + "-tanh":
+                lambda env, rng: Sampler(network, normalizer, rng),
+            cheap_name: cheap,
+        }
+    else:
+        check_fits(trained, fast, "--checkpoint", None)
+        fast.rollout(cheap(fast, np.random.default_rng(seed)), 1, seed)  # compiles the engine
+        policies = {"checkpoint": lambda env, rng: policy_from_state(trained, rng),
+                    cheap_name: cheap}
+    rows = []
+    for engine, env, episodes in (("fast", fast, cfg.fast_episodes),
+                                  ("reference", reference, cfg.reference_episodes)):
+        for name, make in policies.items():
+            policy = make(env, np.random.default_rng(seed))
+            rows.append(dict(engine=engine, policy=name,
+                             **_time(env, policy, episodes, cfg.repeats, seed)))
+    # the step API on the fast engine with the first policy (the network), as many decisions
+    # per batch as its rollouts made
+    name, make = next(iter(policies.items()))
+    per_batch = rows[0]["decisions"] // cfg.repeats
+    rows.append(dict(engine="fast-step-api", policy=name,
+                     **_time_steps(fast, make(fast, np.random.default_rng(seed)),
+                                   cfg.fast_episodes, cfg.repeats, seed, per_batch)))
+    frame = pd.DataFrame(rows)
+    ref = frame[frame.engine == "reference"].set_index("policy")
+    for column, rate in (("speedup_vs_reference", "decisions_per_cpu_second"),
+                         ("wall_speedup_vs_reference", "decisions_per_second"),
+                         ("engine_speedup_vs_reference", "engine_decisions_per_cpu_second")):
+        frame[column] = frame[rate] / frame.policy.map(ref[rate])
+    return frame
+
+
+VARIANTS = ("checkpoint",)
+"""Options that choose the benchmark (``--checkpoint``: ``<command>_checkpoint.csv``), not its
+settings (:func:`repro.studies.kit.options.scale_departures`)."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_common(p, figures=False)
+    add_config_arguments(p, BenchConfig)
+    p.add_argument("--checkpoint", help="time this training run's policy (its checkpoint.pt) "
+                                        "instead of a fresh network, on that run's environment")
+
+
+def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
+        measure_env: Callable[[BenchConfig, int, dict[str, Any] | None], pd.DataFrame]) -> int:
+    """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``
+    (``<command>_checkpoint.csv`` with ``--checkpoint``)."""
+    cfg = for_scale(config, args.scale, **given_fields(args, config))
+    trained = (None if args.checkpoint is None
+               else load_trained_run(args.checkpoint, command.removeprefix("bench-")))
+    results = results_folder(args)
+    load_before = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    frame = measure_env(cfg, args.seed, trained)
+    prov = provenance(cfg, command=command, scale=args.scale, seed=args.seed,
+                      wall_seconds=time.perf_counter() - t0,
+                      extra={"note": "timings vary between runs and machines; one thread",
+                             "load_average_1min": [load_before, os.getloadavg()[0]],
+                             "checkpoint": args.checkpoint})
+    stem = command.replace("-", "_") + ("" if args.checkpoint is None else "_checkpoint")
+    write_result(results / f"{stem}.csv", frame, prov)
+    print(frame.to_string(index=False))
+    return 0

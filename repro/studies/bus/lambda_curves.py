@@ -1,0 +1,16 @@
+"""``fig-bus-lambda``: the bus training curves over the lambda sweep (see
+repro.studies.bus.sweeps)."""
+
+from __future__ import annotations
+
+import argparse
+
+from repro.studies.bus import sweeps as bus_sweeps
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    bus_sweeps.add_arguments(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    return bus_sweeps.run_named("lambda", args)

@@ -1,0 +1,130 @@
+"""What the bus pictures (``bus-arrivals``, ``bus-loads``) share: their options, one episode per
+policy, a panel per policy, and the body of their run."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Callable
+
+import pandas as pd
+
+from repro.core.errors import require
+from repro.envs.bus import add_switch_arguments, config_from_args
+from repro.envs.bus.policies import check_thresholds
+from repro.learn.config import DEFAULT_LEARNER, add_learner_option, learner_stem
+from repro.paper import BUS_BUSES_DRAWN
+from repro.runs.provenance import provenance
+from repro.runs.results import write_result
+from repro.studies.bus.policies import POLICIES, best_run, picture_arrivals, policy_from_args
+from repro.studies.kit.options import (add_common, add_replot, figures_folder, read_for_replot,
+                                       replot_figures, results_folder)
+
+
+TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",
+          "authors": "Authors' Thresholds", "thresholds": "Optimized Thresholds (ours)"}
+
+
+def add_policy_arguments(p: argparse.ArgumentParser) -> None:
+    """The options both bus figure drivers share."""
+    add_common(p, seed=None)
+    p.add_argument("--policies", nargs="+", default=list(POLICIES),
+                   help="panels, in order: " + ", ".join(POLICIES))
+    p.add_argument("--thresholds", type=float, nargs=3, metavar=("T1", "T2", "T3"),
+                   help="our thresholds in seconds (default: results/bus_thresholds.csv)")
+    p.add_argument("--mlp-run", help="training run folder of the mlp panel, acting greedily "
+                   "(default: the lambda sweep's best run, from results/bus_lambda_summary.csv)")
+    add_learner_option(p, "<figure>_suite*; the mlp panel is then the suite learner's best run")
+    p.add_argument("--all-buses", action="store_true",
+                   help="draw all six buses (the paper drew buses 1-5)")
+    add_replot(p)
+    add_switch_arguments(p)
+
+
+def learner_csv(csv_name: str, learner: str | None) -> str:
+    """A bus figure's CSV for ``learner``'s mlp panel: ``csv_name``, its stem then ``_suite`` for
+    the suite learner's."""
+    return learner_stem(Path(csv_name).stem, learner or DEFAULT_LEARNER) + ".csv"
+
+
+def mlp_source(args: argparse.Namespace) -> str | None:
+    """The run folder the mlp panel comes from (None without an mlp panel), for the provenance."""
+    if "mlp" not in args.policies:
+        return None
+    return str(args.mlp_run if args.mlp_run is not None
+               else best_run(args.results_dir, learner=args.learner))
+
+
+def collect(args: argparse.Namespace) -> pd.DataFrame:
+    """One episode per policy (all are deterministic): its arrival table, tagged with the policy.
+    Every policy is built before any is run, so bad input fails before any work."""
+    cfg = config_from_args(args)
+    policies = {name: policy_from_args(name, args, cfg) for name in args.policies}
+    frames = []
+    for name, policy in policies.items():
+        arrivals = picture_arrivals(policy, cfg)
+        frames.append(arrivals.drop(columns="episode").assign(policy=name))
+    cols = ["policy"] + [c for c in frames[0].columns if c != "policy"]
+    return pd.concat(frames, ignore_index=True)[cols]
+
+
+COLUMN_WIDTH = 3.5
+"""Inches: one column of a two-column paper, the width the bus figures are drawn at."""
+
+
+def policy_grid(names: list[str], what: str, all_buses: bool):
+    """A figure of one column's width with a panel per policy, two by two, and a title that says
+    which buses are drawn (the paper drew buses 1-5; ``--all-buses`` adds Bus 6): the figure,
+    and the axes in the panels' order (the unused ones hidden)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = -(-len(names) // 2)
+    cols = min(2, len(names))
+    fig, axes = plt.subplots(rows, cols, figsize=(COLUMN_WIDTH, 0.6 + 1.75 * rows), sharex=True,
+                             sharey=True, squeeze=False)
+    buses = (f"all six buses (the paper drew buses 1-{BUS_BUSES_DRAWN})" if all_buses else
+             f"buses 1-{BUS_BUSES_DRAWN}, as the paper drew them (Bus 6 not drawn)")
+    fig.suptitle(f"{what}, one 6 h episode per policy;\n{buses}", fontsize=6.5)
+    flat = list(axes.flat)
+    for ax in flat[len(names):]:
+        ax.set_visible(False)
+    for ax, name in zip(flat, names):
+        ax.set_title(TITLES.get(name, name), fontsize=7, pad=2)
+        ax.tick_params(labelsize=6, length=2, pad=1)
+        ax.grid(True, alpha=0.3)
+    return fig, flat[:len(names)]
+
+
+def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
+                      table_of: Callable[[pd.DataFrame], pd.DataFrame],
+                      plot_table: Callable[[pd.DataFrame, Path, bool, list[Path]], None]) -> int:
+    """Shared body of the per-policy bus figures: simulate each policy's episode, derive the
+    figure's table from the arrival records, write it with provenance, and draw it; with
+    ``--replot``, draw the table written before (the panels of ``--policies``)."""
+    for name in args.policies:
+        require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
+    if args.thresholds is not None:  # checked even where no panel uses them
+        check_thresholds(args.thresholds)
+    csv_name = learner_csv(csv_name, args.learner)
+    stem = Path(args.figures_dir) / Path(csv_name).stem
+    if args.replot:
+        table, = read_for_replot(args, csv_name)
+        _, sources = replot_figures(args, csv_name)
+        plot_table(table[table.policy.isin(args.policies)], stem, args.all_buses, sources)
+        print(f"wrote {stem}.png/.pdf")
+        return 0
+    figures_folder(args)
+    results = results_folder(args)
+    t0 = time.perf_counter()
+    table = table_of(collect(args))
+    prov = provenance(config_from_args(args), command=command, scale=args.scale, seed=None,
+                      wall_seconds=time.perf_counter() - t0,
+                      extra={"policies": args.policies, "mlp_run": mlp_source(args),
+                             "learner": args.learner or DEFAULT_LEARNER})
+    plot_table(table, stem, args.all_buses, [write_result(results / csv_name, table, prov)])
+    print(f"wrote {results / csv_name} and {stem}.png/.pdf")
+    return 0

@@ -1,0 +1,144 @@
+"""The bus policies the drivers name (No Holding, the authors' and our thresholds, a trained MLP),
+made from the result files and run folders where they come from."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from repro.core.errors import UsageError, require
+from repro.core.rollout import DecisionBatch, Policy
+from repro.envs.bus import make_env
+from repro.envs.bus.metrics import arrival_table
+from repro.envs.bus.params import SWITCHES, BusConfig
+from repro.envs.bus.policies import (AUTHORS_THRESHOLDS, ThresholdPolicy, check_thresholds,
+                                     no_holding)
+from repro.learn.config import DEFAULT_LEARNER, LEARNERS, learner_stem
+from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
+                                        trained_env_config)
+from repro.runs.results import read_result
+from repro.runs.run_folder import CHECKPOINT
+
+
+class GreedyPolicy:
+    """A trained policy acting greedily: the most probable action of its MLP (ties: the lowest).
+
+    The figures show one episode per policy; acting greedily makes that episode the trained
+    policy's exact behaviour, as it is for the deterministic baselines. The run must have been
+    trained with the switches B1-B5 of ``cfg`` (they change what it observes). ``param``: the
+    option that named the run, which a refusal names.
+    """
+
+    def __init__(self, run: str | Path, cfg: BusConfig, param: str = "--mlp-run"):
+        state = load_trained_run(Path(run) / CHECKPOINT, "bus", param)
+        trained = trained_env_config(state, BusConfig, param)
+        check_fits(state, make_env(trained), param, run)
+        differ = [f for f in SWITCHES if getattr(trained, f) != getattr(cfg, f)]
+        require(not differ, param, "a run trained with this command's switches B1-B5 "
+                f"(it differs in {', '.join(differ)})", str(run))
+        # the generator is never drawn from: greedy actions need no randomness
+        self.sampler = policy_from_state(state, np.random.default_rng(0))
+
+    def __call__(self, batch: DecisionBatch) -> np.ndarray:
+        return self.sampler.probabilities(batch.obs).argmax(axis=1).astype(np.int64)
+
+
+POLICIES = ("nohold", "authors", "thresholds", "mlp")
+"""Policy names the bus drivers accept, in panel order: No Holding, the authors' thresholds, ours
+(``make bus-thresholds``), the trained MLP."""
+
+THRESHOLDS_CSV = "bus_thresholds.csv"
+
+
+def lambda_summary_csv(learner: str | None = None) -> str:
+    """The lambda sweep's summary of ``learner`` (None: the default learner's)."""
+    return f"{learner_stem('bus_lambda', learner or DEFAULT_LEARNER)}_summary.csv"
+
+
+def read_thresholds(results_dir: str | Path, param: str = "--thresholds") -> np.ndarray:
+    """Our T1, T2, T3 (s) from results/bus_thresholds.csv, written by `make bus-thresholds`;
+    without it (or with a CSV its sidecar does not describe), a UsageError naming ``param``, the
+    option that could have supplied them."""
+    path = Path(results_dir) / THRESHOLDS_CSV
+    try:
+        table = read_result(path)
+    except FileNotFoundError:
+        if param == "--thresholds":
+            raise UsageError(param, f"given, or {path} written first by `make bus-thresholds`"
+                             ) from None
+        raise UsageError(param, f"a folder holding {THRESHOLDS_CSV} (`make bus-thresholds` "
+                         "writes it)", str(results_dir)) from None
+    except ValueError:
+        table = None
+    try:
+        row = table.query("source == 'ours'").iloc[0]
+        return check_thresholds(np.array([row.T1, row.T2, row.T3], float))[0]
+    except (ValueError, KeyError, IndexError, AttributeError, pd.errors.UndefinedVariableError):
+        raise UsageError(param, f"a folder whose {THRESHOLDS_CSV} is the table "
+                         "`make bus-thresholds` writes (run it again)",
+                         str(results_dir)) from None
+
+
+def best_run(results_dir: str | Path, param: str = "--mlp-run",
+             learner: str | None = None) -> Path:
+    """The run folder of ``learner``'s lambda sweep's best run (highest final return), from
+    results/bus_lambda[_suite]_summary.csv, written by `make fig-bus-lambda`; a UsageError naming
+    ``param`` without it."""
+    require(learner is None or learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS),
+            learner)
+    path = Path(results_dir) / lambda_summary_csv(learner)
+    try:
+        runs = read_result(path).query("policy == 'mlp-run'")
+        return Path(runs.run.iloc[int(np.argmax(runs.final_iqm.to_numpy(float)))])
+    except FileNotFoundError:
+        raise UsageError(param, f"given, or {path} written first by `make fig-bus-lambda`"
+                         ) from None
+    except (ValueError, KeyError, IndexError, AttributeError, TypeError,
+            pd.errors.UndefinedVariableError):
+        raise UsageError(param, f"given, or a {path.name} as `make fig-bus-lambda` "
+                         "writes it (run it again)", str(path)) from None
+
+
+def make_policy(name: str, cfg: BusConfig, *, thresholds: np.ndarray | None = None,
+                results_dir: str | Path = "results/paper",
+                mlp_run: str | Path | None = None, results_param: str | None = None,
+                mlp_param: str = "--mlp-run", learner: str | None = None) -> Policy:
+    """The policy called ``name`` on corridor ``cfg``; our thresholds default to the optimised
+    ones in ``results_dir``, the trained MLP to the best run of ``learner``'s lambda sweep
+    recorded there.
+    Refusals name the options the caller has: ``mlp_param`` for the run, ``results_param`` (if
+    given) for the results folder, else --thresholds and --mlp-run."""
+    require(name in POLICIES, "--policy", "one of " + ", ".join(POLICIES), name)
+    if name == "nohold":
+        return no_holding
+    if name == "mlp":
+        run = (best_run(results_dir, results_param or mlp_param, learner) if mlp_run is None
+               else mlp_run)
+        return GreedyPolicy(run, cfg, mlp_param)
+    if name == "authors":
+        thresholds = np.array(AUTHORS_THRESHOLDS)
+    elif thresholds is None:
+        thresholds = read_thresholds(results_dir, results_param or "--thresholds")
+    return ThresholdPolicy(thresholds, headway_in_minutes=not cfg.b2_headway)
+
+
+PICTURE_HORIZON = 6 * 3600.0
+"""The episode length of the paper's bus pictures (s): the released code's PLOTTING runs."""
+
+
+def policy_from_args(name: str, args: argparse.Namespace, cfg: BusConfig) -> Policy:
+    """The named policy on corridor ``cfg``; --thresholds / --mlp-run, else the optimised
+    thresholds and the best trained run recorded in --results-dir."""
+    thresholds = None if args.thresholds is None else np.array(args.thresholds, float)
+    return make_policy(name, cfg, thresholds=thresholds, results_dir=args.results_dir,
+                       mlp_run=args.mlp_run, learner=args.learner)
+
+
+def picture_arrivals(policy: Policy, cfg: BusConfig, n_episodes: int = 1) -> pd.DataFrame:
+    """The arrival table of ``n_episodes`` episodes of the paper's pictures (6 h)."""
+    pic = dataclasses.replace(cfg, horizon=PICTURE_HORIZON)
+    return arrival_table(make_env(pic).rollout(policy, n_episodes), cfg.n_stops)

@@ -1,0 +1,483 @@
+"""Many training runs at once: joblib worker processes by default, an existing Dask cluster when
+the user names one (``--scheduler tcp://host:port``).
+
+A sweep is a list of :class:`TrainJob`; each job trains into its own folder under the sweep's root,
+named after the job. Runs are checkpointed every epoch by the trainer, so re-running a sweep skips
+finished runs and resumes interrupted ones exactly where they stopped. A folder holding a run made
+with other settings is refused before anything runs (use another ``--runs-dir``). Each job carries
+its own seed in its TrainConfig, so the results do not depend on the scheduler or on the order in
+which workers pick up jobs.
+
+On a Dask cluster the run folders stay on the client's disk: the client locks a job's folder and
+sends its files (none for a new run) with a task that trains one more epoch; the worker trains in a
+private temporary folder and sends the files back, the client writes them into place and sends the
+next epoch's task. No shared file system is needed, and a worker (or the client) that dies loses at
+most the epoch in progress; the next sweep resumes from the client's folders. Each epoch pays for
+building the environment and loading the checkpoint on the worker, tens of milliseconds. A cluster
+that stops answering mid-sweep (its scheduler lost, or no epoch finished for
+:data:`CLUSTER_SILENCE` seconds) ends the sweep in one line naming --scheduler; the same command
+run again resumes. So does a worker that dies, joblib's or Dask's, in one line that says so and,
+for joblib's, names the signal and its usual cause (SIGKILL: most often memory; SIGSEGV: a crash
+in compiled code) (:class:`~repro.core.errors.WorkerDied`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import dataclasses
+import os
+import re
+import signal
+import socket
+import tempfile
+import threading
+import time
+import warnings
+from contextlib import ExitStack
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from repro.core.config import add_config_arguments
+from repro.core.errors import UsageError, WorkerDied, require
+from repro.envs import env_package
+from repro.learn.process import configure_process
+from repro.learn.run_identity import check_run_folder
+from repro.learn.sizes import check_training_size, training_bytes
+from repro.learn.trainer import Trainer
+from repro.runs.files import write_bytes
+from repro.runs.kernels import KernelWarning, record as kernel_record
+from repro.runs.locks import folder_lock
+from repro.runs.provenance import note_trained_under
+from repro.runs.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PROVENANCE,
+                                   epochs_done, is_finished, locked_by, recorded_kernels,
+                                   writer_lock)
+from repro.runs.workers import die_with_parent
+from repro.studies.kit.options import add_common, figures_folder, results_folder
+
+
+@dataclass(frozen=True)
+class TrainJob:
+    """One training run of a sweep."""
+
+    name: str
+    """Unique within the sweep; the run's folder name."""
+    train: Any
+    """The run's ``repro.learn.config.TrainConfig`` (carries env name, epochs and seed)."""
+    env_config: Any
+    """The environment package's config dataclass (e.g. ``WildfireConfig``)."""
+
+
+def run_dir(root: Path, job: TrainJob) -> Path:
+    return Path(root) / job.name
+
+
+def is_done(root: Path, job: TrainJob) -> bool:
+    """A run is done when it has every epoch the job asks for and its last ``train`` call ended
+    (its settings are checked by :func:`run_sweep`)."""
+    return is_finished(run_dir(root, job), job.train.epochs)
+
+
+def _env(job: TrainJob) -> Any:
+    return env_package(job.train.env).make_env(job.env_config)
+
+
+def run_job(job: TrainJob, root: Path) -> str:
+    """Train (or resume) one job in its folder under ``root``; runs in a joblib worker process."""
+    os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
+    die_with_parent()
+    configure_process()
+    env = env_package(job.train.env).make_env(job.env_config)
+    Trainer(job.train, env, run_dir(root, job), env_config=job.env_config,
+            param="--runs-dir").train()
+    return job.name
+
+
+def run_shipped_job(job: TrainJob, files: dict[str, bytes]) -> dict[str, bytes]:
+    """Train (or resume) one job on a Dask worker, on nothing but what it was sent: its run
+    folder's ``files``. Returns the folder's files after training."""
+    os.environ.setdefault("REPRO_QUIET", "1")
+    configure_process()
+    with tempfile.TemporaryDirectory(prefix="repro-run-") as tmp:
+        folder = Path(tmp) / job.name
+        folder.mkdir()
+        _write_files(folder, files)
+        env = env_package(job.train.env).make_env(job.env_config)
+        Trainer(job.train, env, folder, env_config=job.env_config, param="--runs-dir").train()
+        return folder_files(folder)
+
+
+def folder_files(folder: Path) -> dict[str, bytes]:
+    """The files of a run folder by their path in it (kept policies as ``policies/<name>``), in
+    the order a resumed run needs them written (the progress rows before the checkpoint, the
+    provenance sidecar, which marks a finished call, last)."""
+    order = {PROGRESS: 0, CONFIG: 1, CHECKPOINT: 2, PROVENANCE: 4}
+    paths = [p for p in (*folder.iterdir(), *(folder / KEPT).glob("*"))
+             if p.is_file() and p.name != LOCK]
+    names = sorted((p.relative_to(folder).as_posix() for p in paths),
+                   key=lambda name: (order.get(name, 3), name))
+    return {name: (folder / name).read_bytes() for name in names}
+
+
+def _write_files(folder: Path, files: dict[str, bytes]) -> None:
+    """Write ``folder_files``' output into ``folder`` (atomically, file by file)."""
+    for name, data in files.items():
+        (folder / name).parent.mkdir(exist_ok=True)
+        write_bytes(folder / name, data)
+
+
+CLUSTER_SILENCE = 30 * 60.0
+"""Seconds a Dask sweep waits for the next of its tasks (a training epoch, or a policy's test
+episodes) to finish before it takes the cluster for gone (its scheduler or every worker went
+away, or the network to them). One such task takes well under a minute at paper scale, so half
+an hour without one is silence by a wide margin, also behind workers that start slowly or a
+cluster busy with other work; and it is short enough that a sweep left running overnight does
+not wait the night for a cluster that is gone."""
+_POLL = 0.2
+"""Seconds between two looks at a Dask sweep's tasks and its client while none has finished."""
+
+
+def _cluster_gone(scheduler: str, why: str) -> UsageError:
+    return UsageError("--scheduler", f"a Dask cluster that answers until the sweep ends: it "
+                      f"stopped answering ({why}); running the same command again resumes from "
+                      "the run folders", scheduler)
+
+
+def _next_finished(done: Any, client: Any, scheduler: str) -> Any:
+    """The next task of ``done`` (an ``as_completed``) to finish, waited for at most
+    :data:`CLUSTER_SILENCE` seconds; a UsageError naming --scheduler if none finishes in that
+    time or the client has lost the scheduler (its tasks are then cancelled)."""
+    deadline = time.monotonic() + CLUSTER_SILENCE
+    while not done.has_ready():
+        if client.status != "running":
+            raise _cluster_gone(scheduler, "the client lost the scheduler")
+        if time.monotonic() > deadline:
+            raise _cluster_gone(scheduler, f"no task finished within {CLUSTER_SILENCE:g} s")
+        time.sleep(_POLL)
+    future = next(done)
+    if future.status == "cancelled":
+        raise _cluster_gone(scheduler, "the client lost the scheduler")
+    return future
+
+
+def _died(doing: str, why: str, then: str) -> WorkerDied:
+    return WorkerDied(f"a worker process died while {doing} ({why}); {then}")
+
+
+_RESUMES = ("every finished epoch is kept in the run folders, and the same command resumes "
+            "from them")
+"""What a sweep whose worker died keeps."""
+
+
+def _dask_result(future: Any, doing: str, then: str) -> Any:
+    """``future``'s result; :class:`WorkerDied` where the workers running it died (Dask retries a
+    task on another worker, and gives up once as many as its ``allowed-failures`` died)."""
+    from dask.distributed import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker as err:
+        worker = getattr(err.last_worker, "address", err.last_worker)
+        raise _died(doing, f"Dask: every worker that ran one task died ({err.allowed_failures + 1} "
+                    f"of them), the last {worker}; its log says why", then) from None
+
+
+_SIGNAL_CAUSES = {
+    "SIGKILL": "most often the system out of memory (fewer --n-jobs need less), or a kill -9",
+    "SIGSEGV": "a crash in compiled code (an invalid memory access, not memory running out; "
+               "`make clean` removes numba's compiled kernels, should one be stale)",
+    "SIGBUS": "a crash in compiled code, or a file mapped into memory that shrank or a full disk",
+    "SIGILL": "compiled code for another CPU (numba's cache from another machine: `make clean`)",
+    "SIGFPE": "an arithmetic fault in compiled code",
+    "SIGABRT": "a library that aborted (its message is in the worker's output)",
+    "SIGTERM": "stopped from outside (kill, or the system shutting down)",
+    "SIGINT": "interrupted (Ctrl-C)",
+}
+"""What the signal that killed a worker usually means, by its name."""
+
+
+def _exit_causes(message: str) -> str:
+    """The exit codes in loky's TerminatedWorkerError ``message`` (``{SIGKILL(-9), EXIT(1)}``),
+    each with its usual cause."""
+    codes = [int(c) for c in re.findall(r"\((-?\d+)\)", message.split("exit codes", 1)[-1])]
+    if not codes:
+        return "killed, exit code unknown"
+    parts = []
+    for code in dict.fromkeys(codes):
+        if code >= 0:
+            parts.append(f"exit status {code}: the worker exited (its output says why)")
+            continue
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        parts.append(f"{name}: {_SIGNAL_CAUSES.get(name, 'a signal from outside')}")
+    return "; ".join(parts)
+
+
+def _on_joblib(fn: Callable[..., Any], tasks: list[tuple], workers: int, doing: str,
+               then: str) -> list[Any]:
+    """``[fn(*task) for task in tasks]`` on ``workers`` joblib (loky) worker processes;
+    :class:`WorkerDied` where one of them dies, naming the signal and what it usually means
+    (:func:`_exit_causes`)."""
+    from joblib import Parallel, delayed
+    from joblib.externals.loky.process_executor import TerminatedWorkerError
+
+    try:
+        return Parallel(n_jobs=workers, backend="loky")(delayed(fn)(*task) for task in tasks)
+    except TerminatedWorkerError as err:
+        raise _died(doing, f"joblib: {_exit_causes(str(err))}", then) from None
+
+
+def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
+    """Train ``pending`` on the Dask scheduler ``scheduler``, one epoch per task, into their run
+    folders under ``root``; stops (UsageError naming --scheduler) when the cluster stops answering
+    (:func:`_next_finished`), the epochs finished so far kept in the run folders."""
+    from dask.distributed import as_completed
+
+    with _dask_client(scheduler) as client, ExitStack() as locks:
+        running: dict[Any, TrainJob] = {}
+
+        def next_epoch(job: TrainJob) -> Any:
+            """The task that trains ``job``'s next epoch (or, when its epochs are done, finishes
+            its run folder)."""
+            folder = run_dir(root, job)
+            epochs = min(epochs_done(folder) + 1, job.train.epochs)
+            step = dataclasses.replace(job, train=dataclasses.replace(job.train, epochs=epochs))
+            future = client.submit(run_shipped_job, step, folder_files(folder), pure=False)
+            running[future] = job
+            return future
+
+        for job in pending:
+            locks.enter_context(writer_lock(run_dir(root, job), "--runs-dir"))
+        done = as_completed([next_epoch(job) for job in pending])
+        while not done.is_empty():
+            future = _next_finished(done, client, scheduler)
+            job = running.pop(future)
+            folder = run_dir(root, job)
+            files = _dask_result(future, f"training {job.name}", _RESUMES)
+            for stale in set(folder_files(folder)) - set(files):  # e.g. a killed write's leftovers
+                (folder / stale).unlink()
+            _write_files(folder, files)
+            if not is_finished(folder, job.train.epochs):
+                done.add(next_epoch(job))
+
+
+def check_jobs(jobs: list[TrainJob], root: Path) -> None:
+    """Refuse (UsageError naming --runs-dir) a sweep whose folders under ``root`` hold runs of
+    other settings; checked before anything runs, so that a finished run of other settings is
+    neither taken for this sweep's nor left half-overwritten by a sweep that stops at the first
+    clash (a driver of several sweeps checks them all first)."""
+    names = [j.name for j in jobs]
+    if len(set(names)) != len(names):
+        raise ValueError("job names must be unique within a sweep")
+    for j in jobs:
+        check_run_folder(run_dir(root, j), j.train, j.env_config, j.train.env, "--runs-dir")
+
+
+SWEEP_LOCK = "sweep.lock"
+"""Held in a sweep's root folder while it trains: one sweep at a time per folder of runs."""
+
+
+def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
+              scheduler: str | None = None) -> list[Path]:
+    """Run every job that is not done yet; returns every job's folder (in the order given).
+
+    A sweep that has runs to train holds ``root``'s sweep.lock meanwhile: a second sweep over the
+    same runs (two identical commands started together) is refused in one line naming
+    --runs-dir, as is one that finds a run of its own being trained by another process (a
+    ``train`` in it), before any worker starts. The kernels every run was trained under go into
+    the command's sidecars (:func:`_note_kernels`)."""
+    check_jobs(jobs, root)
+    pending = [j for j in jobs if not is_done(root, j)]
+    if pending:
+        _train(pending, Path(root), n_jobs, scheduler)
+    folders = [run_dir(root, j) for j in jobs]
+    _note_kernels(folders)
+    return folders
+
+
+def _note_kernels(folders: list[Path]) -> None:
+    """Note the kernels each run was trained under in the command's sidecars
+    (:func:`repro.runs.provenance.note_trained_under`), warning (:class:`KernelWarning`) where they
+    are not this process's: such results are not regenerated bit for bit on a machine of the pin."""
+    now = kernel_record()
+    others = 0
+    for folder in folders:
+        kernels = recorded_kernels(folder, "--runs-dir")
+        note_trained_under(kernels)
+        others += kernels != now
+    if others:
+        warnings.warn(f"{others} of the {len(folders)} runs were trained under other CPU kernels "
+                      "than this process's, or before runs recorded theirs (their sidecars say "
+                      "which: trained_under); results from them are regenerated bit for bit only "
+                      "under those kernels", KernelWarning, stacklevel=3)
+
+
+def _train(pending: list[TrainJob], root: Path, n_jobs: int | None,
+           scheduler: str | None) -> None:
+    """Train the runs ``pending`` under ``root``, holding its sweep.lock (:func:`run_sweep`)."""
+    workers = min(len(pending), n_jobs or os.cpu_count() or 1)
+    if not scheduler:  # the runs train on this machine, ``workers`` at a time
+        largest = max(pending, key=lambda j: sum(training_bytes(j.train, _env(j))))
+        check_training_size(largest.train, _env(largest), runs=workers)
+    with folder_lock(root, SWEEP_LOCK, "--runs-dir", "a folder of runs"):
+        for job in pending:
+            holder = locked_by(run_dir(root, job))
+            require(holder is None, "--runs-dir", f"a folder of runs no other process is "
+                    f"writing to ({holder} holds {job.name}/{LOCK})", str(root))
+        if scheduler:
+            _run_on_dask(pending, root, scheduler)
+        else:
+            _on_joblib(run_job, [(j, root) for j in pending], workers,
+                       "training the sweep's runs", _RESUMES)
+
+
+def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None = None,
+              scheduler: str | None = None) -> list[Any]:
+    """``[fn(*task) for task in tasks]`` on joblib worker processes, or on the Dask scheduler
+    named; the tasks carry everything they need (no shared disk). On Dask, a cluster that stops
+    answering stops the call (:func:`_next_finished`); a worker that dies stops it with
+    :class:`~repro.core.errors.WorkerDied`."""
+    if scheduler:
+        from dask.distributed import as_completed
+
+        with _dask_client(scheduler) as client:
+            futures = [client.submit(fn, *task, pure=False) for task in tasks]
+            place = {future.key: i for i, future in enumerate(futures)}
+            out: list[Any] = [None] * len(futures)
+            done = as_completed(futures)
+            for _ in futures:
+                future = _next_finished(done, client, scheduler)
+                out[place[future.key]] = _dask_result(future, "running its tasks", _RUNS_AGAIN)
+            return out
+    workers = max(1, min(len(tasks), n_jobs or os.cpu_count() or 1))
+    return _on_joblib(fn, tasks, workers, "running its tasks", _RUNS_AGAIN)
+
+
+_RUNS_AGAIN = ("the same command runs these tasks again, and trains nothing again that its run "
+               "folders hold")
+"""What :func:`map_tasks` whose worker died keeps (its tasks, policy tests or Monte Carlo cells,
+train nothing)."""
+
+
+SCHEDULER_DEADLINE = 30.0
+"""Seconds that finding, reaching and hearing from ``--scheduler`` may take, whatever answers at
+the address (a Dask client's own timeout does not cover a listener that never answers)."""
+_ADDRESS = re.compile(r"(?:(tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*"
+                      r"[A-Za-z0-9])?):([0-9]{1,5})")
+_SCHEDULER_FORM = "the address of a running Dask scheduler, tcp://HOST:PORT (or tls://)"
+
+
+def check_scheduler(scheduler: str) -> tuple[str, str, int]:
+    """(scheme, host, port) of a ``--scheduler`` address in the form tcp://HOST:PORT, tls://HOST:PORT
+    or HOST:PORT; a UsageError otherwise, before any connection is tried."""
+    m = _ADDRESS.fullmatch(scheduler)
+    port = int(m.group(3)) if m else 0
+    if not m or not 1 <= port <= 65535:
+        raise UsageError("--scheduler", _SCHEDULER_FORM, scheduler)
+    return m.group(1) or "tcp", m.group(2).strip("[]"), port
+
+
+def _within(deadline: float, what: Callable[[], Any]) -> tuple[bool, Any]:
+    """(True, what()) if it returns or raises within ``deadline`` seconds (its exception as the
+    value), else (False, None). It runs on a daemon thread: one that never returns (a name lookup
+    or a read from a listener that never answers) is left behind and ends with the process."""
+    out: list[Any] = []
+
+    def call() -> None:
+        try:
+            out.append(what())
+        except BaseException as err:  # handed to the caller as a value
+            out.append(err)
+
+    thread = threading.Thread(target=call, daemon=True, name="repro-scheduler-probe")
+    thread.start()
+    thread.join(deadline)
+    return (bool(out), out[0] if out else None)
+
+
+def _identity(address: str, deadline: float) -> Any:
+    """What the Dask server at ``address`` says it is (a dict with ``type``), on an event loop of
+    its own."""
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def ask() -> Any:
+        comm = await connect(address, timeout=deadline,
+                             **Security().get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity"})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    loop = asyncio.new_event_loop()
+    try:
+        return loop.run_until_complete(asyncio.wait_for(ask(), deadline))
+    finally:
+        loop.close()
+
+
+def _dask_client(scheduler: str) -> Any:
+    """A client of the running Dask scheduler at ``scheduler``. The address's form is checked
+    first, then its host is looked up, the server asked what it is, and the client connected,
+    each within :data:`SCHEDULER_DEADLINE`; anything else at the address (nothing, a listener that
+    never answers, a web server, a Dask worker) is a UsageError naming --scheduler."""
+    scheme, host, port = check_scheduler(scheduler)
+    from dask.distributed import Client
+
+    deadline = SCHEDULER_DEADLINE
+    answered, found = _within(deadline, lambda: socket.getaddrinfo(host, port,
+                                                                    type=socket.SOCK_STREAM))
+    if not answered or isinstance(found, BaseException) or not found:
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} whose host can be found (within "
+                         f"{deadline:g} s)", scheduler)
+    ip = found[0][4][0]
+    numeric = f"{scheme}://{'[' + ip + ']' if ':' in ip else ip}:{port}"
+    answered, identity = _within(deadline, lambda: _identity(numeric, deadline))
+    if not answered or not isinstance(identity, dict) or identity.get("type") != "Scheduler":
+        what = ("nothing answered within " f"{deadline:g} s" if not answered
+                else f"a {identity.get('type')} answered" if isinstance(identity, dict)
+                else "no Dask scheduler answered")
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} ({what})", scheduler)
+    answered, client = _within(deadline, lambda: Client(scheduler, timeout=deadline))
+    if not answered or isinstance(client, BaseException):
+        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} (it did not take a client within "
+                         f"{deadline:g} s)", scheduler)
+    return client
+
+
+def add_sweep_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--runs-dir", default="runs",
+                   help="folder of the sweep's run folders (checkpoints; re-running skips "
+                        "what is done)")
+    p.add_argument("--n-jobs", type=int, help="joblib worker processes (default: all cores)")
+    p.add_argument("--scheduler", help="address of an existing Dask scheduler to run on instead")
+
+
+def add_study_arguments(p: argparse.ArgumentParser, config: type,
+                        fields: tuple[str, ...] = ("seeds",)) -> None:
+    """The options of a driver that trains a sweep: every driver's (``add_common``), the
+    sweep's, and a flag for each of ``fields`` of the study's ``config``."""
+    add_common(p)
+    add_sweep_arguments(p)
+    add_config_arguments(p, config, fields)
+
+
+def check_sweep_arguments(args: argparse.Namespace) -> None:
+    if args.n_jobs is not None and args.n_jobs < 1:
+        raise UsageError("--n-jobs", "an integer >= 1", args.n_jobs)
+    if getattr(args, "scheduler", None) is not None:
+        check_scheduler(args.scheduler)
+
+
+def check_study_arguments(args: argparse.Namespace) -> tuple[Path, Path]:
+    """Check the options of :func:`add_study_arguments` before any work: the sweep's, and the
+    figures and results folders (:func:`~repro.studies.kit.options.figures_folder`,
+    :func:`~repro.studies.kit.options.results_folder`); returns the results and figures folders,
+    the results folder held until the command ends."""
+    check_sweep_arguments(args)
+    figures = figures_folder(args)
+    return results_folder(args), figures

@@ -1,0 +1,1 @@
+"""How the claims are decided: the coverage of the interval kinds their verdicts rest on."""

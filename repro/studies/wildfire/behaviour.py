@@ -1,0 +1,282 @@
+"""What a long ED-trained wildfire policy does (claim C6) and how the flowchart that encodes it
+compares (claim C7); paper section "Wildfire, Results", Fig. "appxpolicy".
+
+Policies are trained on the ED simulator (PS-TRPO + M-GAE through the sweep runner, checkpointed
+under ``--runs-dir``/wildfire-behaviour/<scale>/). Each trained policy is then run, sampling its
+actions as in training, on ``test_episodes`` ED episodes, and every recorded (observation o, action
+a) pair of every agent is classified (docs/semantics.md section 6.3). With the observation layout of
+section 3.6, fire j = the j-th closest observed fire, d_j its distance, s_j its status, I_j its
+interest party size:
+
+- *at a live fire*: d_1 < OBSERVED_AT_FIRE_TOL and s_1 = 1 (the UAV sits on its closest fire,
+  which burns);
+- *other interest*: I_1 - 1 >= 1. The observer is in the interest party of the fire it sits at (it
+  flew to it or held at it, see ``repro.envs.wildfire.policies``), so I_1 - 1 UAVs are others;
+- ``hold_shared`` = P(a = hold | at a live fire, other interest);
+- ``hold_alone``  = P(a = hold | at a live fire, no other interest);
+- ``fly_rank_k``  = P(a = k-th closest fire | a is a fly action), k = 1..5, over every decision;
+- ``closest_cluster`` = P(the target fire lies in the cluster of the UAV's closest fire | a is a
+  fly action). The target is identified by ranking all nine fires by distance from the UAV's
+  observed position, as the engine does; clusters are the blocks of three of ``fire_positions``.
+
+*Stay flights*: a fly action to a fire closer than OBSERVED_AT_FIRE_TOL, that is, to the fire the
+UAV is at. It takes no time (in ED; a UAV cut off just short of the fire flies the rest, under
+0.07 s), so the UAV decides again after the 1e-5 s latency. docs/semantics.md section 6.3 counts
+them among the fly actions, as above. Learned ED policies make many (about half of the decisions of
+the quick-scale policy, 92% of a paper-scale run's at epoch 316), which swamps ``fly_rank_1`` and
+``hold_alone``. So every frequency is also given without them (suffix ``_ex_stay``), and
+``stay_flight`` is their share of all decisions. The flowchart's own frequencies are measured the
+same way (``wildfire_behaviour_flowchart.csv``): its ``_ex_stay`` values are the paper's policy, as
+the flowchart encodes it, without stay flights.
+
+C7: the ``flowchart`` policy (``repro.envs.wildfire.policies.FlowchartPolicy``, the paper's
+probabilities) and each learned policy are tested on the same ED episodes;
+``flowchart_worse`` = 1 - ADR(flowchart) / ADR(learned) (paper: 0.28).
+
+Applying the same classification to the flowchart policy's own decisions must give back its
+probabilities, which is how the tests check these definitions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+
+from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
+from repro.core.rollout import Rollout
+from repro.envs.wildfire import (RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, fire_positions,
+                                 make_env, version_suffix)
+from repro.envs.wildfire.params import DIST, INTEREST, OWN_X, OWN_Y, STATUS, fire_blocks
+from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL, FlowchartPolicy
+from repro.learn.config import add_study_learner_arguments, check_policy_study, learner_suffix
+from repro.paper import BEHAVIOUR_FREQUENCIES, FLOWCHART_WORSE
+from repro.runs.files import check_writable_dir
+from repro.runs.provenance import provenance
+from repro.runs.results import write_result
+from repro.studies.kit.options import add_common, results_folder
+from repro.studies.kit.sweep import TrainJob, add_sweep_arguments, check_sweep_arguments, run_sweep
+from repro.studies.wildfire.study import adr, evaluate
+
+PAPER = dict(**BEHAVIOUR_FREQUENCIES, flowchart_worse=FLOWCHART_WORSE)
+"""The paper's numbers (section "Wildfire, Results", :mod:`repro.paper`) as the sidecar records
+them; fly_rank_4/5 are not given."""
+FIRES_PER_CLUSTER = 3
+
+# Independent child streams of the root seed.
+_TEST_ENV_STREAM, _POLICY_STREAM = 0, 1
+
+
+@dataclass(frozen=True)
+class BehaviourConfig(Validated):
+    """Sizes of the behaviour study (the ED simulator and its semantics never change)."""
+
+    seeds: int = 1
+    """Policies trained from scratch (the paper examined one). Long ED runs can drift into
+    policies that re-decide at a fire many times per second (fly to the fire they are at), which
+    makes their epochs up to ten times slower; hence one at quick scale."""
+    epochs: int = 300
+    """Training epochs per policy (paper: 3,000)."""
+    learner: str = "authors"
+    """The named learner that trains every policy (``repro.learn.config.LEARNERS``)."""
+    batch_decisions: int = 3000
+    """Training decisions per epoch when the learner counts its batch in decisions (the released
+    runner: 12,000)."""
+    batch_episodes: int = 200
+    """Training episodes per epoch when the learner counts its batch in episodes (the paper's
+    table: 600 to 1,200)."""
+    sim_version: str = RELEASED_VERSION
+    """The released simulator's version (``repro.envs.wildfire.SIM_VERSIONS``)."""
+    test_episodes: int = 1000
+    """ED episodes on which frequencies and ADRs are measured."""
+    max_decisions: int | None = WildfireConfig.max_decisions
+    """Decision limit per UAV and episode in training and test (``WildfireConfig.max_decisions``);
+    None: no limit (docs/semantics.md section 3.7). Long ED runs drift into stay flights: without
+    the limit a 600-episode epoch of them needed more than 14.7 million decisions and ran out of
+    24 GB of memory at epoch 302 of a paper-scale run."""
+
+    SCALES: ClassVar[dict] = {
+        "smoke": dict(seeds=1, epochs=2, batch_episodes=8, batch_decisions=300, test_episodes=20),
+        "quick": {},
+        "paper": dict(seeds=3, epochs=3000, batch_episodes=600, batch_decisions=12000,
+                      test_episodes=10000),
+    }
+
+    def validate(self) -> None:
+        check_policy_study(self)
+        self.check(self.sim_version in SIM_VERSIONS, "sim_version",
+                   "one of " + ", ".join(SIM_VERSIONS))
+        self.check(self.max_decisions is None or self.max_decisions >= 1, "max_decisions",
+                   "a positive integer (0: no limit)")
+
+    def env(self) -> WildfireConfig:
+        """The ED simulator every policy is trained and tested on."""
+        return WildfireConfig(max_decisions=self.max_decisions, **SIM_VERSIONS[self.sim_version])
+
+    @property
+    def name(self) -> str:
+        """File stem: wildfire_behaviour, then _suite for the suite's learner and _20170422 for
+        the simulator of 2017-04-22."""
+        return "_".join(("wildfire_behaviour", *learner_suffix(self.learner),
+                         *version_suffix(self.sim_version)))
+
+
+STAY = "_ex_stay"
+"""Suffix of the frequencies counted without stay flights (see the module docstring)."""
+
+
+def frequency_counts(rollout: Rollout, env: WildfireConfig) -> dict[str, int]:
+    """The counts behind the C6 frequencies: for each, the decisions where its event happened
+    (``<name>_events``) out of those where its condition held (``n_shared``, ``n_alone``,
+    ``n_fly``); the same without stay flights (suffix ``_ex_stay``); and the stay flights
+    (``stay_flight_events`` of ``n_decisions``). Counts of separate batches add up."""
+    obs, act, k = rollout.obs, rollout.actions, env.n_observed
+    block = fire_blocks(obs, k)
+    rows = np.arange(len(obs))
+    at_live = (block[:, 0, DIST] < OBSERVED_AT_FIRE_TOL) & (block[:, 0, STATUS] > 0.5)
+    shared = block[:, 0, INTEREST] - 1 >= 1
+    hold = act == k
+    fly = ~hold
+    stay = fly & (block[rows, np.minimum(act, k - 1), DIST] < OBSERVED_AT_FIRE_TOL)
+    dist = np.linalg.norm(obs[:, None, OWN_X:OWN_Y + 1] - fire_positions(env)[None], axis=2)
+    order = np.argsort(dist, axis=1, kind="stable")
+    target_cluster = order[rows, np.minimum(act, k - 1)] // FIRES_PER_CLUSTER
+    closest = target_cluster == order[:, 0] // FIRES_PER_CLUSTER
+
+    def counts(keep: np.ndarray, suffix: str) -> dict[str, int]:
+        out = dict(hold_shared_events=hold & at_live & shared,
+                   hold_alone_events=hold & at_live & ~shared)
+        out.update({f"fly_rank_{r + 1}_events": act == r for r in range(k)})
+        out.update(closest_cluster_events=closest & fly, n_shared=at_live & shared,
+                   n_alone=at_live & ~shared, n_fly=fly)
+        return {name + suffix: int((mask & keep).sum()) for name, mask in out.items()}
+
+    everything = np.ones(len(act), bool)
+    return {**counts(everything, ""), **counts(~stay, STAY),
+            "stay_flight_events": int(stay.sum()), "n_decisions": len(act)}
+
+
+def shares(counts: dict[str, int]) -> dict[str, float]:
+    """The C6 frequencies of the module docstring from :func:`frequency_counts` (NaN where a
+    condition never occurs), with the number of decisions behind each conditional."""
+    given = dict(hold_shared="n_shared", hold_alone="n_alone", stay_flight="n_decisions")
+    out = {}
+    for key in counts:
+        if key.endswith("_events") or key.endswith("_events" + STAY):
+            name, suffix = key.split("_events")
+            n = counts[given.get(name, "n_fly") + suffix]
+            out[name + suffix] = counts[key] / n if n else float("nan")
+    out.update({k: v for k, v in counts.items() if k.startswith("n_")})
+    return out
+
+
+def frequencies(rollout: Rollout, env: WildfireConfig) -> dict[str, float]:
+    """The C6 frequencies of one rollout (see :func:`shares`)."""
+    return shares(frequency_counts(rollout, env))
+
+
+def make_jobs(cfg: BehaviourConfig, scale: str, seed: int) -> list[TrainJob]:
+    from repro.learn.config import study_train_config
+
+    return [TrainJob(f"ed-seed{s}", study_train_config(scale, "wildfire", cfg.learner,
+                                                       cfg.batch_decisions, cfg.batch_episodes,
+                                                       seed=s, epochs=cfg.epochs), cfg.env())
+            for s in range(seed, seed + cfg.seeds)]
+
+
+def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
+            seed: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """One row per trained policy: its C6 frequencies, its ADR and the flowchart's on the same
+    episodes; and one row of the flowchart's own frequencies on those episodes."""
+    from repro.learn.config import learner_name
+    from repro.learn.trained_policy import policy_from_state
+    from repro.runs.run_folder import CHECKPOINT, load_checkpoint
+
+    env_cfg = cfg.env()
+    env = make_env(env_cfg)
+    env_seed = int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])
+
+    def rng(i: int) -> np.random.Generator:
+        return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_POLICY_STREAM, i)))
+
+    def observe(policy) -> tuple[dict[str, float], float, float, int]:
+        """The policy's frequencies (counted per test batch, so that observations need not be
+        kept), ADR with its standard error, and the episodes cut at the decision limit."""
+        counts: list[dict[str, int]] = []
+        rollout = evaluate(env, policy, cfg.test_episodes, env_seed, keep_obs=False,
+                           on_batch=lambda batch: counts.append(frequency_counts(batch, env_cfg)))
+        total = {key: sum(c[key] for c in counts) for key in counts[0]}
+        return shares(total), *adr(rollout, env.gamma), rollout.n_truncated
+
+    flowchart = FlowchartPolicy(rng(0), n_observed=env_cfg.n_observed)
+    flow_shares, flow_adr, flow_sem, _ = observe(flowchart)
+    rows = []
+    for i, (job, folder) in enumerate(zip(jobs, folders), start=1):
+        policy = policy_from_state(load_checkpoint(folder / CHECKPOINT, "--runs-dir",
+                                                   obs_dim=env.obs_dim, n_actions=env.n_actions),
+                                   rng(i))
+        learned, learned_adr, learned_sem, cut = observe(policy)
+        rows.append(dict(train_seed=job.train.seed, epochs=job.train.epochs,
+                         learner=learner_name(job.train), r_pen=env_cfg.r_pen,
+                         batch_decisions=job.train.batch_decisions or 0,
+                         batch_episodes=job.train.batch_episodes or 0,
+                         test_episodes=cfg.test_episodes,
+                         max_decisions=cfg.max_decisions or 0, test_truncated=cut,
+                         **learned, adr_learned=learned_adr,
+                         adr_learned_sem=learned_sem, adr_flowchart=flow_adr,
+                         adr_flowchart_sem=flow_sem,
+                         flowchart_worse=1.0 - flow_adr / learned_adr, run=job.name))
+    flow_row = dict(test_episodes=cfg.test_episodes, **flow_shares, adr_flowchart=flow_adr,
+                    adr_flowchart_sem=flow_sem)
+    return pd.DataFrame(rows), pd.DataFrame([flow_row])
+
+
+FLAGS = ("seeds", "epochs", "sim_version", "test_episodes", "max_decisions")
+VARIANTS = ("sim_version",)
+"""The option that chooses the study (``*_20170422``), not its settings
+(:func:`repro.studies.kit.options.scale_departures`)."""
+"""The BehaviourConfig fields the study takes as flags, besides the learner and its batch sizes
+(:func:`repro.learn.config.add_study_learner_arguments`)."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_common(p, figures=False)
+    add_sweep_arguments(p)
+    add_config_arguments(p, BehaviourConfig, FLAGS)
+    add_study_learner_arguments(p, "wildfire_behaviour_suite*")
+
+
+def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
+    """The validated config of the command line at its scale (UsageError if bad);
+    ``--max-decisions 0`` (or none): no limit."""
+    given = given_fields(args, BehaviourConfig)
+    no_limit = "max_decisions" in given and not given["max_decisions"]
+    if no_limit:
+        del given["max_decisions"]  # for_scale takes None as "not given"
+    cfg = for_scale(BehaviourConfig, args.scale, **given)
+    return dataclasses.replace(cfg, max_decisions=None) if no_limit else cfg
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    check_sweep_arguments(args)
+    results = results_folder(args)
+    runs = check_writable_dir(Path(args.runs_dir) / cfg.name.replace("_", "-") / args.scale,
+                              "--runs-dir")
+    jobs = make_jobs(cfg, args.scale, args.seed)
+    t0 = time.perf_counter()
+    folders = run_sweep(jobs, runs, n_jobs=args.n_jobs, scheduler=args.scheduler)
+    table, flowchart = measure(cfg, jobs, folders, args.seed)
+    prov = provenance(dataclasses.asdict(cfg), command="wildfire-behaviour", scale=args.scale,
+                      seed=args.seed, wall_seconds=time.perf_counter() - t0,
+                      extra=dict(runs_dir=str(runs), paper=PAPER))
+    write_result(results / f"{cfg.name}.csv", table, prov)
+    write_result(results / f"{cfg.name}_flowchart.csv", flowchart, prov)
+    print(table.drop(columns=["run"]).T.to_string())
+    return 0
