@@ -43,6 +43,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                            "frequencies of a long ED-trained policy vs the flowchart (C6, C7)"),
     "beyond-mgae": ("repro.experiments.beyond_mgae",
                     "M-GAE against two other advantage estimators, bus and wildfire (X1)"),
+    "beyond-sb3": ("repro.experiments.beyond_sb3",
+                   "SB3 PPO with its GAE and with M-GAE against PS-TRPO, bus and wildfire"),
     "beyond-transfer-dt": ("repro.experiments.transfer_dt",
                            "transfer to ED against dT on a log grid, race rate beside it (X3)"),
     "beyond-races": ("repro.experiments.beyond_races",
