@@ -73,8 +73,11 @@ class Sb3StudyConfig(Validated):
 
     updates: int = 20
     """Policy updates per run (PS-TRPO's epochs)."""
-    batch_decisions: int = 10_000
+    batch_decisions: int = 5000
     """Decisions per update: PPO's ``n_steps`` (its rollout buffer), PS-TRPO's batch."""
+    envs: int = 8
+    """ParallelEnvs SB3's collection plays side by side (one policy call for all their deciding
+    agents; :func:`repro.learn.sb3.collect_paths`)."""
     seeds: int = 5
     """Runs per method and environment (seeds seed .. seed + seeds - 1)."""
     minibatch: int = 250
@@ -90,14 +93,15 @@ class Sb3StudyConfig(Validated):
     """Bootstrap replicates of each CI."""
 
     SCALES: ClassVar[dict] = {
-        "smoke": dict(updates=2, batch_decisions=300, seeds=2, minibatch=100, test_episodes=20,
+        "smoke": dict(updates=2, batch_decisions=300, envs=2, seeds=2, minibatch=100, test_episodes=20,
                       n_boot=200),
         "quick": dict(updates=5, seeds=3, test_episodes=200),
         "paper": {},
     }
 
     def validate(self) -> None:
-        for name in ("updates", "batch_decisions", "seeds", "minibatch", "ppo_epochs", "hidden",
+        for name in ("updates", "batch_decisions", "envs", "seeds", "minibatch", "ppo_epochs",
+                     "hidden",
                      "test_episodes", "n_boot"):
             self.check(getattr(self, name) >= 1, name, "an integer >= 1")
         self.check(self.minibatch <= self.batch_decisions, "minibatch",
@@ -156,11 +160,12 @@ def sb3_run(env: str, method: str, seed: int, cfg: Sb3StudyConfig
 
     torch.set_num_threads(1)
     env_cfg, lam = env_config(env), lam_of(env)
-    parallel = importlib.import_module(f"repro.envs.{env}.pettingzoo_env").parallel_env(env_cfg)
+    make = importlib.import_module(f"repro.envs.{env}.pettingzoo_env").parallel_env
+    parallel = [make(env_cfg) for _ in range(cfg.envs)]
     buffer = (dict(rollout_buffer_class=MGAERolloutBuffer,
                    rollout_buffer_kwargs=dict(gamma_rate=env_cfg.gamma, lam=lam))
               if method == "sb3-ppo-mgae" else {})
-    model = PPO("MlpPolicy", Spaces(parallel), n_steps=cfg.batch_decisions,
+    model = PPO("MlpPolicy", Spaces(parallel[0]), n_steps=cfg.batch_decisions,
                 batch_size=cfg.minibatch, n_epochs=cfg.ppo_epochs,
                 policy_kwargs={"net_arch": [cfg.hidden]}, seed=seed, device="cpu", **buffer)
     model.set_logger(configure(None, []))

@@ -5,8 +5,9 @@ this suite (:mod:`repro.core.parallel_env`), with M-GAE (docs/own-learner.md).
   duration and computes M-GAE (:func:`repro.learn.m_gae.macro_gae`) instead of SB3's GAE; PPO and
   A2C take it as ``rollout_buffer_class`` and train on it with their own optimiser, clipping and
   minibatches (``model.train()``).
-- :func:`collect_paths` plays whole episodes of the ParallelEnv with the model's policy and keeps
-  each agent's decisions of an episode as one path; :func:`fill_buffer` lays the paths into the
+- :func:`collect_paths` plays whole episodes of the ParallelEnv (or of several side by side, one
+  policy call for the deciding agents of all) with the model's policy and keeps each agent's
+  decisions of an episode as one path; :func:`fill_buffer` lays the paths into the
   model's buffer one after another in its single slot (a path start is an episode start; the path
   cut at the buffer's end is bootstrapped with the model's value of its next observation).
 - :func:`train_update` is one update: collect, fill, ``model.train()``.
@@ -82,28 +83,39 @@ each decision), ``rew`` and ``dur`` (each macro-action's reward, discounted to i
 duration)."""
 
 
-def collect_paths(env: Any, model: BaseAlgorithm, n_decisions: int,
+def collect_paths(envs: Any, model: BaseAlgorithm, n_decisions: int,
                   seed: int | None = None) -> list[Path]:
-    """Whole episodes of the ParallelEnv ``env`` (the first reset with ``seed``) until they hold
-    ``n_decisions`` decisions, sampled from ``model``'s policy: every agent's path of each."""
+    """Whole episodes of the ParallelEnvs ``envs`` (one, or a list played side by side so that
+    each policy call serves the deciding agents of all of them) until the finished ones hold
+    ``n_decisions`` decisions; the episodes then in flight are played to their end too, so that
+    long episodes are not cut out of the batch. Actions are sampled from ``model``'s policy.
+    Returns every agent's path of each episode, in the order the episodes ended. ``seed``: each
+    env's first reset gets a seed of its own, drawn from it (None: each env's stream goes on)."""
+    envs = list(envs) if isinstance(envs, (list, tuple)) else [envs]
+    seeds = ([None] * len(envs) if seed is None else
+             [int(c.generate_state(1)[0]) for c in np.random.SeedSequence(seed).spawn(len(envs))])
     paths: list[Path] = []
-    while sum(len(p["act"]) for p in paths) < n_decisions:
-        obs, infos = env.reset(seed=seed if not paths else None)
-        running: dict[str, Path] = {}
-        while env.agents:
-            deciding = [a for a in obs if infos[a]["decides"] and a in env.agents]
-            with torch.no_grad():
-                act, value, logp = model.policy(torch.as_tensor(np.stack([obs[a]
-                                                                          for a in deciding])))
-            for m, a in enumerate(deciding):
-                path = running.setdefault(a, {"obs": [], "act": [], "value": [], "logp": [],
-                                              "rew": [], "dur": []})
-                path["obs"].append(obs[a])
-                path["act"].append(int(act[m]))
-                path["value"].append(float(value[m]))
-                path["logp"].append(float(logp[m]))
-            obs, rewards, terms, truncs, infos = env.step(
-                {a: running[a]["act"][-1] for a in deciding})
+    live = []  # per env in flight: [env, obs, infos, running paths]
+    for env, s in zip(envs, seeds):
+        live.append([env, *env.reset(seed=s), {}])
+    while live:
+        rows = [(j, a) for j, (env, obs, infos, _) in enumerate(live)
+                for a in obs if infos[a]["decides"] and a in env.agents]
+        with torch.no_grad():
+            act, value, logp = model.policy(torch.as_tensor(np.stack([live[j][1][a]
+                                                                      for j, a in rows])))
+        actions: list[dict[str, int]] = [{} for _ in live]
+        for m, (j, a) in enumerate(rows):
+            path = live[j][3].setdefault(a, {"obs": [], "act": [], "value": [], "logp": [],
+                                             "rew": [], "dur": []})
+            path["obs"].append(live[j][1][a])
+            path["act"].append(int(act[m]))
+            path["value"].append(float(value[m]))
+            path["logp"].append(float(logp[m]))
+            actions[j][a] = int(act[m])
+        still = []
+        for j, (env, _, _, running) in enumerate(live):
+            obs, rewards, terms, truncs, infos = env.step(actions[j])
             for a in obs:  # a macro-action ended: the agent decides again, or its episode ended
                 path = running.get(a)
                 if path and (infos[a]["decides"] or terms[a] or truncs[a]):
@@ -111,6 +123,11 @@ def collect_paths(env: Any, model: BaseAlgorithm, n_decisions: int,
                     path["dur"].append(infos[a]["duration"])
                 if terms[a] or truncs[a]:
                     paths.append(running.pop(a))
+            if env.agents:
+                still.append([env, obs, infos, running])
+            elif sum(len(p["act"]) for p in paths) < n_decisions:
+                still.append([env, *env.reset(), {}])
+        live = still
     return paths
 
 
@@ -142,16 +159,16 @@ def path_adr(paths: list[Path], gamma_rate: float) -> float:
                                  * np.array(p["rew"])) for p in paths]))
 
 
-def train_update(env: Any, model: BaseAlgorithm, seed: int | None = None,
+def train_update(envs: Any, model: BaseAlgorithm, seed: int | None = None,
                  on_batch: Callable[[list[Path]], None] | None = None
                  ) -> tuple[list[Path], dict[str, float]]:
     """One update of ``model`` (PPO or A2C, with either buffer) on a fresh batch of
-    ``model.n_steps`` decisions of ``env`` (first episode reset with ``seed``; ``on_batch`` sees
+    ``model.n_steps`` decisions of ``envs`` (:func:`collect_paths`, with ``seed``; ``on_batch`` sees
     the paths before the advantages are computed): the batch's paths, and the CPU seconds of its
     parts (``collect``, ``advantages``: the buffer's ``compute_returns_and_advantage``, ``train``:
     SB3's update)."""
     t0 = time.process_time()
-    paths = collect_paths(env, model, model.n_steps, seed)
+    paths = collect_paths(envs, model, model.n_steps, seed)
     if on_batch is not None:
         on_batch(paths)
     last_values, dones = fill_buffer(model, paths)
