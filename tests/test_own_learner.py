@@ -240,3 +240,62 @@ def test_several_envs_side_by_side_give_whole_paths_and_repeat():
     torch.manual_seed(0)
     again = batch()
     assert [p["act"] for p in again] == [p["act"] for p in paths]
+
+
+def test_the_study_resumes_to_the_same_bytes_and_refuses_other_settings(cli, tmp_path):
+    """``beyond-sb3`` at smoke scale; run again it trains nothing and writes the same CSVs; a
+    runs folder of other settings, and a budget that means nothing, are one-line errors."""
+    folders = ["--runs-dir", str(tmp_path / "runs"), "--results-dir", str(tmp_path / "res"),
+               "--figures-dir", str(tmp_path / "fig"), "--n-jobs", "1"]
+    first = cli("beyond-sb3", "--scale", "smoke", *folders)
+    assert first.returncode == 0, first.stderr
+    runs = (tmp_path / "res" / "beyond_sb3.csv").read_bytes()
+    summary = (tmp_path / "res" / "beyond_sb3_summary.csv").read_text()
+    assert "sb3-ppo-mgae" in summary and (tmp_path / "fig" / "beyond_sb3.png").exists()
+    again = cli("beyond-sb3", "--scale", "smoke", *folders)
+    assert again.returncode == 0 and (tmp_path / "res" / "beyond_sb3.csv").read_bytes() == runs
+    other = cli("beyond-sb3", "--scale", "smoke", "--updates", "3", *folders)
+    assert other.returncode == 2 and "--runs-dir" in other.stderr
+    bad = cli("beyond-sb3", "--scale", "smoke", "--updates", "0", *folders)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+    assert "updates" in bad.stderr
+
+
+class EndsAtADecision:
+    """A one-agent ParallelEnv whose episode ends at the instant of the agent's third decision
+    (that decision's macro-action: duration 0, reward 0)."""
+
+    possible_agents = ["a"]
+
+    def __init__(self):
+        from gymnasium import spaces
+
+        self.space, self.actions = spaces.Box(-1, 1, (2,)), spaces.Discrete(2)
+
+    def observation_space(self, agent):
+        return self.space
+
+    def action_space(self, agent):
+        return self.actions
+
+    def reset(self, seed=None, options=None):
+        self.k, self.agents = 0, ["a"]
+        return {"a": np.zeros(2, np.float32)}, {"a": {"decides": True, "duration": 0.0}}
+
+    def step(self, actions):
+        self.k += 1
+        done = self.k == 3
+        self.agents = [] if done else ["a"]
+        return ({"a": np.full(2, self.k / 4, np.float32)}, {"a": 0.0 if done else 1.0},
+                {"a": done}, {"a": False},
+                {"a": {"decides": not done, "duration": 0.0 if done else 2.0}})
+
+
+def test_a_decision_at_the_instant_the_episode_ends_is_left_out():
+    from repro.learn.sb3 import collect_paths
+
+    env = EndsAtADecision()
+    model = ppo(env, 1.0)
+    paths = collect_paths(env, model, 4, seed=0)
+    assert [p["dur"] for p in paths] == [[2.0, 2.0], [2.0, 2.0]]
+    assert all(len(p["obs"]) == len(p["act"]) == len(p["rew"]) == 2 for p in paths)

@@ -46,7 +46,7 @@ from repro.core.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.envs import env_package, train_defaults
 from repro.experiments.options import add_replot, read_for_replot, replot_figures
 from repro.experiments.sweep import (TrainJob, add_study_arguments, check_study_arguments,
-                                     map_tasks, run_dir, run_sweep)
+                                     map_tasks, run_sweep)
 from repro.experiments.wildfire_eval import adr, evaluate
 from repro.learn.config import train_config
 
@@ -93,8 +93,8 @@ class Sb3StudyConfig(Validated):
     """Bootstrap replicates of each CI."""
 
     SCALES: ClassVar[dict] = {
-        "smoke": dict(updates=2, batch_decisions=300, envs=2, seeds=2, minibatch=100, test_episodes=20,
-                      n_boot=200),
+        "smoke": dict(updates=2, batch_decisions=300, envs=2, seeds=2, minibatch=100,
+                      test_episodes=20, n_boot=200),
         "quick": dict(updates=5, seeds=3, test_episodes=200),
         "paper": {},
     }

@@ -89,7 +89,9 @@ def collect_paths(envs: Any, model: BaseAlgorithm, n_decisions: int,
     each policy call serves the deciding agents of all of them) until the finished ones hold
     ``n_decisions`` decisions; the episodes then in flight are played to their end too, so that
     long episodes are not cut out of the batch. Actions are sampled from ``model``'s policy.
-    Returns every agent's path of each episode, in the order the episodes ended. ``seed``: each
+    Returns every agent's path of each episode, in the order the episodes ended; a decision made
+    at the very instant its episode ended (a macro-action of duration 0 and reward 0, which a
+    trained policy meets now and then) is left out, as it changed nothing. ``seed``: each
     env's first reset gets a seed of its own, drawn from it (None: each env's stream goes on)."""
     envs = list(envs) if isinstance(envs, (list, tuple)) else [envs]
     seeds = ([None] * len(envs) if seed is None else
@@ -122,7 +124,13 @@ def collect_paths(envs: Any, model: BaseAlgorithm, n_decisions: int,
                     path["rew"].append(rewards[a])
                     path["dur"].append(infos[a]["duration"])
                 if terms[a] or truncs[a]:
-                    paths.append(running.pop(a))
+                    path = running.pop(a)
+                    if path["dur"][-1] == 0 and path["rew"][-1] == 0:
+                        # decided at the instant the episode ended: no time passed, no reward
+                        for key in path:
+                            path[key].pop()
+                    if path["act"]:
+                        paths.append(path)
             if env.agents:
                 still.append([env, obs, infos, running])
             elif sum(len(p["act"]) for p in paths) < n_decisions:
