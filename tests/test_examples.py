@@ -41,3 +41,9 @@ def test_sb3_trains_through_the_parallel_env(extra):
     assert np.isfinite(result["test_adr"])
     assert (0 < result["gamma_d"] < 1) if "gae" in extra else result["gamma_d"] == 0
     assert example.main(argv) == result
+
+
+def test_the_buffer_overhead_is_measured_for_both_buffers():
+    medians = load("sb3_buffer_overhead").main(["--n-steps", "200", "--repeats", "1"])
+    assert set(medians) == {"sb3", "m-gae"}
+    assert all(s >= 0 for parts in medians.values() for s in parts.values())
