@@ -16,6 +16,10 @@ def _num(x: float) -> str:
     return f"{x:.4g}" if abs(x) >= 100 else f"{x:.3f}"
 
 
+def _pct(x: float) -> str:
+    return f"{round(100 * x)}%"
+
+
 def check_x6(results: Path) -> Verdict:
     """PASS when, in both environments, the bootstrap CI of the share of the gap that M-GAE closes
     lies above :data:`MOST`; FAIL when its point estimate is at most that in both; PARTIAL
@@ -30,9 +34,15 @@ def check_x6(results: Path) -> Verdict:
         leans.append(m.gap_closed > MOST)
         cis = "; ".join(f"{r.method} {_num(r.mean)} [{_num(r.ci_low)}, {_num(r.ci_high)}]"
                         for r in grp.itertuples())
-        parts.append(f"{env}: {cis}; M-GAE closes {m.gap_closed:.0%} [{m.gap_low:.0%}, "
-                     f"{m.gap_high:.0%}] of the gap from SB3's GAE to PS-TRPO")
-        ours.append(f"{env}: {m.gap_closed:.0%} of the gap closed")
+        parts.append(f"{env}: {cis}; M-GAE closes {_pct(m.gap_closed)} [{_pct(m.gap_low)}, "
+                     f"{_pct(m.gap_high)}] of the gap from SB3's GAE to PS-TRPO")
+        ours.append(f"{env}: {_pct(m.gap_closed)} of the gap closed")
+    runs = read_result(results / "beyond_sb3.csv")
+    for env, grp in runs[runs.method.str.startswith("sb3")].groupby("env", sort=False):
+        last = grp.pivot(index="seed", columns="method", values="train_adr_last")
+        if (last["sb3-ppo-gae"] == last["sb3-ppo-mgae"]).all():
+            parts.append(f"On the {env}, SB3's PPO did not move its policy: its last training "
+                         "batches are the same with either estimator, seed for seed")
     verdict = "PASS" if all(holds) else "FAIL" if not any(leans) else "PARTIAL"
     verdict, caveat = at_most_partial(verdict, int(s[s.method.str.startswith("sb3")].n_runs.min()))
     prov = read_provenance(path)

@@ -13,9 +13,10 @@ method, on the wildfire (ED, the released simulator) and the bus (its paper lamb
 
 Every policy is scored on the same test episodes of its environment (the policy sampling, as the
 suite's evaluation): ADR, the average discounted return over agents' paths. The SB3 runs are
-each one task (joblib workers, or ``--scheduler``); a finished run's result and model are kept
-in its folder under ``--runs-dir``/beyond-sb3, so the same command resumes with the runs not yet
-done (an interrupted SB3 run starts again from its beginning; it takes a minute or two).
+each one task (joblib workers, or ``--scheduler``), a round of ``--n-jobs`` at a time; a finished
+run's result and model are kept in its folder under ``--runs-dir``/beyond-sb3 as its round ends,
+so the same command resumes with the runs not yet done (an interrupted SB3 run starts again from
+its beginning: it takes about 20 CPU seconds at paper scale).
 
 Outputs: ``results/beyond_sb3.csv`` (one row per run), ``beyond_sb3_summary.csv`` (per environment
 and method: mean, SEM, IQM, 95% bootstrap CI of the mean; for M-GAE the share of the gap between
@@ -29,6 +30,7 @@ import dataclasses
 import importlib
 import io
 import json
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,6 +61,11 @@ METHODS = {
 """The trained methods, by name, with their label."""
 HEURISTICS = {"wildfire": "nearest", "bus": "no-holding"}
 """The heuristic tested beside the trained policies, per environment."""
+COLUMNS = ("env", "method", "lam", "seed", "updates", "batch_decisions", "train_adr_last",
+           "gamma_d", "seconds", "seconds_collect", "seconds_advantages", "seconds_train", "score",
+           "score_sem", "episode_return", "run")
+"""The columns of beyond_sb3.csv, in order (``seconds*``: CPU seconds of training; the SB3 runs'
+parts as :func:`repro.learn.sb3.train_update` times them)."""
 RESULT = "result.json"
 MODEL = "model.zip"
 # Independent child streams of the root seed.
@@ -227,14 +234,19 @@ def sb3_runs(cfg: Sb3StudyConfig, args: argparse.Namespace, root: Path) -> pd.Da
             continue
         tasks.append((env, method, s, cfg, test_env_seed(args.seed, env),
                       policy_stream(args.seed, env, method, s)))
-    for task, (row, data) in zip(tasks, map_tasks(sb3_task, tasks, n_jobs=args.n_jobs,
-                                                    scheduler=args.scheduler)):
-        env, method, s = task[:3]
-        folder = root / env / f"{method}-seed{s}"
-        folder.mkdir(parents=True, exist_ok=True)
-        write_bytes(folder / MODEL, data)
-        write_json(folder / RESULT, dict(settings=sb3_settings(cfg, env, method, s), row=row))
-        rows[(env, method, s)] = row
+    # a round of tasks at a time, each run's files written as its round ends: an interrupted
+    # study loses at most the round in flight
+    size = args.n_jobs or os.cpu_count() or 1
+    for start in range(0, len(tasks), size):
+        chunk = tasks[start:start + size]
+        for task, (row, data) in zip(chunk, map_tasks(sb3_task, chunk, n_jobs=args.n_jobs,
+                                                        scheduler=args.scheduler)):
+            env, method, s = task[:3]
+            folder = root / env / f"{method}-seed{s}"
+            folder.mkdir(parents=True, exist_ok=True)
+            write_bytes(folder / MODEL, data)
+            write_json(folder / RESULT, dict(settings=sb3_settings(cfg, env, method, s), row=row))
+            rows[(env, method, s)] = row
     return pd.DataFrame([{**rows[key], "run": str(root / key[0] / f"{key[1]}-seed{key[2]}")}
                          for key in wanted])
 
@@ -389,7 +401,7 @@ def run(args: argparse.Namespace) -> int:
     root = check_writable_dir(Path(args.runs_dir) / "beyond-sb3", "--runs-dir")
     t0 = time.perf_counter()
     runs = pd.concat([sb3_runs(cfg, args, root), trpo_runs(cfg, args, root),
-                      heuristic_rows(cfg, args.seed)], ignore_index=True)
+                      heuristic_rows(cfg, args.seed)], ignore_index=True)[list(COLUMNS)]
     summary = summarise(runs, cfg.n_boot, args.seed)
     prov = provenance(dataclasses.asdict(cfg), command="beyond-sb3", scale=args.scale,
                       seed=args.seed, wall_seconds=time.perf_counter() - t0)

@@ -154,19 +154,7 @@ def macro_gae(rewards: Any, durations: Any, values: Any, last_value: Any, gamma:
     values, mismatched shapes.
     """
     like = next((x for x in (values, rewards) if _is_tensor(x)), None)
-    r, dt, v = (_float64(x, name) for x, name in ((rewards, "rewards"),
-                                                  (durations, "durations"), (values, "values")))
-    _check(r.ndim in (1, 2), "rewards", "a 1-D array (one path) or 2-D [steps, envs]",
-           f"shape {r.shape}")
-    for x, name in ((dt, "durations"), (v, "values")):
-        _check(x.shape == r.shape, name, f"the shape of rewards, {r.shape}", f"shape {x.shape}")
-    _check(np.isfinite(r).all(), "rewards", "finite numbers", "NaN or inf")
-    _check(np.isfinite(v).all(), "values", "finite numbers", "NaN or inf")
-    bad = dt[~(np.isfinite(dt) & (dt > 0))]
-    _check(bad.size == 0, "durations", "finite numbers > 0 (each macro-action's length)",
-           bad[:1].tolist())
-    _check(math.isfinite(gamma) and gamma > 0, "gamma", "a number > 0 (a discount rate)", gamma)
-    _check(math.isfinite(lam) and lam >= 0, "lam", "a number >= 0", lam)
+    r, dt, v = _checked(rewards, durations, values, gamma, lam)
     one_path = r.ndim == 1
     r2, dt2, v2 = (x.reshape(len(x), -1) for x in (r, dt, v))
     n, m = r2.shape
@@ -194,6 +182,25 @@ def macro_gae(rewards: Any, durations: Any, values: Any, last_value: Any, gamma:
 
     return (torch.as_tensor(adv, dtype=like.dtype, device=like.device),
             torch.as_tensor(ret, dtype=like.dtype, device=like.device))
+
+
+def _checked(rewards: Any, durations: Any, values: Any, gamma: float,
+             lam: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`macro_gae`'s path arrays as float64, each input checked (ValueError naming it)."""
+    r, dt, v = (_float64(x, name) for x, name in ((rewards, "rewards"),
+                                                  (durations, "durations"), (values, "values")))
+    _check(r.ndim in (1, 2), "rewards", "a 1-D array (one path) or 2-D [steps, envs]",
+           f"shape {r.shape}")
+    for x, name in ((dt, "durations"), (v, "values")):
+        _check(x.shape == r.shape, name, f"the shape of rewards, {r.shape}", f"shape {x.shape}")
+    _check(np.isfinite(r).all(), "rewards", "finite numbers", "NaN or inf")
+    _check(np.isfinite(v).all(), "values", "finite numbers", "NaN or inf")
+    bad = dt[~(np.isfinite(dt) & (dt > 0))]
+    _check(bad.size == 0, "durations", "finite numbers > 0 (each macro-action's length)",
+           bad[:1].tolist())
+    _check(math.isfinite(gamma) and gamma > 0, "gamma", "a number > 0 (a discount rate)", gamma)
+    _check(math.isfinite(lam) and lam >= 0, "lam", "a number >= 0", lam)
+    return r, dt, v
 
 
 def _is_tensor(x: Any) -> bool:
