@@ -17,7 +17,8 @@ STAMP  := $(VENV)/.installed
 .PHONY: help setup reproduce test lint claims race bus-thresholds bus-eval fig-bus-lambda \
 	fig-bus-batch fig-bus-arrivals fig-bus-load wildfire-heuristics bench-bus bench-wildfire \
 	wildfire-eval bench-learn plot-runs scaling fig-transfer wildfire-behaviour render train \
-	beyond-races beyond-mgae beyond-order beyond-transfer-dt learner-ablation c9-inputs clean \
+	beyond-races beyond-mgae beyond-sb3 beyond-order beyond-transfer-dt learner-ablation c9-inputs \
+	clean \
 	table-race table-thresholds fig-scaling
 .DEFAULT_GOAL := help
 
@@ -61,6 +62,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke che
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) beyond-races SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) beyond-mgae SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) beyond-sb3 SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) beyond-order SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) beyond-transfer-dt SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) learner-ablation SCALE=$(SCALE) SEED=$(SEED)
@@ -138,6 +140,9 @@ c9-inputs: $(STAMP) ## C9's policies tested with health and sojourn clamped (aft
 
 beyond-mgae: $(STAMP) ## X1: M-GAE vs two other advantage estimators (reuses fig-bus-lambda's, fig-transfer's runs)
 	$(REPRO) beyond-mgae --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+beyond-sb3: $(STAMP) ## X6: SB3's PPO with its GAE and with M-GAE against PS-TRPO, wildfire and bus
+	$(REPRO) beyond-sb3 --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 beyond-transfer-dt: $(STAMP) ## X3: transfer to ED against 13 dT, race rate beside it (reuses fig-transfer's runs)
 	$(REPRO) beyond-transfer-dt --scale $(SCALE) --seed $(SEED) $(ARGS)

@@ -64,5 +64,5 @@ CLAIMS = [
           "and minibatches unchanged)?", "M-GAE closes most of SB3's gap, in both environments",
           f"PASS: the share of the gap closed has its 95% bootstrap CI above {MOST:g} in both "
           f"environments; FAIL: its point estimate is at most {MOST:g} in both",
-          "python -m repro beyond-sb3 --scale paper", check_x6, where="Sec. 3.2"),
+          "make beyond-sb3", check_x6, where="Sec. 3.2"),
 ]
