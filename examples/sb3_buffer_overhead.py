@@ -9,7 +9,6 @@ and with :class:`repro.learn.sb3.MGAERolloutBuffer`, on the same batch of wildfi
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 import torch
@@ -18,7 +17,7 @@ from stable_baselines3.common.logger import configure
 
 from repro.envs.wildfire import WildfireConfig
 from repro.envs.wildfire.pettingzoo_env import parallel_env
-from repro.learn.sb3 import MGAERolloutBuffer, Spaces, collect_paths, fill_buffer
+from repro.learn.sb3 import MGAERolloutBuffer, Spaces, collect_paths, update_on
 
 PARTS = ("fill", "advantages", "train")
 
@@ -43,14 +42,7 @@ def main(argv: list[str] | None = None) -> dict[str, dict[str, float]]:
     seconds = {name: {part: [] for part in PARTS} for name in models}
     for _ in range(args.repeats):
         for name, model in models.items():
-            t0 = time.process_time()
-            last, done = fill_buffer(model, paths)
-            t1 = time.process_time()
-            model.rollout_buffer.compute_returns_and_advantage(last, done)
-            t2 = time.process_time()
-            model.train()
-            t3 = time.process_time()
-            for part, dt in zip(PARTS, (t1 - t0, t2 - t1, t3 - t2)):
+            for part, dt in zip(PARTS, update_on(model, paths)):
                 seconds[name][part].append(dt)
     medians = {name: {part: float(np.median(v)) for part, v in parts.items()}
                for name, parts in seconds.items()}

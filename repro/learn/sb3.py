@@ -179,13 +179,21 @@ def train_update(envs: Any, model: BaseAlgorithm, seed: int | None = None,
     paths = collect_paths(envs, model, model.n_steps, seed)
     if on_batch is not None:
         on_batch(paths)
+    collected = time.process_time() - t0
+    fill, advantages, train = update_on(model, paths)
+    return paths, {"collect": collected + fill, "advantages": advantages, "train": train}
+
+
+def update_on(model: BaseAlgorithm, paths: list[Path]) -> tuple[float, float, float]:
+    """Fill ``model``'s buffer with ``paths``, compute its advantages and run SB3's update; the
+    CPU seconds of each of the three."""
+    t0 = time.process_time()
     last_values, dones = fill_buffer(model, paths)
     t1 = time.process_time()
     model.rollout_buffer.compute_returns_and_advantage(last_values, dones)
     t2 = time.process_time()
     model.train()
-    t3 = time.process_time()
-    return paths, {"collect": t1 - t0, "advantages": t2 - t1, "train": t3 - t2}
+    return t1 - t0, t2 - t1, time.process_time() - t2
 
 
 class Spaces(gymnasium.Env):
