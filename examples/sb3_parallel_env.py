@@ -5,9 +5,10 @@ SB3's own GAE.
 What it does (:mod:`repro.learn.sb3`, docs/own-learner.md): each update plays whole episodes of
 ``--envs`` ParallelEnvs side by side, sampling every deciding UAV's action from SB3's policy
 (``infos[uav]["decides"]``: a UAV whose macro-action runs on is not asked), keeps every UAV's
-decisions of an episode as one path, with the rewards the env hands out (each macro-action's, discounted to its
-start) and the durations of its ``infos``, lays the paths into the model's rollout buffer and
-runs SB3's own update (``model.train()``: its clipped objective, optimiser and minibatches).
+decisions of an episode as one path, with the rewards the env hands out (each macro-action's,
+discounted to its start) and the durations of its ``infos``, lays the paths into the model's
+rollout buffer and runs SB3's own update (``model.train()``: its clipped objective, optimiser and
+minibatches).
 
 - ``--estimator m-gae`` (the default): the buffer is
   :class:`repro.learn.sb3.MGAERolloutBuffer`, which stores each decision's duration and computes
