@@ -20,7 +20,7 @@ STAMP  := $(VENV)/.installed
 	render advantage-estimators train plot-runs bench-bus bench-wildfire bench-learn clean \
 	table-race table-thresholds fig-scaling fig-transfer wildfire-heuristics beyond-transfer-dt \
 	beyond-order learner-ablation c9-inputs fig-bus-lambda fig-bus-batch fig-bus-arrivals \
-	fig-bus-load beyond-races beyond-mgae interval-coverage
+	fig-bus-load beyond-races beyond-mgae beyond-sb3 interval-coverage advantage-sb3
 .DEFAULT_GOAL := help
 
 help:
@@ -63,6 +63,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke che
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-races SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) advantage-estimators SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) advantage-sb3 SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) transfer-order SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) transfer-dt SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) transfer-ablation SCALE=$(SCALE) SEED=$(SEED)
@@ -145,6 +146,9 @@ transfer-inputs: $(STAMP) ## C9's policies tested with health and sojourn clampe
 advantage-estimators: $(STAMP) ## X1: M-GAE vs two other advantage estimators (reuses bus-lambda's, transfer's runs)
 	$(REPRO) advantage-estimators --scale $(SCALE) --seed $(SEED) $(ARGS)
 
+advantage-sb3: $(STAMP) ## X6: SB3's PPO with its GAE and with M-GAE against PS-TRPO, wildfire and bus
+	$(REPRO) advantage-sb3 --scale $(SCALE) --seed $(SEED) $(ARGS)
+
 transfer-dt: $(STAMP) ## X3: transfer to ED against 13 dT, race rate beside it (reuses transfer's runs)
 	$(REPRO) transfer-dt --scale $(SCALE) --seed $(SEED) $(ARGS)
 
@@ -165,6 +169,7 @@ fig-bus-arrivals: bus-arrivals ## alias of bus-arrivals
 fig-bus-load: bus-loads ## alias of bus-loads
 beyond-races: wildfire-races ## alias of wildfire-races
 beyond-mgae: advantage-estimators ## alias of advantage-estimators
+beyond-sb3: advantage-sb3 ## alias of advantage-sb3
 
 clean: ## remove the virtual environment and caches, numba's compiled kernels too (results and figures stay)
 	rm -rf $(VENV) .pytest_cache .hypothesis

@@ -54,6 +54,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     # training, and does M-GAE matter?
     "advantage-estimators": (S + "advantage.estimators",
                              "M-GAE against two other advantage estimators, bus and wildfire (X1)"),
+    "advantage-sb3": (S + "advantage.sb3",
+                      "SB3 PPO with its GAE and with M-GAE against PS-TRPO, bus and wildfire (X6)"),
     "train": (S + "training.train", "train a shared policy with PS-TRPO and M-GAE"),
     "plot-runs": (S + "training.plot_runs",
                   "training curves of run folders, runs grouped by setting, seed intervals"),
@@ -84,6 +86,7 @@ ALIASES: dict[str, str] = {
     "fig-bus-load": "bus-loads",
     "beyond-races": "wildfire-races",
     "beyond-mgae": "advantage-estimators",
+    "beyond-sb3": "advantage-sb3",
 }
 """Every other name of a command (the paper's names of its tables and figures, and the names the
 commands had before they were grouped by question) -> the command. The Makefile has a target of

@@ -131,6 +131,7 @@ def assert_sidecar_describes(stem: Path, sources: list[Path], scale: str) -> dic
     ("fig-transfer", ["--learner", "suite", "--corrected"], "transfer_corrected_suite",
      ["transfer_corrected_suite", "transfer_corrected_suite_summary"]),
     ("beyond-mgae", [], "beyond_mgae", ["beyond_mgae", "beyond_mgae_summary"]),
+    ("beyond-sb3", [], "beyond_sb3", ["beyond_sb3", "beyond_sb3_summary"]),
     ("learner-ablation", [], "learner_ablation", ["learner_ablation_summary"]),
     ("beyond-order", [], "order_reversal", ["order_reversal", "order_reversal_summary"]),
     ("beyond-transfer-dt", [], "transfer_dt_grid",

@@ -118,7 +118,7 @@ LEGEND = {
 """What each verdict means."""
 TOPICS = ("repro.claims.race", "repro.claims.scaling", "repro.claims.bus",
           "repro.claims.wildfire", "repro.claims.learner", "repro.claims.beyond",
-          "repro.claims.beyond_races")
+          "repro.claims.beyond_races", "repro.claims.beyond_sb3")
 BEYOND = "X"
 """Id prefix of the claims beyond the paper: questions the paper raises and leaves open.
 They are rendered in a section of their own, and a scale's results are complete without them (so
