@@ -16,7 +16,7 @@ import repro  # noqa: F401  (first: run as a module, it pins the CPU kernels bef
 import numpy as np
 import pytest
 
-from repro.core import kernels
+from repro.runs import kernels
 from repro.envs import env_package
 from repro.learn.config import train_config
 from repro.learn.process import configure_process
