@@ -111,14 +111,14 @@ def test_x1_outputs(smoke):
 
 def test_beyond_claims_are_not_yet_run_without_results(tmp_path):
     ids = [c.id for c in registry() if c.id.startswith("X")]
-    assert ids == ["X1", "X2", "X3", "X4", "X5"]
+    assert ids == ["X1", "X2", "X3", "X4", "X5", "X6"]
     for claim in registry():
         if claim.id in ids:
             v = claim.evaluate(tmp_path)
             assert v.verdict == NOT_RUN and "missing" in v.detail, v
     text = render(tmp_path)
     head, section = text.split("## Beyond the paper")
-    assert "X1" not in head.split("## Details")[0] and "**5 questions: 5 not yet run**" in section
+    assert "X1" not in head.split("## Details")[0] and "**6 questions: 6 not yet run**" in section
     assert head.splitlines()[2].startswith("**11 claims:")
 
 

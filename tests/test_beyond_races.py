@@ -173,7 +173,7 @@ def _x4_results(tmp_path, degrades: dict[tuple[str, str], bool], n: int = 5):
 
 @pytest.mark.parametrize("q3_off_reversed, n, verdict", [
     (True, 5, "PASS"), (False, 5, "FAIL"), (True, 1, "PARTIAL")])
-def test_x4_check(tmp_path, q3_off_reversed, n, verdict):
+def test_x4_check(tmp_path, q3_off_reversed, n, verdict, stored_intervals):
     x4 = _claim("X4")
     assert x4.evaluate(tmp_path).verdict == NOT_RUN
     _x4_results(tmp_path, {("released", "released"): False, ("released", "reversed"): False,
@@ -185,7 +185,7 @@ def test_x4_check(tmp_path, q3_off_reversed, n, verdict):
     assert "Only the reversed order" not in v.detail
 
 
-def test_x4_says_where_only_the_reversed_order_degrades(tmp_path):
+def test_x4_says_where_only_the_reversed_order_degrades(tmp_path, stored_intervals):
     _x4_results(tmp_path, {("released", "released"): False, ("released", "reversed"): True,
                            ("released, Q3 off", "released"): True,
                            ("released, Q3 off", "reversed"): True})

@@ -289,10 +289,10 @@ def test_a_paper_scale_run_with_settings_of_its_own_is_no_paper_scale_run(tmp_pa
 def _departures(command: str, *argv: str) -> list[str]:
     import importlib
 
-    from repro.cli import COMMANDS, OneLineParser
+    from repro.cli import ALIASES, COMMANDS, OneLineParser
     from repro.studies.kit.options import scale_departures
 
-    module = importlib.import_module(COMMANDS[command][0])
+    module = importlib.import_module(COMMANDS[ALIASES.get(command, command)][0])
     parser = OneLineParser(prog=command)
     module.add_arguments(parser)
     return scale_departures(parser, parser.parse_args(argv), getattr(module, "VARIANTS", ()))

@@ -16,7 +16,7 @@ from repro.envs.bus import BusConfig, make_env, make_reference_env
 from repro.envs.bus.policies import no_holding
 from repro.learn.trained_policy import trained_env_config
 from repro.studies.bench import common as bench_common
-from repro.studies.bench.common import VARIANTS, BenchConfig, add_arguments
+from repro.studies.bench.common import VARIANTS, BenchConfig
 
 __all__ = ["VARIANTS", "BusBenchConfig", "add_arguments", "measure", "run"]
 
@@ -26,6 +26,10 @@ class BusBenchConfig(BenchConfig):
     """Sizes of ``bench-bus`` (the fast engine runs the bus's training batch)."""
 
     SCALES: ClassVar[dict[str, dict[str, int]]] = bench_common.scales("bus")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    bench_common.add_arguments(p, BusBenchConfig)
 
 
 def measure(cfg: BusBenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:

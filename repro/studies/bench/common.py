@@ -201,9 +201,11 @@ VARIANTS = ("checkpoint",)
 settings (:func:`repro.studies.kit.options.scale_departures`)."""
 
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
+def add_arguments(p: argparse.ArgumentParser, config: type[BenchConfig]) -> None:
+    """A benchmark's options: its ``config``'s sizes (each flag's scale default is that class's)
+    and ``--checkpoint``."""
     add_common(p, figures=False)
-    add_config_arguments(p, BenchConfig)
+    add_config_arguments(p, config)
     p.add_argument("--checkpoint", help="time this training run's policy (its checkpoint.pt) "
                                         "instead of a fresh network, on that run's environment")
 

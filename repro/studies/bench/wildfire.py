@@ -18,7 +18,7 @@ from repro.envs.wildfire import WildfireConfig, make_env, make_reference_env
 from repro.envs.wildfire.policies import RandomPolicy
 from repro.learn.trained_policy import trained_env_config
 from repro.studies.bench import common as bench_common
-from repro.studies.bench.common import VARIANTS, BenchConfig, add_arguments
+from repro.studies.bench.common import VARIANTS, BenchConfig
 
 __all__ = ["VARIANTS", "WildfireBenchConfig", "add_arguments", "measure", "run"]
 
@@ -28,6 +28,10 @@ class WildfireBenchConfig(BenchConfig):
     """Sizes of ``bench-wildfire`` (the fast engine runs the wildfire's training batch)."""
 
     SCALES: ClassVar[dict[str, dict[str, int]]] = bench_common.scales("wildfire")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    bench_common.add_arguments(p, WildfireBenchConfig)
 
 
 def measure(cfg: WildfireBenchConfig, seed: int,
