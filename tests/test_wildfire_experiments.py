@@ -322,6 +322,19 @@ def test_fig_transfer_cli_smoke(tmp_path, monkeypatch):
     summary = pd.read_csv(tmp_path / "r0" / "transfer_summary.csv")
     assert list(summary.simulator) == list(TRANSFER_ADR) and (summary.n_policies == 1).all()
     assert all((tmp_path / "fig" / f"transfer.{ext}").exists() for ext in ("png", "pdf"))
+    # a subset of the simulators, here the T_health variant without its FS-1: the figure is drawn,
+    # and the policy scores as in the whole study (its test stream is its run's, not its place's)
+    variant = "FS-1 (T_health=2.9999)"
+    assert _main(["fig-transfer", "--scale", "smoke", "--test-episodes", "5", "--n-jobs", "1",
+                  "--simulator", variant, "--runs-dir", str(tmp_path / "runs"),
+                  "--results-dir", str(tmp_path / "subset"),
+                  "--figures-dir", str(tmp_path / "subset_fig")]) == 0
+    whole, subset = (pd.read_csv(tmp_path / d / "transfer.csv").drop(columns="wall_seconds",
+                                                                       errors="ignore")
+                     for d in ("r0", "subset"))
+    assert len(subset) == 1 and subset.iloc[0].to_dict() == (
+        whole[whole.simulator == variant].iloc[0].to_dict())
+    assert (tmp_path / "subset_fig" / "transfer.png").exists()
 
 
 STUDY_BAD_INPUT = [["--seeds", "0"], ["--n-jobs", "0"], ["--scale", "huge"], ["--seed", "-1"],
@@ -533,3 +546,15 @@ def test_the_claims_say_how_many_episodes_the_decision_limit_cut(tmp_path, cut, 
     write_result_csv(table.drop(columns=["train_truncated", "test_truncated"]),
                      tmp_path / "old.csv")
     assert claims._cut_line(tmp_path / "old.csv") == ""  # made before the columns existed
+
+
+def test_a_policys_stream_is_keyed_by_its_run():
+    """The same run gets the same stream under a root seed, whatever else a study tests; other
+    runs, streams or seeds get others."""
+    from repro.studies.kit.sweep import policy_stream
+
+    state = policy_stream(0, 1, "fs1-th3-seed0").generate_state(4).tolist()
+    assert state == policy_stream(0, 1, "fs1-th3-seed0").generate_state(4).tolist()
+    others = [policy_stream(0, 1, "fs1-th3-seed1"), policy_stream(0, 2, "fs1-th3-seed0"),
+              policy_stream(1, 1, "fs1-th3-seed0")]
+    assert all(o.generate_state(4).tolist() != state for o in others)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import dataclasses
+import hashlib
 import os
 import re
 import signal
@@ -38,6 +39,8 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
+
+import numpy as np
 
 from repro.core.config import add_config_arguments
 from repro.core.errors import UsageError, WorkerDied, require
@@ -67,6 +70,16 @@ class TrainJob:
     """The run's ``repro.learn.config.TrainConfig`` (carries env name, epochs and seed)."""
     env_config: Any
     """The environment package's config dataclass (e.g. ``WildfireConfig``)."""
+
+
+def policy_stream(seed: int, stream: int, run: str) -> np.random.SeedSequence:
+    """The random stream of the trained policy of run ``run`` (its name: the environment's
+    settings and the training seed) under child ``stream`` of a study's root ``seed``: keyed by the
+    run itself, not by its place among a study's runs, so that a policy scores the same in every
+    study and in any subset of a study's runs."""
+    digest = hashlib.sha256(run.encode()).digest()
+    words = (int.from_bytes(digest[i:i + 4], "little") for i in range(0, 16, 4))
+    return np.random.SeedSequence(seed, spawn_key=(stream, *words))
 
 
 def run_dir(root: Path, job: TrainJob) -> Path:

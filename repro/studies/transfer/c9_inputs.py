@@ -33,7 +33,7 @@ from repro.learn.config import learner_stem
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.runs.stats import bootstrap_ci
-from repro.studies.kit.sweep import check_study_arguments, run_sweep
+from repro.studies.kit.sweep import check_study_arguments, policy_stream, run_sweep
 from repro.studies.transfer.study import (add_size_arguments, make_jobs, runs_folder, study_config,
                                           test_env_seed)
 from repro.studies.wildfire.study import adr, evaluate
@@ -113,8 +113,8 @@ def run(args: argparse.Namespace) -> int:
                         n_jobs=args.n_jobs, scheduler=args.scheduler)
     env_seed, test = test_env_seed(args.seed), cfg.test_simulator()
     rows = []
-    for i, ((label, job), folder) in enumerate(zip(labelled, folders)):
-        stream = np.random.SeedSequence(args.seed, spawn_key=(_POLICY_STREAM, i))
+    for (label, job), folder in zip(labelled, folders):
+        stream = policy_stream(args.seed, _POLICY_STREAM, job.name)
         for name, clamps in CLAMPS.items():
             value, changed = score(test, folder / CHECKPOINT, clamps, cfg.test_episodes,
                                    env_seed, stream)

@@ -27,7 +27,8 @@ from repro.paper import TRANSFER_ADR
 from repro.runs.files import check_writable_dir
 from repro.runs.stats import bootstrap_ci, iqm, sem
 from repro.studies.kit.options import add_common
-from repro.studies.kit.sweep import TrainJob, add_sweep_arguments, map_tasks, run_sweep
+from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, map_tasks, policy_stream,
+                                     run_sweep)
 from repro.studies.wildfire.study import adr, evaluate
 
 
@@ -206,18 +207,19 @@ def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
       the episodes' spread, and 40 common episodes would shift every run alike (by about 0.1 ADR
       in a trial).
 
-    The policies are tested in parallel like a sweep (``map_tasks``); each has its own stream, so
-    the numbers do not depend on where or in which order they run."""
+    The policies are tested in parallel like a sweep (``map_tasks``); each has its own stream,
+    keyed by its run (:func:`~repro.studies.kit.sweep.policy_stream`), so the numbers do not depend
+    on where or in which order they run, nor on which other policies a study tests."""
     from repro.learn.config import learner_name
     from repro.runs.run_folder import CHECKPOINT, KEPT_POLICIES, kept_policies
 
     env_seed = test_env_seed(seed)
     tasks = []
-    for i, ((_, job), folder) in enumerate(zip(labelled, folders)):
+    for (_, job), folder in zip(labelled, folders):
         kept = kept_policies(folder, min(KEPT_POLICIES, job.train.epochs), job.train.epochs)
         tasks.append((cfg.test_simulator(), (folder / CHECKPOINT).read_bytes(),
                       [p.read_bytes() for p in kept], cfg.test_episodes, env_seed,
-                      np.random.SeedSequence(seed, spawn_key=(_TEST_POLICY_STREAM, i))))
+                      policy_stream(seed, _TEST_POLICY_STREAM, job.name)))
     scores = map_tasks(score_policy, tasks, n_jobs=n_jobs, scheduler=scheduler)
     rows = []
     for ((label, job), folder), (mean, err, test_cut, kept) in zip(zip(labelled, folders), scores):

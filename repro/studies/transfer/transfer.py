@@ -60,8 +60,10 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     tested = summary.t_health == WildfireConfig.t_health
     main, variant = summary[tested].reset_index(drop=True), summary[~tested]
     xpos = {label: i for i, label in enumerate(main.simulator)}
-    for row in variant.itertuples():  # placed at the FS simulator of the same dT
-        xpos[row.simulator] = xpos[fs_label(row.dt)]
+    for row in variant.itertuples():  # at the FS simulator of the same dT, or after the others
+        xpos[row.simulator] = xpos.get(fs_label(row.dt), len(xpos))
+    ticks = {**{label: x for label, x in xpos.items() if label in set(main.simulator)},
+             **{label: x for label, x in xpos.items() if x >= len(main)}}
     fig, ax = plt.subplots(figsize=(7, 4))
     for frame, marker, color, name in ((main, "o", "C0", "ours"),
                                        (variant, "s", "C3", "ours")):
@@ -75,7 +77,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
                     capsize=3, label=f"{name}, T_health = {th:g} (dots: each policy)")
         ax.errorbar(x + 0.06, frame.paper_mean, yerr=frame.paper_sem, fmt=marker, mfc="none",
                     color=color, alpha=0.7, capsize=3, label=f"paper, T_health = {th:g}")
-    ax.set_xticks(range(len(main)), main.simulator)
+    ax.set_xticks(list(ticks.values()), list(ticks))
     ax.set_xlabel("training simulator")
     ax.set_ylabel("ADR on ED (T_health = 3.0)\nmean over policies, error bars: standard error",
                   fontsize=9)

@@ -61,7 +61,8 @@ from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.kit.options import add_common, results_folder
-from repro.studies.kit.sweep import TrainJob, add_sweep_arguments, check_sweep_arguments, run_sweep
+from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
+                                     policy_stream, run_sweep)
 from repro.studies.wildfire.study import adr, evaluate
 
 PAPER = dict(**BEHAVIOUR_FREQUENCIES, flowchart_worse=FLOWCHART_WORSE)
@@ -202,8 +203,6 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
     env = make_env(env_cfg)
     env_seed = int(np.random.SeedSequence(seed, spawn_key=(_TEST_ENV_STREAM,)).generate_state(1)[0])
 
-    def rng(i: int) -> np.random.Generator:
-        return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_POLICY_STREAM, i)))
 
     def observe(policy) -> tuple[dict[str, float], float, float, int]:
         """The policy's frequencies (counted per test batch, so that observations need not be
@@ -214,13 +213,16 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
         total = {key: sum(c[key] for c in counts) for key in counts[0]}
         return shares(total), *adr(rollout, env.gamma), rollout.n_truncated
 
-    flowchart = FlowchartPolicy(rng(0), n_observed=env_cfg.n_observed)
+    flowchart = FlowchartPolicy(
+        np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_POLICY_STREAM, 0))),
+        n_observed=env_cfg.n_observed)
     flow_shares, flow_adr, flow_sem, _ = observe(flowchart)
     rows = []
-    for i, (job, folder) in enumerate(zip(jobs, folders), start=1):
+    for job, folder in zip(jobs, folders):  # each policy's stream keyed by its run
         policy = policy_from_state(load_checkpoint(folder / CHECKPOINT, "--runs-dir",
                                                    obs_dim=env.obs_dim, n_actions=env.n_actions),
-                                   rng(i))
+                                   np.random.default_rng(policy_stream(seed, _POLICY_STREAM,
+                                                                       job.name)))
         learned, learned_adr, learned_sem, cut = observe(policy)
         rows.append(dict(train_seed=job.train.seed, epochs=job.train.epochs,
                          learner=learner_name(job.train), r_pen=env_cfg.r_pen,
