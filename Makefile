@@ -14,7 +14,7 @@ STAMP  := $(VENV)/.installed
 
 # Each command of `python -m repro` has the target of its name, and each of its other names an
 # alias target (tests/test_make.py checks both).
-.PHONY: help setup reproduce test lint claims transfer transfer-heuristics transfer-dt \
+.PHONY: help setup reproduce test test-fast lint claims transfer transfer-heuristics transfer-dt \
 	transfer-order transfer-ablation transfer-inputs bus-thresholds bus-lambda bus-batch \
 	bus-arrivals bus-loads bus-eval race wildfire-races scaling wildfire-behaviour wildfire-eval \
 	render advantage-estimators train plot-runs bench-bus bench-wildfire bench-learn clean \
@@ -44,6 +44,9 @@ setup: $(STAMP) ## create .venv and install the suite
 
 test: lint ## lint, then run the test suite
 	$(PY) -m pytest
+
+test-fast: $(STAMP) ## the tests not marked slow (about a minute): while editing
+	$(PY) -m pytest -m "not slow"
 
 lint: $(STAMP) ## ruff: style (100 columns) and likely bugs (pyproject.toml says which rules)
 	$(BIN)/ruff check repro tests

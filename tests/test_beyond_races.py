@@ -30,6 +30,7 @@ def _claim(cid: str):
 
 # --- X2: races ------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_beyond_races_smoke(cli, tmp_path):
     """The real entry point at smoke scale: every (policy, N, dT) cell, the columns other studies
     read, a fit row per (policy, N), the figure; ED-like dT has no race, dT = 10 s always."""

@@ -14,6 +14,8 @@ import pytest
 from repro.claims.bus import check_c4, load_distances
 from repro.cli import main
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 
 def _repro(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "repro", *args], capture_output=True, text=True,

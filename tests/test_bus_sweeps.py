@@ -14,6 +14,8 @@ from repro.claims.bus import check_c1, check_c2, check_c3, check_c5
 from repro.cli import main
 from tests.conftest import write_result_csv
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 
 @pytest.fixture(scope="module")
 def sweeps(tmp_path_factory):

@@ -12,6 +12,8 @@ from repro.claims import NOT_RUN, is_beyond, registry, render
 from repro.cli import main
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 SMALL = ("--scale", "smoke", "--n-sets", "400", "--n-max", "5", "--distribution", "exponential")
 
 

@@ -26,6 +26,8 @@ from repro.studies.races import race
 from repro.studies.transfer import learner_ablation, order as beyond_order, transfer
 from tests.conftest import ROOT, run_cli, tree_snapshot
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 PAPER = Path(__file__).resolve().parents[1] / "results" / "paper"
 
 

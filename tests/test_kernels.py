@@ -13,6 +13,8 @@ import pytest
 from repro.runs import kernels
 from tests.conftest import ROOT, env_without_pins
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 PINNABLE = kernels.pinnable()
 needs_pin = pytest.mark.skipif(not PINNABLE, reason="the pin applies to x86-64 CPUs with AVX2")
 SET_BY_PIN = (*kernels.TORCH_PINS, *kernels.NUMPY_VARIABLES)

@@ -17,6 +17,8 @@ from numba.core.caching import IndexDataCacheFile
 import repro  # noqa: F401  (installs the lock, as every process of the suite does)
 from repro.runs import numba_cache
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -12,6 +12,8 @@ import pytest
 from repro.envs.wildfire import WildfireConfig
 from repro.learn.m_gae import advantage_paths, m_gae, macro_gae
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 torch = pytest.importorskip("torch")
 DOC = Path(__file__).resolve().parents[1] / "docs" / "own-learner.md"
 GAMMA = WildfireConfig().gamma

@@ -15,6 +15,8 @@ import scipy.stats as sps
 from repro.studies.training.plot_runs import curve, groups, read_runs
 from tests.conftest import run_cli, tree_snapshot
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 
 @pytest.fixture(scope="module")
 def two_runs(tmp_path_factory):

@@ -9,6 +9,8 @@ import json
 import pytest
 from PIL import Image
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 
 @pytest.mark.parametrize("env, policy", [("wildfire", "nearest"), ("bus", "nohold")])
 def test_render_writes_an_animation(cli, tmp_path, env, policy):

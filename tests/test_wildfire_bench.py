@@ -10,6 +10,8 @@ from repro.learn.config import TrainConfig
 from repro.learn.trained_policy import load_trained_run
 from repro.studies.bench.wildfire import WildfireBenchConfig, measure
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 MLP = "mlp-" + "x".join(map(str, TrainConfig.hidden)) + "-tanh"
 """The benchmarks' policy: the default learner's network."""
 

@@ -24,6 +24,8 @@ from repro.studies.wildfire.behaviour import frequencies
 from repro.studies.wildfire.study import evaluate
 from tests.conftest import tree_snapshot, write_result_csv
 
+pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
 
 def test_simulators_are_the_papers():
     sims = TransferConfig().simulators()
