@@ -108,3 +108,14 @@ def test_provenance_records_the_kernels():
     from repro.runs.provenance import machine
 
     assert machine()["kernels"] == kernels.state()
+
+
+def test_a_machine_the_pin_does_not_apply_to_is_told_so(monkeypatch):
+    """One accurate line, and only where the user did not opt out."""
+    monkeypatch.setattr(kernels, "pinnable", lambda flags=None: False)
+    monkeypatch.delenv(kernels.OPT_OUT, raising=False)
+    with pytest.warns(kernels.KernelWarning, match="not an x86-64 CPU with AVX2 and FMA"):
+        assert len(kernels.check()) == 1
+    monkeypatch.setenv(kernels.OPT_OUT, "1")
+    assert kernels.check() == []
+

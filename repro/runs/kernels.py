@@ -184,9 +184,13 @@ class KernelWarning(RuntimeWarning):
 
 
 def check() -> list[str]:
-    """Warn (:class:`KernelWarning`, once per process and problem) where the pin did not take;
-    returns the problems."""
+    """Warn (:class:`KernelWarning`, once per process and problem) where the pin did not take, or
+    does not apply on this machine (not opted out of); returns the problems."""
     found = problems()
+    if not pinnable() and os.environ.get(OPT_OUT, "") in ("", "0"):
+        found.append(f"this machine ({platform.machine()}) is not an x86-64 CPU with AVX2 and "
+                     "FMA, the CPUs the learner's arithmetic is the same bytes on (its run "
+                     "folders record the CPU)")
     for problem in found:
         warnings.warn(f"{problem}; training results may differ in the last bits from those of "
                       "other machines", KernelWarning, stacklevel=2)
