@@ -19,7 +19,9 @@ A result is a pair, a CSV and its sidecar, and the pair is trusted only whole:
   its results folder for such results before any work.
 - **Provenance is written once.** A sidecar is never edited after its run; a later correction
   of one of its fields is a separate, dated note beside it, ``<stem>.correction-<date>.json``
-  (:func:`write_correction`), and :func:`shown_provenance` shows the sidecar with its notes.
+  (:func:`write_correction`), and :func:`shown_provenance` shows the sidecar with its notes. A
+  note marked ``in_place`` records an edit made in the sidecar itself before this rule: the sidecar
+  holds the note's ``value``, and the note keeps what the run wrote (``recorded``).
 - **The paper scale is what was run, not what was asked.** A run started with ``--scale paper``
   and settings of its own (``race --scale paper --n-sets 10``) records the scale ``custom``
   (:func:`repro.runs.provenance.run_scale`), below every scale: it neither replaces paper-scale
