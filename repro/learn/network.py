@@ -31,7 +31,7 @@ layer's weights are (outputs, inputs), as torch keeps them; flat parameter vecto
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -81,12 +81,15 @@ class Forward:
     """tanh' = 1 - h^2 of each hidden layer, (units, padded n), computed in float64."""
     logits: np.ndarray
     """Outputs, (n_actions, padded n)."""
+    _logp: np.ndarray | None = field(default=None, repr=False)
 
     def log_probs(self) -> np.ndarray:
-        """log pi(. | o), (n, n_actions), float64."""
-        out = np.empty((self.n, len(self.logits)))
-        _log_softmax(self.logits, out)
-        return out
+        """log pi(. | o), (n, n_actions), float64 (computed once: the step and its Fisher products
+        both need them; not to be written to)."""
+        if self._logp is None:
+            self._logp = np.empty((self.n, len(self.logits)))
+            _log_softmax(self.logits, self._logp)
+        return self._logp
 
     def rows(self, index: np.ndarray) -> Forward:
         """The same pass restricted to the batch entries ``index``."""
