@@ -16,6 +16,7 @@ STAMP  := $(VENV)/.installed
 # alias target (tests/test_make.py checks both).
 .PHONY: help setup reproduce test test-fast lint claims transfer transfer-heuristics transfer-dt \
 	transfer-order transfer-ablation transfer-inputs bus-thresholds bus-lambda bus-batch \
+	bus-lambda-pool bus-batch-pool \
 	bus-arrivals bus-loads bus-eval race wildfire-races scaling wildfire-behaviour wildfire-eval \
 	render advantage-estimators train plot-runs bench-bus bench-wildfire bench-learn clean \
 	table-race table-thresholds fig-scaling fig-transfer wildfire-heuristics beyond-transfer-dt \
@@ -56,6 +57,8 @@ reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke che
 	$(MAKE) bus-thresholds SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) bus-lambda SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) bus-batch SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) bus-lambda-pool SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) bus-batch-pool SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) bus-arrivals SCALE=$(SCALE)
 	$(MAKE) bus-loads SCALE=$(SCALE)
 	$(MAKE) scaling SCALE=$(SCALE) SEED=$(SEED)
@@ -94,6 +97,12 @@ bus-lambda: $(STAMP) ## bus training curves over lambda (C1, C2; needs bus-thres
 
 bus-batch: $(STAMP) ## bus training curves over the batch size (C3; needs bus-thresholds)
 	$(REPRO) bus-batch --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+bus-lambda-pool: $(STAMP) ## bus-lambda on the released runner's shared-stream pool, as the paper's curves were drawn (C1, C2)
+	$(REPRO) bus-lambda --sampler released-pool --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+bus-batch-pool: $(STAMP) ## bus-batch on the released runner's shared-stream pool (C3)
+	$(REPRO) bus-batch --sampler released-pool --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 bus-arrivals: $(STAMP) ## bus arrival times per policy (C5; needs bus-thresholds, bus-lambda)
 	$(REPRO) bus-arrivals --scale $(SCALE) $(ARGS)
