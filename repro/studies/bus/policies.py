@@ -44,7 +44,7 @@ class GreedyPolicy:
         self.sampler = policy_from_state(state, np.random.default_rng(0))
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
-        return self.sampler.probabilities(batch.obs).argmax(axis=1).astype(np.int64)
+        return self.sampler.greedy(batch)
 
 
 POLICIES = ("nohold", "authors", "thresholds", "mlp")
