@@ -32,7 +32,7 @@ from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
 from repro.studies.bus.pictures import (add_policy_arguments, learner_csv, policy_grid,
                                         run_policy_figure)
-from repro.studies.bus.policies import (GreedyPolicy, lambda_summary_csv, make_policy,
+from repro.studies.bus.policies import (TrainedPolicy, lambda_summary_csv, make_policy,
                                         picture_arrivals)
 
 LOAD_CSV = "bus_load.csv"
@@ -98,7 +98,7 @@ def mlp_run_distances(cfg: BusConfig, results: Path, learner: str | None) -> pd.
     runs = read_result(results / lambda_summary_csv(learner))
     rows = []
     for lam, ret, run in runs[runs.policy == "mlp-run"][["lambda", "final_iqm", "run"]].values:
-        arrivals = picture_arrivals(GreedyPolicy(run, cfg), cfg).assign(policy="mlp")
+        arrivals = picture_arrivals(TrainedPolicy(run, cfg), cfg).assign(policy="mlp")
         rows.append({"lambda": lam, "seed": int(Path(run).name.split("seed")[-1]),
                      "final_return": ret, "run": run,
                      "l1_per_point": l1_per_point(loads(arrivals))})
