@@ -87,7 +87,7 @@ class TrainConfig(Validated):
     "finite-difference", the released ``FiniteDifferenceHvp``: the KL's gradient at theta +- eps v,
     eps = gru_fvp_eps / (|theta| + 1e-8); "exact", the second derivative by double backward."""
     gru_fvp_eps: float = 1e-5
-    """``base_eps`` of the finite-difference products (the released runner's 1e-5)."""
+    """Base step of the finite-difference products (the released ``base_eps``, 1e-5)."""
     baseline: str = "linear"
     """Value baseline: "linear" (rllab's linear feature baseline, as the released implementation)
     or "mlp" (see repro.learn.baseline)."""
@@ -178,8 +178,9 @@ GRU_FVPS = ("finite-difference", "exact")
 GRU_FIELDS = ("gru_hidden", "gru_features", "gru_feature_output", "gru_fvp", "gru_fvp_eps")
 """The TrainConfig settings of the gru policy only."""
 MLP_FIELDS = ("hidden", "init")
-"""The TrainConfig settings of the mlp policy only (a named learner sets them for both; given as
-flags with --policy gru they are refused)."""
+"""The TrainConfig settings of the mlp policy only: a named learner sets them for both policies,
+and with --policy gru a value other than the learner's is refused (the gru's settings, other
+than their defaults, are refused with --policy mlp)."""
 SAMPLERS = ("independent", "released-pool")
 """The batch samplers (``TrainConfig.sampler``)."""
 
@@ -239,13 +240,12 @@ def train_config(scale: str, env: str, learner: str = DEFAULT_LEARNER,
     require(learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS), learner)
     preset = {k: v for k, v in LEARNERS[learner].items() if k != "batch_unit"}
     given = {k: v for k, v in overrides.items() if v is not None}
-    policy = given.get("policy", TrainConfig.policy)
-    unused = MLP_FIELDS if policy == "gru" else GRU_FIELDS
-    for name in unused:
-        require(name not in given, flag(name), f"left out with --policy {policy} (a setting of "
-                f"the {'mlp' if policy == 'gru' else 'gru'} policy)", given.get(name))
-    fields = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], **preset,
-              "env": env, **given}
+    base = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], **preset}
+    if given.get("policy") == "gru":  # the mlp's settings as set without flags (a run's
+        for name in MLP_FIELDS:       # config.json gives them) or refused
+            require(given.get(name, base[name]) == base[name], flag(name), "left out with "
+                    "--policy gru (a setting of the mlp policy)", given.get(name))
+    fields = {**base, "env": env, **given}
     units = ("batch_decisions", "batch_episodes")
     require(not all(u in given for u in units), "--batch-decisions",
             "given instead of --batch-episodes, not with it", given.get("batch_decisions"))
