@@ -10,8 +10,10 @@ authors' thresholds (fixed policies, so the corridor alone decides), the L1 dist
 the paper's panel with each of B1-B5 turned off alone (``off``: none, a switch, or all); and,
 with the MLP panel taken from the lambda sweep, results/bus_load_mlp_runs.csv: every trained run
 of that sweep (lambda, seed, final return), acting greedily, with its L1 distance per point to the
-paper's MLP panel. The figure is one column wide, the panels two by two; ``--replot`` draws it
-again from results/bus_load.csv (and writes nothing else).
+paper's MLP panel. The GRU panels (``--policies ... gru gru-greedy``: the arrival figure's) are
+compared with the paper's MLP panel too, which the released GRU drew. The figure is one column
+wide, the panels two by two; ``--replot`` draws it again from results/bus_load.csv (and writes
+nothing else).
 """
 
 from __future__ import annotations
