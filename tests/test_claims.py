@@ -157,3 +157,25 @@ def test_claims_out_is_never_a_result_file(tmp_path, monkeypatch, capsys, out):
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "--out: must be a Markdown file name" in err
     assert tree_snapshot(tmp_path) == before
+
+
+def test_a_claim_decided_on_a_missing_set_up_reads_not_yet_run_with_the_others_beside(tmp_path):
+    """decided_on: the deciding set-up's verdict when its results exist; otherwise "not yet run",
+    a rerun pending (outdated) where the other readings have results, missing where none do."""
+    from repro.claims import NOT_RUN, IncompleteResult, Verdict, decided_on
+
+    def deciding(results):
+        if not (results / "deciding.csv").exists():
+            raise IncompleteResult("no rows")
+        return Verdict("ours", "PASS", "why", "paper")
+
+    beside_present = decided_on(deciding, "the figure's set-up",
+                                lambda results: Verdict("other", "FAIL", "other why", "paper"))
+    v = beside_present(tmp_path)
+    assert (v.verdict, v.outdated) == (NOT_RUN, True) and "other why" in v.detail
+    beside_missing = decided_on(deciding, "the figure's set-up",
+                                lambda results: Verdict("-", NOT_RUN, "", ""))
+    assert not beside_missing(tmp_path).outdated
+    (tmp_path / "deciding.csv").write_text("x\n")
+    v = beside_present(tmp_path)
+    assert v.verdict == "PASS" and v.ours == "ours; other" and "Beside it: other why" in v.detail

@@ -136,8 +136,9 @@ class Verdict:
     scale: str = ""
     """Scale of the run the value comes from (read from the provenance sidecar)."""
     outdated: bool = False
-    """The result files exist but were made on semantics the engines no longer follow (the verdict
-    is then "not yet run"); a rerun is pending."""
+    """The result files exist but were made on semantics the engines no longer follow, or on
+    another set-up than the one that decides the claim (the verdict is then "not yet run"); a
+    rerun is pending."""
     other: str = ""
     """For a claim that compares intervals: its verdict under the other interval of
     :data:`INTERVALS`, named ("percentile: PASS"; set by :func:`evaluate_with`)."""
@@ -254,6 +255,25 @@ def side_by_side(check: Callable[[Path, str], Verdict],
         if first is None:
             return Verdict(ours, NOT_RUN, detail)
         return Verdict(ours, first.verdict, detail, first.scale, first.outdated)
+    return checked
+
+
+def decided_on(check: Callable[[Path], Verdict], setup: str,
+               beside: Callable[[Path], Verdict]) -> Callable[[Path], Verdict]:
+    """A claim decided by ``check`` on the set-up that drew the paper's figure (``setup``, as the
+    detail names it), the other readings (``beside``) shown after it; "not yet run" while that
+    set-up's results are missing or lack what the check reads (a rerun pending, as ``outdated``
+    says, where the other readings have their results)."""
+    def checked(results: Path) -> Verdict:
+        other = beside(results)
+        try:
+            v = check(results)
+        except (FileNotFoundError, IncompleteResult):
+            return Verdict(f"{setup}: {NOT_RUN}; {other.ours}", NOT_RUN,
+                           f"Decided on {setup}: {NOT_RUN}. Beside it: {other.detail}",
+                           other.scale, outdated=other.verdict != NOT_RUN)
+        return Verdict(f"{v.ours}; {other.ours}", v.verdict,
+                       f"Decided on {setup}. {v.detail} Beside it: {other.detail}", v.scale)
     return checked
 
 

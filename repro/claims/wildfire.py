@@ -17,8 +17,8 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from repro.claims import (NOT_RUN, Claim, Reading, Verdict, at_most_partial, interval_name,
-                          scale_of, side_by_side, with_intervals)
+from repro.claims import (NOT_RUN, Claim, Reading, Verdict, at_most_partial, decided_on,
+                          interval_name, scale_of, side_by_side, with_intervals)
 from repro.envs.wildfire import FIGURE_VERSION, QUIRKS, version_suffix
 from repro.paper import BEHAVIOUR_FREQUENCIES, C9_PAIR, FLOWCHART_WORSE, TRANSFER_ADR
 from repro.runs.results import read_provenance, read_result
@@ -98,6 +98,10 @@ PENALTY = "wildfire_penalty.csv"
 C6 numbers, whose penalty is unknown, fitted."""
 
 
+FITTED = "the fitted crowding penalty (wildfire-penalty)"
+"""C6's and C7's deciding set-up, as their details name it."""
+
+
 def _best_penalty(results: Path) -> tuple[pd.DataFrame, pd.DataFrame, float, Path]:
     """The penalty table, its authors'-definition fit rows and the best-fitting penalty."""
     path = results / PENALTY
@@ -139,24 +143,6 @@ def check_c7_penalty(results: Path) -> Verdict:
     t = table[table.penalty == best]
     v = _c7(t, path)
     return dataclasses.replace(v, ours=f"penalty {best:g}: {v.ours}")
-
-
-def decided_on_penalty(check: Callable[[Path], Verdict],
-                       beside: Callable[[Path], Verdict]) -> Callable[[Path], Verdict]:
-    """A claim decided by ``check`` on the fitted penalty, the other readings (``beside``)
-    shown after it; "not yet run" while the penalty study is missing."""
-    def checked(results: Path) -> Verdict:
-        other = beside(results)
-        try:
-            v = check(results)
-        except FileNotFoundError:
-            return Verdict(f"fitted penalty: {NOT_RUN}; {other.ours}", NOT_RUN,
-                           f"Decided on the fitted crowding penalty (wildfire-penalty): "
-                           f"{NOT_RUN}. Beside it: {other.detail}", other.scale)
-        return Verdict(f"{v.ours}; {other.ours}", v.verdict,
-                       f"Decided on the fitted crowding penalty. {v.detail} Beside it: "
-                       f"{other.detail}", v.scale)
-    return checked
 
 
 def _batch(t: pd.DataFrame) -> str:
@@ -363,17 +349,17 @@ CLAIMS = [
           f"{_B['fly_rank_1']}/{_B['fly_rank_2']}/{_B['fly_rank_3']}%, {_B['closest_cluster']}%",
           "each within 10 percentage points (mean over policies)",
           "make wildfire-penalty wildfire-behaviour",
-          decided_on_penalty(check_c6_penalty,
-                             side_by_side(on_current_semantics(check_c6, BEHAVIOUR),
-                                          BEHAVIOUR_READINGS)),
+          decided_on(check_c6_penalty, FITTED,
+                     side_by_side(on_current_semantics(check_c6, BEHAVIOUR),
+                                  BEHAVIOUR_READINGS)),
           where="Sec. 5.2, Fig. 6"),
     Claim("C7", f"The flowchart of C6 does {FLOWCHART_WORSE:.0%} worse than the learned policy "
           "(ADR)",
           f"{FLOWCHART_WORSE:.0%} worse", "PASS: 18-38% worse; PARTIAL: worse for every policy",
           "make wildfire-penalty wildfire-behaviour",
-          decided_on_penalty(check_c7_penalty,
-                             side_by_side(on_current_semantics(check_c7, BEHAVIOUR),
-                                          BEHAVIOUR_READINGS)), where="Sec. 5.2"),
+          decided_on(check_c7_penalty, FITTED,
+                     side_by_side(on_current_semantics(check_c7, BEHAVIOUR),
+                                  BEHAVIOUR_READINGS)), where="Sec. 5.2"),
     Claim("C8", "Trained on FS with dT <= 1 s transfers to ED; dT = 3.16, 10 s degrade",
           ", ".join(f"{label} {mean:.3f}" for label, (mean, _) in TRANSFER_ADR.items()
                     if label != C9_PAIR[0]),
