@@ -12,7 +12,7 @@ import numpy as np
 
 from repro.core.rollout import DecisionBatch
 from repro.core.vector import VectorEnv
-from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv
+from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv, jit
 from repro.envs.wildfire.params import EpisodeStream, WildfireConfig
 
 
@@ -45,16 +45,14 @@ class WildfireVectorEnv(VectorEnv):
             self._open -= gone
             start -= gone
         b.act(actions)
-        rows = np.concatenate([self._open, np.arange(start, b.first)])
-        rec = b.log[rows]
-        ep, agent = rec["ep"], rec["agent"]
-        over = b.states["done"][ep]
-        last = b.states["running_row"][ep, agent] == rows  # the UAV's running (or final) decision
-        ended = over | ~last
-        self._open = rows[~ended]
-        rec, done = rec[ended], (over & last)[ended]
-        return (rec["ep"], rec["agent"], rec["idx"], rec["rew"], rec["dur"], done,
-                done & b.states["truncated"][rec["ep"]])
+        n = len(self._open) + b.first - start
+        ids, values, flags, still_open = (np.empty((3, n), np.int64), np.empty((2, n)),
+                                          np.empty((2, n), np.bool_), np.empty(n, np.int64))
+        m, k = _closed(b.states, b.log, self._open, start, b.first, ids, values, flags,
+                       still_open)
+        self._open = still_open[:k]
+        return (ids[0, :m], ids[1, :m], ids[2, :m], values[0, :m], values[1, :m], flags[0, :m],
+                flags[1, :m])
 
     @property
     def batch(self) -> WildfireBatch:
@@ -69,3 +67,30 @@ class WildfireVectorEnv(VectorEnv):
 
     def _restart(self, slots: np.ndarray) -> None:
         self._batch.restart(slots, self._stream.draw(len(slots)))
+
+
+@jit
+def _closed(states, log, open_rows, start, stop, ids, values, flags, still_open):
+    """The rows the step answered, ``open_rows`` (answered before, their macro-action running)
+    then ``start``..``stop`` (answered now), in that order. A row is closed once its episode is
+    over or it is no longer its UAV's running row (the UAV observed again). Closed rows go, in
+    order, into the columns of ``ids`` (episode, agent, index), ``values`` (reward, duration) and
+    ``flags`` (done: the episode is over and the row is its UAV's last; truncated: done in a
+    truncated episode); the others into ``still_open``. Returns both counts. One compiled pass:
+    gathering whole log rows (observations included) with numpy cost more than the round."""
+    m = k = 0
+    for q in range(len(open_rows) + stop - start):
+        row = open_rows[q] if q < len(open_rows) else start + q - len(open_rows)
+        record = log[row]
+        state = states[record.ep]
+        last = state.running_row[record.agent] == row
+        if state.done or not last:
+            ids[0, m], ids[1, m], ids[2, m] = record.ep, record.agent, record.idx
+            values[0, m], values[1, m] = record.rew, record.dur
+            flags[0, m] = state.done and last
+            flags[1, m] = flags[0, m] and state.truncated
+            m += 1
+        else:
+            still_open[k] = row
+            k += 1
+    return m, k
