@@ -506,6 +506,20 @@ class BusBatch:
         rows = self._logs["dec"][episode, agent, index]
         return rows[:, D_REWARD], rows[:, D_DURATION]
 
+    def ended(self, was_over: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The macro-actions the last :meth:`advance` ended, given which episodes were over
+        before it: each pending decision's bus's previous one (a bus observes again when its
+        macro-action ends), in the pending rows' order, then every bus's last one in the episodes
+        that reached the horizon in it, in (episode, bus) order. Columns (episode, agent, index,
+        reward, duration, last): ``last`` marks those the horizon cut."""
+        d, e = self._decisions, len(self._states)
+        n = len(d) + e * self.cfg.n_buses
+        ids, values = np.empty((3, n), np.int64), np.empty((2, n))
+        m, n_again = _ended(self._states, self._logs, d.episode, d.agent, d.index,
+                            np.ascontiguousarray(was_over, np.bool_), ids, values)
+        return (ids[0, :m], ids[1, :m], ids[2, :m], values[0, :m], values[1, :m],
+                np.arange(m) >= n_again)
+
     def decisions(self) -> DecisionBatch:
         """The pending decisions (those the last :meth:`advance` returned)."""
         return self._decisions
@@ -584,6 +598,31 @@ def _decisions(params_array, logs, n_dec, obs, actions, rewards, durations):
                 rewards[o] = row[D_REWARD]
                 durations[o] = row[D_DURATION]
                 o += 1
+
+
+@jit
+def _ended(states, logs, episode, agent, index, was_over, ids, values):
+    """:meth:`BusBatch.ended`'s rows into the columns of ``ids`` (episode, agent, index) and
+    ``values`` (reward, duration); returns their number and that of the first kind."""
+    m = 0
+    for r in range(len(episode)):
+        if index[r] > 0:
+            ids[0, m], ids[1, m], ids[2, m] = episode[r], agent[r], index[r] - 1
+            row = logs[episode[r]].dec[agent[r], index[r] - 1]
+            values[0, m], values[1, m] = row[D_REWARD], row[D_DURATION]
+            m += 1
+    n_again = m
+    for e in range(states.shape[0]):
+        state = states[e]
+        if not state.done or was_over[e]:
+            continue
+        for b in range(state.n_dec.shape[0]):
+            if state.n_dec[b] > 0:
+                ids[0, m], ids[1, m], ids[2, m] = e, b, state.n_dec[b] - 1
+                row = logs[e].dec[b, state.n_dec[b] - 1]
+                values[0, m], values[1, m] = row[D_REWARD], row[D_DURATION]
+                m += 1
+    return m, n_again
 
 
 @jit

@@ -34,16 +34,8 @@ class BusVectorEnv(VectorEnv):
     def _act(self, actions: np.ndarray) -> tuple[np.ndarray, ...]:
         b = self._batch
         was_over = b.done
-        new = b.advance(actions)
-        again = new.index > 0  # the bus's previous macro-action ended with this observation
-        over = np.flatnonzero(b.done & ~was_over)
-        n_dec = b.n_decisions[over]
-        last_ep, last_agent = np.nonzero(n_dec > 0)  # the horizon cut every running one
-        env = np.concatenate([new.episode[again], over[last_ep]])
-        agent = np.concatenate([new.agent[again], last_agent])
-        index = np.concatenate([new.index[again] - 1, n_dec[last_ep, last_agent] - 1])
-        reward, duration = b.macro_actions(env, agent, index)
-        done = np.arange(len(env)) >= again.sum()
+        b.advance(actions)
+        env, agent, index, reward, duration, done = b.ended(was_over)
         return env, agent, index, reward, duration, done, np.zeros(len(env), bool)
 
     @property
