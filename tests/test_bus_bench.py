@@ -17,6 +17,7 @@ def test_bench_bus_smoke(tmp_path):
     df = pd.read_csv(tmp_path / "bench_bus.csv")
     assert sorted(zip(df.engine, df.policy)) == [("fast", MLP), ("fast", "nohold"),
                                                  ("fast-step-api", MLP),
+                                                 ("fast-step-api", "nohold"),
                                                  ("reference", MLP),
                                                  ("reference", "nohold")]
     assert (df.decisions > df.episodes).all()

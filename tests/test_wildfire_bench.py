@@ -20,10 +20,12 @@ def test_measure_reports_both_engines_and_policies():
     cfg = WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1)
     frame = measure(cfg, seed=4)
     assert sorted(zip(frame.engine, frame.policy)) == [
-        ("fast", MLP), ("fast", "random"), ("fast-step-api", MLP),
+        ("fast", MLP), ("fast", "random"), ("fast-step-api", MLP), ("fast-step-api", "random"),
         ("reference", MLP), ("reference", "random")]
-    steps = frame[frame.engine == "fast-step-api"].iloc[0]
-    assert frame.decisions[0] <= steps.decisions < frame.decisions[0] + 20 * 100
+    for policy in (MLP, "random"):  # the rollouts' decisions, or a step more
+        rollouts, steps = (frame[(frame.engine == engine) & (frame.policy == policy)].iloc[0]
+                           for engine in ("fast", "fast-step-api"))
+        assert rollouts.decisions <= steps.decisions < rollouts.decisions + 20 * 100
     assert (frame.decisions > frame.episodes).all()
     # one batch: the medians are the totals' rates
     np.testing.assert_allclose(frame.decisions_per_second * frame.wall_seconds, frame.decisions)
@@ -37,7 +39,7 @@ def test_measure_reports_both_engines_and_policies():
 def test_repeats_run_more_batches_of_other_episodes():
     one = measure(WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1), seed=4)
     three = measure(WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=3), seed=4)
-    assert three.episodes.tolist() == [60, 60, 6, 6, 60] and (three.batches == 3).all()
+    assert three.episodes.tolist() == [60, 60, 6, 6, 60, 60] and (three.batches == 3).all()
     assert (three.decisions != 3 * one.decisions).all()  # batches 2 and 3 draw other episodes
     assert np.isfinite(three.select_dtypes("number")).all().all()
 
@@ -77,7 +79,7 @@ def test_checkpoint_times_the_trained_policy_on_its_runs_environment(trained_run
                                              "wildfire"))
     assert sorted(zip(frame.engine, frame.policy)) == [
         ("fast", "checkpoint"), ("fast", "random"), ("fast-step-api", "checkpoint"),
-        ("reference", "checkpoint"), ("reference", "random")]
+        ("fast-step-api", "random"), ("reference", "checkpoint"), ("reference", "random")]
     # the run's limit of 4 decisions per UAV holds in every episode of both engines (the step
     # API runs more episodes)
     n_uavs = WildfireConfig().n_agents

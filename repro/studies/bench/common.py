@@ -9,10 +9,13 @@ A benchmark runs an environment's fast engine and its SimPy reference under two 
   of the scale it sees in training;
 - a cheap policy of the environment, which shows what the engine costs nearly alone.
 
-The fast engine's step API (``make_vector_env``, engine ``fast-step-api``) runs the first policy
-too (the network, one call per step), on as many envs as the fast engine's batch
-has episodes, stepped until it has made as many decisions per batch as those rollouts did (ended
-episodes restart, so the batch stays full).
+The fast engine's step API (``make_vector_env``, engine ``fast-step-api``) runs both policies too
+(one call per step), on as many envs as the fast engine's batch has episodes, stepped until it has
+made as many decisions per batch as the rollouts of that policy did (ended episodes restart, so the
+batch stays full). Under the cheap policy its rate against the rollouts' shows what driving the
+engine step by step costs. At that horizon the step API has also drawn the randomness of the
+episodes still running when it stops (a wildfire episode's start positions and whole hold table are
+drawn when it starts), which the rollouts do not.
 
 With ``--checkpoint PATH`` (a training run's ``checkpoint.pt``) the trained policy, with its own
 normaliser, takes the fresh network's place (policy ``checkpoint``), and both engines run that
@@ -180,13 +183,13 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
             policy = make(env, np.random.default_rng(seed))
             rows.append(dict(engine=engine, policy=name,
                              **_time(env, policy, episodes, cfg.repeats, seed)))
-    # the step API on the fast engine with the first policy (the network), as many decisions
-    # per batch as its rollouts made
-    name, make = next(iter(policies.items()))
-    per_batch = rows[0]["decisions"] // cfg.repeats
-    rows.append(dict(engine="fast-step-api", policy=name,
-                     **_time_steps(fast, make(fast, np.random.default_rng(seed)),
-                                   cfg.fast_episodes, cfg.repeats, seed, per_batch)))
+    # the step API on the fast engine with each policy, as many decisions per batch as the fast
+    # engine's rollouts with that policy made
+    for row, (name, make) in zip(rows[:len(policies)], policies.items()):
+        rows.append(dict(engine="fast-step-api", policy=name,
+                         **_time_steps(fast, make(fast, np.random.default_rng(seed)),
+                                       cfg.fast_episodes, cfg.repeats, seed,
+                                       row["decisions"] // cfg.repeats)))
     frame = pd.DataFrame(rows)
     ref = frame[frame.engine == "reference"].set_index("policy")
     for column, rate in (("speedup_vs_reference", "decisions_per_cpu_second"),
