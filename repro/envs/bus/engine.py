@@ -514,11 +514,10 @@ class BusBatch:
         reward, duration, last): ``last`` marks those the horizon cut."""
         d, e = self._decisions, len(self._states)
         n = len(d) + e * self.cfg.n_buses
-        ids, values = np.empty((3, n), np.int64), np.empty((2, n))
-        m, n_again = _ended(self._states, self._logs, d.episode, d.agent, d.index,
-                            np.ascontiguousarray(was_over, np.bool_), ids, values)
-        return (ids[0, :m], ids[1, :m], ids[2, :m], values[0, :m], values[1, :m],
-                np.arange(m) >= n_again)
+        ids, values, last = np.empty((3, n), np.int64), np.empty((2, n)), np.empty(n, np.bool_)
+        m = _ended(self._states, self._logs, d.episode, d.agent, d.index,
+                   np.ascontiguousarray(was_over, np.bool_), ids, values, last)
+        return ids[0, :m], ids[1, :m], ids[2, :m], values[0, :m], values[1, :m], last[:m]
 
     def decisions(self) -> DecisionBatch:
         """The pending decisions (those the last :meth:`advance` returned)."""
@@ -601,17 +600,16 @@ def _decisions(params_array, logs, n_dec, obs, actions, rewards, durations):
 
 
 @jit
-def _ended(states, logs, episode, agent, index, was_over, ids, values):
-    """:meth:`BusBatch.ended`'s rows into the columns of ``ids`` (episode, agent, index) and
-    ``values`` (reward, duration); returns their number and that of the first kind."""
+def _ended(states, logs, episode, agent, index, was_over, ids, values, last):
+    """:meth:`BusBatch.ended`'s rows into the columns of ``ids`` (episode, agent, index),
+    ``values`` (reward, duration) and ``last``; returns their number."""
     m = 0
     for r in range(len(episode)):
         if index[r] > 0:
             ids[0, m], ids[1, m], ids[2, m] = episode[r], agent[r], index[r] - 1
             row = logs[episode[r]].dec[agent[r], index[r] - 1]
-            values[0, m], values[1, m] = row[D_REWARD], row[D_DURATION]
+            values[0, m], values[1, m], last[m] = row[D_REWARD], row[D_DURATION], False
             m += 1
-    n_again = m
     for e in range(states.shape[0]):
         state = states[e]
         if not state.done or was_over[e]:
@@ -620,9 +618,9 @@ def _ended(states, logs, episode, agent, index, was_over, ids, values):
             if state.n_dec[b] > 0:
                 ids[0, m], ids[1, m], ids[2, m] = e, b, state.n_dec[b] - 1
                 row = logs[e].dec[b, state.n_dec[b] - 1]
-                values[0, m], values[1, m] = row[D_REWARD], row[D_DURATION]
+                values[0, m], values[1, m], last[m] = row[D_REWARD], row[D_DURATION], True
                 m += 1
-    return m, n_again
+    return m
 
 
 @jit
