@@ -46,17 +46,21 @@ class SplitPolicy:
 
 
 def rollout_table(rollout) -> dict:
-    """(episode, agent, k) -> (obs, action, reward, duration, last of its path)."""
+    """(episode, agent, k) -> (obs, action, reward, duration, last of its path, last of its path
+    in a truncated episode)."""
     table = {}
     step = rollout.step_index()
     path = rollout.path_index()
     last = np.zeros(rollout.n_decisions, bool)
     last[rollout.path_start[1:][np.diff(rollout.path_start) > 0] - 1] = True
+    truncated = (np.zeros(len(rollout.episode_return), bool) if rollout.truncated is None
+                 else rollout.truncated)
     for d in range(rollout.n_decisions):
         p = path[d]
-        table[(rollout.path_episode[p], rollout.path_agent[p], step[d])] = (
+        episode = rollout.path_episode[p]
+        table[(episode, rollout.path_agent[p], step[d])] = (
             tuple(rollout.obs[d]), rollout.actions[d], rollout.rewards[d], rollout.durations[d],
-            last[d])
+            last[d], last[d] and truncated[episode])
     return table
 
 
@@ -76,7 +80,7 @@ def step_table(vec, act, n_episodes: int) -> dict:
             key = (tr.episode[m], tr.agent[m], tr.index[m])
             assert key in decided and key not in ended  # reported once, after its action
             assert vec.episode[tr.env[m]] >= tr.episode[m]
-            ended[key] = (tr.reward[m], tr.duration[m], tr.done[m])
+            ended[key] = (tr.reward[m], tr.duration[m], tr.done[m], tr.truncated[m])
     return {k: decided[k] + ended[k] for k in decided if k[0] < n_episodes}
 
 
