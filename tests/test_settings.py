@@ -27,7 +27,7 @@ from repro.studies.races.race import RaceConfig
 from repro.studies.races.scaling import ScalingConfig
 from repro.studies.races.wildfire_races import BeyondRacesConfig
 from repro.studies.training import train
-from repro.studies.wildfire.behaviour import BehaviourConfig
+from repro.studies.wildfire.study import BehaviourConfig
 
 CONFIGS = (WildfireConfig, BusConfig, ToyConfig, TrainConfig, RaceConfig, ScalingConfig,
            BeyondRacesConfig, BehaviourConfig)

@@ -20,7 +20,7 @@ from repro.learn.trainer import TIMING_COLUMNS
 from repro.paper import TRANSFER_ADR
 from repro.studies.kit.sweep import run_sweep
 from repro.studies.transfer.study import TransferConfig, evaluate_policies, make_jobs
-from repro.studies.wildfire.behaviour import frequencies
+from repro.studies.wildfire.study import frequencies
 from repro.studies.wildfire.study import evaluate
 from tests.conftest import tree_snapshot, write_result_csv
 
@@ -447,7 +447,7 @@ def test_frequency_counts_of_separate_batches_add_up_to_the_whole(monkeypatch):
     """The behaviour driver counts batch by batch (to drop observations); that must give exactly
     the frequencies of the joined rollout."""
     from repro.studies.wildfire import study as wildfire_eval
-    from repro.studies.wildfire.behaviour import frequency_counts, shares
+    from repro.studies.wildfire.study import frequency_counts, shares
 
     monkeypatch.setattr(wildfire_eval, "BATCH_EPISODES", 20)
     cfg = WildfireConfig()
@@ -467,7 +467,7 @@ def test_frequency_counts_of_separate_batches_add_up_to_the_whole(monkeypatch):
 def test_stay_flights_are_flights_to_the_fire_the_uav_is_at():
     """A stay flight (almost always) lasts one latency in ED; the frequencies without them count
     every other decision as before."""
-    from repro.studies.wildfire.behaviour import frequency_counts
+    from repro.studies.wildfire.study import frequency_counts
 
     cfg = WildfireConfig()
     ro = make_env(cfg).rollout(FlowchartPolicy(np.random.default_rng(5)), 40, 2)

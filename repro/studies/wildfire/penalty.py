@@ -56,7 +56,7 @@ from repro.runs.results import write_result
 from repro.studies.kit.options import add_common, results_folder
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      policy_stream, run_sweep)
-from repro.studies.wildfire.behaviour import BehaviourConfig, frequency_counts, shares
+from repro.studies.wildfire.study import BehaviourConfig, frequency_counts, shares
 from repro.studies.wildfire.study import adr, evaluate
 
 AUTHORS_AT_FIRE = 1e-7

@@ -1,14 +1,22 @@
-"""The wildfire's evaluation, which every study that tests a wildfire policy shares: the ADR of a
-policy over many episodes, simulated in batches."""
+"""What the wildfire studies share: the evaluation every study that tests a wildfire policy runs
+(the ADR of a policy over many episodes, simulated in batches), and the behaviour study's sizes
+and classification of decisions (C6; :mod:`repro.studies.wildfire.behaviour` defines them), which
+the study over crowding penalties (:mod:`repro.studies.wildfire.penalty`) reuses."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-from typing import Callable
+from dataclasses import dataclass, replace
+from typing import Callable, ClassVar
 
 import numpy as np
 
+from repro.core.config import Validated
 from repro.core.rollout import Policy, Rollout, concat, rollout_bytes
+from repro.envs.wildfire import (RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, fire_positions,
+                                 version_suffix)
+from repro.envs.wildfire.params import DIST, INTEREST, OWN_X, OWN_Y, STATUS, fire_blocks
+from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL
+from repro.learn.config import check_policy_study, learner_suffix
 from repro.runs.memory import require_memory
 from repro.runs.stats import sem
 
@@ -45,3 +53,114 @@ def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = T
             on_batch(batch)
         batches.append(batch if keep_obs else replace(batch, obs=batch.obs[:, :0], info={}))
     return concat(batches)
+
+
+FIRES_PER_CLUSTER = 3
+
+
+@dataclass(frozen=True)
+class BehaviourConfig(Validated):
+    """Sizes of the behaviour study (the ED simulator and its semantics never change)."""
+
+    seeds: int = 1
+    """Policies trained from scratch (the paper examined one). Long ED runs can drift into
+    policies that re-decide at a fire many times per second (fly to the fire they are at), which
+    makes their epochs up to ten times slower; hence one at quick scale."""
+    epochs: int = 300
+    """Training epochs per policy (paper: 3,000)."""
+    learner: str = "authors"
+    """The named learner that trains every policy (``repro.learn.config.LEARNERS``)."""
+    batch_decisions: int = 3000
+    """Training decisions per epoch when the learner counts its batch in decisions (the released
+    runner: 12,000)."""
+    batch_episodes: int = 200
+    """Training episodes per epoch when the learner counts its batch in episodes (the paper's
+    table: 600 to 1,200)."""
+    sim_version: str = RELEASED_VERSION
+    """The released simulator's version (``repro.envs.wildfire.SIM_VERSIONS``)."""
+    test_episodes: int = 1000
+    """ED episodes on which frequencies and ADRs are measured."""
+    max_decisions: int | None = WildfireConfig.max_decisions
+    """Decision limit per UAV and episode in training and test (``WildfireConfig.max_decisions``);
+    None: no limit (docs/semantics.md section 3.7). Long ED runs drift into stay flights: without
+    the limit a 600-episode epoch of them needed more than 14.7 million decisions and ran out of
+    24 GB of memory at epoch 302 of a paper-scale run."""
+
+    SCALES: ClassVar[dict] = {
+        "smoke": dict(seeds=1, epochs=2, batch_episodes=8, batch_decisions=300, test_episodes=20),
+        "quick": {},
+        "paper": dict(seeds=3, epochs=3000, batch_episodes=600, batch_decisions=12000,
+                      test_episodes=10000),
+    }
+
+    def validate(self) -> None:
+        check_policy_study(self)
+        self.check(self.sim_version in SIM_VERSIONS, "sim_version",
+                   "one of " + ", ".join(SIM_VERSIONS))
+        self.check(self.max_decisions is None or self.max_decisions >= 1, "max_decisions",
+                   "a positive integer (0: no limit)")
+
+    def env(self) -> WildfireConfig:
+        """The ED simulator every policy is trained and tested on."""
+        return WildfireConfig(max_decisions=self.max_decisions, **SIM_VERSIONS[self.sim_version])
+
+    @property
+    def name(self) -> str:
+        """File stem: wildfire_behaviour, then _suite for the suite's learner and _20170422 for
+        the simulator of 2017-04-22."""
+        return "_".join(("wildfire_behaviour", *learner_suffix(self.learner),
+                         *version_suffix(self.sim_version)))
+
+
+STAY = "_ex_stay"
+"""Suffix of the frequencies counted without stay flights (see the module docstring)."""
+
+
+def frequency_counts(rollout: Rollout, env: WildfireConfig) -> dict[str, int]:
+    """The counts behind the C6 frequencies: for each, the decisions where its event happened
+    (``<name>_events``) out of those where its condition held (``n_shared``, ``n_alone``,
+    ``n_fly``); the same without stay flights (suffix ``_ex_stay``); and the stay flights
+    (``stay_flight_events`` of ``n_decisions``). Counts of separate batches add up."""
+    obs, act, k = rollout.obs, rollout.actions, env.n_observed
+    block = fire_blocks(obs, k)
+    rows = np.arange(len(obs))
+    at_live = (block[:, 0, DIST] < OBSERVED_AT_FIRE_TOL) & (block[:, 0, STATUS] > 0.5)
+    shared = block[:, 0, INTEREST] - 1 >= 1
+    hold = act == k
+    fly = ~hold
+    stay = fly & (block[rows, np.minimum(act, k - 1), DIST] < OBSERVED_AT_FIRE_TOL)
+    dist = np.linalg.norm(obs[:, None, OWN_X:OWN_Y + 1] - fire_positions(env)[None], axis=2)
+    order = np.argsort(dist, axis=1, kind="stable")
+    target_cluster = order[rows, np.minimum(act, k - 1)] // FIRES_PER_CLUSTER
+    closest = target_cluster == order[:, 0] // FIRES_PER_CLUSTER
+
+    def counts(keep: np.ndarray, suffix: str) -> dict[str, int]:
+        out = dict(hold_shared_events=hold & at_live & shared,
+                   hold_alone_events=hold & at_live & ~shared)
+        out.update({f"fly_rank_{r + 1}_events": act == r for r in range(k)})
+        out.update(closest_cluster_events=closest & fly, n_shared=at_live & shared,
+                   n_alone=at_live & ~shared, n_fly=fly)
+        return {name + suffix: int((mask & keep).sum()) for name, mask in out.items()}
+
+    everything = np.ones(len(act), bool)
+    return {**counts(everything, ""), **counts(~stay, STAY),
+            "stay_flight_events": int(stay.sum()), "n_decisions": len(act)}
+
+
+def shares(counts: dict[str, int]) -> dict[str, float]:
+    """The C6 frequencies of the module docstring from :func:`frequency_counts` (NaN where a
+    condition never occurs), with the number of decisions behind each conditional."""
+    given = dict(hold_shared="n_shared", hold_alone="n_alone", stay_flight="n_decisions")
+    out = {}
+    for key in counts:
+        if key.endswith("_events") or key.endswith("_events" + STAY):
+            name, suffix = key.split("_events")
+            n = counts[given.get(name, "n_fly") + suffix]
+            out[name + suffix] = counts[key] / n if n else float("nan")
+    out.update({k: v for k, v in counts.items() if k.startswith("n_")})
+    return out
+
+
+def frequencies(rollout: Rollout, env: WildfireConfig) -> dict[str, float]:
+    """The C6 frequencies of one rollout (see :func:`shares`)."""
+    return shares(frequency_counts(rollout, env))
