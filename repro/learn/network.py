@@ -217,14 +217,10 @@ def _forward(x, weights, biases, hidden, slopes, logits):
             w, b = weights[k], biases[k]
             src = x if k == 0 else hidden[k - 1]
             dst = logits if k == last else hidden[k]
+            dst[:, n0:n0 + CHUNK] = 0.0
+            _add_products(dst, n0, src, n0, w)
             for j in range(w.shape[0]):
                 out = dst[j, n0:n0 + CHUNK]
-                out[:] = 0.0
-                for i in range(w.shape[1]):
-                    wji = w[j, i]
-                    s = src[i, n0:n0 + CHUNK]
-                    for u in range(out.shape[0]):
-                        out[u] += s[u] * wji
                 for u in range(out.shape[0]):
                     out[u] += b[j]
                 if k < last:
@@ -235,27 +231,65 @@ def _forward(x, weights, biases, hidden, slopes, logits):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _add_products(dst, d0, src, s0, coef):
+    """dst[j, d0 + u] += src[i, s0 + u] coef[j, i] for every input i in turn, for every row j of
+    ``coef`` and u < CHUNK: each element's terms are added one at a time in input order. Four rows
+    j and four inputs i are done in one pass over the chunk, their sums held in registers (the
+    inner loop over the four inputs has a constant length, so LLVM unrolls it inside the loop
+    over u, which it vectorises): each element of ``dst`` is loaded and stored once per four
+    inputs, each of ``src`` once per four rows. ``src`` is indexed with an unsigned column, which
+    numba does not wrap around, so its loads along u are contiguous."""
+    rows, inputs = coef.shape
+    i4, j4 = inputs - inputs % 4, rows - rows % 4
+    for j in range(0, j4, 4):
+        o0, o1 = dst[j, d0:d0 + CHUNK], dst[j + 1, d0:d0 + CHUNK]
+        o2, o3 = dst[j + 2, d0:d0 + CHUNK], dst[j + 3, d0:d0 + CHUNK]
+        for i in range(0, i4, 4):
+            for u in range(o0.shape[0]):
+                a0, a1, a2, a3 = o0[u], o1[u], o2[u], o3[u]
+                col = np.uint64(s0 + u)
+                for di in range(4):
+                    v = src[i + di, col]
+                    a0 += v * coef[j, i + di]
+                    a1 += v * coef[j + 1, i + di]
+                    a2 += v * coef[j + 2, i + di]
+                    a3 += v * coef[j + 3, i + di]
+                o0[u], o1[u], o2[u], o3[u] = a0, a1, a2, a3
+        for i in range(i4, inputs):
+            for u in range(o0.shape[0]):
+                v = src[i, np.uint64(s0 + u)]
+                o0[u] += v * coef[j, i]
+                o1[u] += v * coef[j + 1, i]
+                o2[u] += v * coef[j + 2, i]
+                o3[u] += v * coef[j + 3, i]
+    for j in range(j4, rows):
+        out = dst[j, d0:d0 + CHUNK]
+        for i in range(0, i4, 4):
+            for u in range(out.shape[0]):
+                a = out[u]
+                col = np.uint64(s0 + u)
+                for di in range(4):
+                    a += src[i + di, col] * coef[j, i + di]
+                out[u] = a
+        for i in range(i4, inputs):
+            for u in range(out.shape[0]):
+                out[u] += src[i, np.uint64(s0 + u)] * coef[j, i]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy):
     """J v for the chunk of decisions at ``n0``: rows [:n_actions] of ``dy`` (width, CHUNK);
-    ``da`` is scratch of the same shape."""
+    ``da`` is scratch of the same shape. Per unit, the bias's change, then the terms of the
+    weights' change in input order, then (past the first layer) those of the inputs' change."""
     last = len(weights) - 1
     for k in range(last + 1):
         w, dw, db = weights[k], vw[k], vb[k]
         src = x if k == 0 else hidden[k - 1]
         for j in range(w.shape[0]):
-            out = dy[j]
-            out[:] = db[j]
-            for i in range(w.shape[1]):
-                dwji = dw[j, i]
-                s = src[i, n0:n0 + CHUNK]
-                for u in range(out.shape[0]):
-                    out[u] += s[u] * dwji
-            if k > 0:
-                for i in range(w.shape[1]):
-                    wji = w[j, i]
-                    a = da[i]
-                    for u in range(out.shape[0]):
-                        out[u] += a[u] * wji
+            dy[j, :] = db[j]
+        _add_products(dy, 0, src, n0, dw)
+        if k > 0:
+            _add_products(dy, 0, da, 0, w)
         if k < last:
             for j in range(w.shape[0]):
                 s, out, a = slopes[k][j, n0:n0 + CHUNK], dy[j], da[j]
@@ -266,20 +300,16 @@ def _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy):
 @njit(cache=True, inline="always", error_model="numpy")
 def _backward_chunk(n0, slopes, weights, deltas):
     """Carry the output cotangent in ``deltas[-1]`` (the chunk of decisions at ``n0``) back to
-    every hidden layer's ``deltas[k]``."""
+    every hidden layer's ``deltas[k]``: per unit, the terms of the outputs in output order, then
+    times tanh'."""
     for k in range(len(weights) - 1, 0, -1):
-        w, d = weights[k], deltas[k]
-        for i in range(w.shape[1]):
-            prev = deltas[k - 1][i]
-            prev[:] = 0.0
-            for j in range(w.shape[0]):
-                wji = w[j, i]
-                dj = d[j]
-                for u in range(prev.shape[0]):
-                    prev[u] += dj[u] * wji
-            s = slopes[k - 1][i, n0:n0 + CHUNK]
-            for u in range(prev.shape[0]):
-                prev[u] *= s[u]
+        prev = deltas[k - 1]
+        prev[:, :] = 0.0
+        _add_products(prev, 0, deltas[k], 0, weights[k].T)
+        for i in range(prev.shape[0]):
+            p, s = prev[i], slopes[k - 1][i, n0:n0 + CHUNK]
+            for u in range(p.shape[0]):
+                p[u] *= s[u]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -287,29 +317,27 @@ def _accumulate(n0, x, hidden, deltas, gw, gb):
     """Add the terms of the chunk at ``n0`` to every layer's per-lane gradient sums ``gw``
     ((outputs, inputs, LANES)) and ``gb`` ((outputs, LANES)): lane u of a weight's sum gets
     delta_j x_i of the chunk's decisions u, u + LANES, u + 2 LANES, ... in that order, summed in the
-    network's dtype, then added in float64."""
-    acc = np.empty(gb[0].shape[1], x.dtype)
-    lanes = acc.shape[0]
+    network's dtype, then added in float64. The loop over a lane's CHUNK / LANES terms has a
+    constant length, so LLVM unrolls it inside the loop over lanes, which it vectorises: the
+    lanes' sums stay in registers (columns unsigned, as in :func:`_add_products`)."""
+    zero = np.zeros(1, x.dtype)[0]
     for k in range(len(gw)):
         src = x if k == 0 else hidden[k - 1]
         d, g, gbk = deltas[k], gw[k], gb[k]
         for j in range(g.shape[0]):
-            acc[:] = 0.0
-            for c in range(0, CHUNK, lanes):
-                dj = d[j, c:c + lanes]
-                for u in range(lanes):
-                    acc[u] += dj[u]
-            for u in range(lanes):
-                gbk[j, u] += acc[u]
+            gbj = gbk[j]
+            for u in range(gbj.shape[0]):
+                acc = zero
+                for c in range(0, CHUNK, LANES):
+                    acc += d[j, np.uint64(c + u)]
+                gbj[u] += acc
             for i in range(g.shape[1]):
-                acc[:] = 0.0
-                for c in range(0, CHUNK, lanes):
-                    dj, s = d[j, c:c + lanes], src[i, n0 + c:n0 + c + lanes]
-                    for u in range(lanes):
-                        acc[u] += dj[u] * s[u]
                 gji = g[j, i]
-                for u in range(lanes):
-                    gji[u] += acc[u]
+                for u in range(gji.shape[0]):
+                    acc = zero
+                    for c in range(0, CHUNK, LANES):
+                        acc += d[j, np.uint64(c + u)] * src[i, np.uint64(n0 + c + u)]
+                    gji[u] += acc
 
 
 @njit(cache=True, error_model="numpy")
