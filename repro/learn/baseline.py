@@ -25,6 +25,7 @@ from torch import nn
 from repro.learn.policy import DTYPE, mlp
 
 BASELINES = ("linear", "mlp")
+ROWS = 16
 _EPS = float(np.finfo(np.float64).eps)
 
 
@@ -155,18 +156,44 @@ def _feature_row(obs, k, out):
 
 @njit(cache=True)
 def _normal_equations(obs, index, returns):
-    """X'X and X'y of the features X of ``obs`` and ``index``, row by row in batch order: each
-    row's outer product added along contiguous rows of the Gram matrix, which vectorises."""
-    f = np.empty(2 * obs.shape[1] + 4)
-    gram, rhs = np.zeros((len(f), len(f))), np.zeros(len(f))
-    for n in range(obs.shape[0]):
-        _feature_row(obs[n], index[n], f)
-        for a in range(len(f)):
-            fa, row = f[a], gram[a]
-            for b in range(len(f)):
-                row[b] += fa * f[b]
-            rhs[a] += fa * returns[n]
-    return gram, rhs
+    """X'X and X'y of the features X of ``obs`` and ``index``, each entry a sum over the rows in
+    batch order. X'X is symmetric: its upper triangle is summed and mirrored (f_a f_b and f_b f_a
+    are the same product). Rows are taken four at a time, their features in ``block``: an entry
+    adds the four rows' terms in turn while held in a register (the loop over the four has a
+    constant length, so LLVM unrolls it inside the loop along the Gram matrix's row, which it
+    vectorises), so the matrix is loaded and stored once per four rows. The work is padded to a
+    multiple of 8 features with zero features, and each row of the triangle starts at a multiple
+    of 8 (the few entries left of the diagonal that this also sums are overwritten by the
+    mirror), so that every pass along a row is whole vectors."""
+    n, width = obs.shape[0], 2 * obs.shape[1] + 4
+    wide = -(-width // 8) * 8
+    block = np.zeros((ROWS, wide))
+    gram, rhs = np.zeros((wide, wide)), np.zeros(width)
+    for n0 in range(0, n, ROWS):
+        rows = min(ROWS, n - n0)
+        for r in range(rows):
+            _feature_row(obs[n0 + r], index[n0 + r], block[r])
+        for a in range(width):
+            start = a - a % 8
+            row = gram[a, start:]
+            if rows == ROWS:
+                for b in range(row.shape[0]):
+                    total = row[b]
+                    col = np.uint64(start + b)
+                    for r in range(ROWS):
+                        total += block[r, a] * block[r, col]
+                    row[b] = total
+            else:
+                for r in range(rows):
+                    fr, br = block[r, start:], block[r, a]
+                    for b in range(row.shape[0]):
+                        row[b] += br * fr[b]
+            for r in range(rows):
+                rhs[a] += block[r, a] * returns[n0 + r]
+    for a in range(width):
+        for b in range(a):
+            gram[a, b] = gram[b, a]
+    return gram[:width, :width].copy(), rhs
 
 
 @njit(cache=True)

@@ -82,6 +82,7 @@ class Forward:
     logits: np.ndarray
     """Outputs, (n_actions, padded n)."""
     _logp: np.ndarray | None = field(default=None, repr=False)
+    _probs: np.ndarray | None = field(default=None, repr=False)
 
     def log_probs(self) -> np.ndarray:
         """log pi(. | o), (n, n_actions), float64 (computed once: the step and its Fisher products
@@ -90,6 +91,14 @@ class Forward:
             self._logp = np.empty((self.n, len(self.logits)))
             _log_softmax(self.logits, self._logp)
         return self._logp
+
+    def probs(self) -> np.ndarray:
+        """pi(. | o) = exp(log_probs()), (n, n_actions), float64, by libm's exp (numpy's own exp
+        has CPU-specific kernels); computed once: the entropy, the gradient, the Fisher products
+        and every KL against this policy use them. Not to be written to."""
+        if self._probs is None:
+            self._probs = libm_exp(self.log_probs())
+        return self._probs
 
     def rows(self, index: np.ndarray) -> Forward:
         """The same pass restricted to the batch entries ``index``."""
@@ -189,19 +198,17 @@ class TanhMLP:
     def fisher_product(self, fwd: Forward, probs: np.ndarray, v: np.ndarray) -> np.ndarray:
         """J' M J v / N, M = diag(p) - p p' per decision: the Hessian of the mean KL in the
         parameters applied to ``v``, in one pass over the batch. ``probs``: pi(. | o) as
-        :func:`probabilities` gives it for the batch's decisions."""
+        :func:`probabilities` gives it for the pass ``fwd``."""
         vw, vb = self.split(np.asarray(v, dtype=self.dtype))
         gw, gb = self._accumulators()
         _fisher(fwd.x, fwd.hidden, fwd.slopes, probs, self.weights, vw, vb, 1.0 / fwd.n, gw, gb)
         return self._flat(gw, gb)
 
 
-def probabilities(logp: np.ndarray) -> np.ndarray:
-    """pi(. | o), feature-major and zero-padded as the batch, from log-probabilities (N,
-    n_actions): exp by libm (numpy's own exp has CPU-specific kernels)."""
-    out = np.zeros((logp.shape[1], padded(len(logp))))
-    _exp_rows(np.ascontiguousarray(logp, dtype=np.float64), out)
-    return out
+def probabilities(fwd: Forward) -> np.ndarray:
+    """pi(. | o) of the pass ``fwd``'s decisions (:meth:`Forward.probs`), feature-major and
+    zero-padded as the batch."""
+    return _padded_rows(fwd.probs(), np.float64)
 
 
 # --- compiled loops ---------------------------------------------------------------------------
@@ -380,21 +387,23 @@ def _fisher(x, hidden, slopes, probs, weights, vw, vb, scale, gw, gb):
     mean = np.empty(CHUNK)
     for n0 in range(0, x.shape[1], CHUNK):
         _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy)
-        _kl_weighting(probs[:, n0:n0 + CHUNK], dy, scale, mean, deltas[-1])
+        _kl_weighting(n0, probs, dy, scale, mean, deltas[-1])
         _backward_chunk(n0, slopes, weights, deltas)
         _accumulate(n0, x, hidden, deltas, gw, gb)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _kl_weighting(p, jv, scale, mean, out):
-    """out = p (jv - p . jv) scale per decision (column): M J v / N of a block, in float64."""
+def _kl_weighting(n0, probs, jv, scale, mean, out):
+    """out = p (jv - p . jv) scale per decision (column) of the chunk at ``n0``: M J v / N of a
+    block, in float64, p . jv summed in action order. Rows of ``probs`` are taken as contiguous
+    slices (a slice across its rows would be strided, and the loops would not vectorise)."""
     mean[:] = 0.0
-    for a in range(p.shape[0]):
-        pa, ja = p[a], jv[a]
+    for a in range(len(probs)):
+        pa, ja = probs[a, n0:n0 + CHUNK], jv[a]
         for u in range(mean.shape[0]):
             mean[u] += pa[u] * ja[u]
-    for a in range(p.shape[0]):
-        pa, ja, oa = p[a], jv[a], out[a]
+    for a in range(len(probs)):
+        pa, ja, oa = probs[a, n0:n0 + CHUNK], jv[a], out[a]
         for u in range(mean.shape[0]):
             oa[u] = pa[u] * (ja[u] - mean[u]) * scale
 
@@ -434,7 +443,11 @@ def _log_softmax(logits, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _exp_rows(logp, out):
+def libm_exp(logp):
+    """exp of every entry of a 2-d float64 array, by libm (numpy's own exp has CPU-specific
+    kernels)."""
+    out = np.empty(logp.shape)
     for n in range(logp.shape[0]):
         for a in range(logp.shape[1]):
-            out[a, n] = math.exp(logp[n, a])
+            out[n, a] = math.exp(logp[n, a])
+    return out
