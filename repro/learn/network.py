@@ -324,27 +324,70 @@ def _accumulate(n0, x, hidden, deltas, gw, gb):
     """Add the terms of the chunk at ``n0`` to every layer's per-lane gradient sums ``gw``
     ((outputs, inputs, LANES)) and ``gb`` ((outputs, LANES)): lane u of a weight's sum gets
     delta_j x_i of the chunk's decisions u, u + LANES, u + 2 LANES, ... in that order, summed in the
-    network's dtype, then added in float64. The loop over a lane's CHUNK / LANES terms has a
-    constant length, so LLVM unrolls it inside the loop over lanes, which it vectorises: the
-    lanes' sums stay in registers (columns unsigned, as in :func:`_add_products`)."""
-    zero = np.zeros(1, x.dtype)[0]
+    network's dtype, then added in float64."""
     for k in range(len(gw)):
-        src = x if k == 0 else hidden[k - 1]
-        d, g, gbk = deltas[k], gw[k], gb[k]
-        for j in range(g.shape[0]):
-            gbj = gbk[j]
-            for u in range(gbj.shape[0]):
+        _accumulate_layer(n0, x if k == 0 else hidden[k - 1], deltas[k], gw[k], gb[k])
+
+
+@njit(cache=True, error_model="numpy")
+def _accumulate_layer(n0, src, d, g, gb):
+    """:func:`_accumulate` for one layer, inputs ``src`` and cotangents ``d``.
+
+    The loop over a lane's CHUNK / LANES terms has a constant length, so LLVM unrolls it inside
+    the loop over lanes, which it vectorises: the lanes' sums stay in registers (columns unsigned,
+    as in :func:`_add_products`). Four outputs j share each load of an input's row. Their sums
+    go to ``lanes``, scratch allocated here, before they are added in float64: LLVM vectorises the
+    loop only where its stores cannot overlap its many loads, which it knows of memory allocated
+    here and not of arrays passed in."""
+    zero = np.zeros(1, src.dtype)[0]
+    lanes = np.empty((4, LANES), src.dtype)
+    rows = g.shape[0]
+    for j in range(0, rows - rows % 4, 4):
+        for u in range(lanes.shape[1]):
+            a0 = a1 = a2 = a3 = zero
+            for c in range(0, CHUNK, LANES):
+                col = np.uint64(c + u)
+                a0 += d[j, col]
+                a1 += d[j + 1, col]
+                a2 += d[j + 2, col]
+                a3 += d[j + 3, col]
+            lanes[0, u], lanes[1, u], lanes[2, u], lanes[3, u] = a0, a1, a2, a3
+        for q in range(4):
+            _add_lane_sums(gb[j + q], lanes[q])
+        for i in range(g.shape[1]):
+            for u in range(lanes.shape[1]):
+                a0 = a1 = a2 = a3 = zero
+                for c in range(0, CHUNK, LANES):
+                    col = np.uint64(c + u)
+                    v = src[i, np.uint64(n0 + c + u)]
+                    a0 += d[j, col] * v
+                    a1 += d[j + 1, col] * v
+                    a2 += d[j + 2, col] * v
+                    a3 += d[j + 3, col] * v
+                lanes[0, u], lanes[1, u], lanes[2, u], lanes[3, u] = a0, a1, a2, a3
+            for q in range(4):
+                _add_lane_sums(g[j + q, i], lanes[q])
+    for j in range(rows - rows % 4, rows):
+        for u in range(lanes.shape[1]):
+            acc = zero
+            for c in range(0, CHUNK, LANES):
+                acc += d[j, np.uint64(c + u)]
+            lanes[0, u] = acc
+        _add_lane_sums(gb[j], lanes[0])
+        for i in range(g.shape[1]):
+            for u in range(lanes.shape[1]):
                 acc = zero
                 for c in range(0, CHUNK, LANES):
-                    acc += d[j, np.uint64(c + u)]
-                gbj[u] += acc
-            for i in range(g.shape[1]):
-                gji = g[j, i]
-                for u in range(gji.shape[0]):
-                    acc = zero
-                    for c in range(0, CHUNK, LANES):
-                        acc += d[j, np.uint64(c + u)] * src[i, np.uint64(n0 + c + u)]
-                    gji[u] += acc
+                    acc += d[j, np.uint64(c + u)] * src[i, np.uint64(n0 + c + u)]
+                lanes[0, u] = acc
+            _add_lane_sums(g[j, i], lanes[0])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _add_lane_sums(out, add):
+    """out += add (float64 += the network's dtype)."""
+    for u in range(out.shape[0]):
+        out[u] += add[u]
 
 
 @njit(cache=True, error_model="numpy")
