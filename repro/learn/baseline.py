@@ -26,6 +26,7 @@ from repro.learn.policy import DTYPE, mlp
 
 BASELINES = ("linear", "mlp")
 ROWS = 16
+"""Rows of features the normal equations add per pass over the Gram matrix."""
 _EPS = float(np.finfo(np.float64).eps)
 
 
@@ -158,10 +159,10 @@ def _feature_row(obs, k, out):
 def _normal_equations(obs, index, returns):
     """X'X and X'y of the features X of ``obs`` and ``index``, each entry a sum over the rows in
     batch order. X'X is symmetric: its upper triangle is summed and mirrored (f_a f_b and f_b f_a
-    are the same product). Rows are taken four at a time, their features in ``block``: an entry
-    adds the four rows' terms in turn while held in a register (the loop over the four has a
+    are the same product). :data:`ROWS` rows are taken at a time, their features in ``block``: an
+    entry adds their terms in turn while held in a register (the loop over the rows has a
     constant length, so LLVM unrolls it inside the loop along the Gram matrix's row, which it
-    vectorises), so the matrix is loaded and stored once per four rows. The work is padded to a
+    vectorises), so the matrix is loaded and stored once per ROWS rows. The work is padded to a
     multiple of 8 features with zero features, and each row of the triangle starts at a multiple
     of 8 (the few entries left of the diagonal that this also sums are overwritten by the
     mirror), so that every pass along a row is whole vectors."""
