@@ -169,10 +169,11 @@ def _reference_normal_equations(x, returns):
     return gram, rhs
 
 
+@pytest.mark.parametrize("obs_dim", [11, 35])  # a row of features within PANEL, and wider
 @pytest.mark.parametrize("n", [1, 15, 16, 1000, 4099])
-def test_normal_equations_sum_rows_in_batch_order(n):
+def test_normal_equations_sum_rows_in_batch_order(n, obs_dim):
     rng = np.random.default_rng(n)
-    obs = 4 * rng.normal(size=(n, 11))
+    obs = 4 * rng.normal(size=(n, obs_dim))
     obs[rng.random(size=obs.shape) < 0.05] *= 1e3  # some clipped at 10
     index = rng.integers(0, 500, size=n).astype(np.float64)
     returns = 100 * rng.normal(size=n)

@@ -27,6 +27,8 @@ from repro.learn.policy import DTYPE, mlp
 BASELINES = ("linear", "mlp")
 ROWS = 16
 """Rows of features the normal equations add per pass over the Gram matrix."""
+PANEL = 64
+"""The row stride of those rows' features, compiled in, for up to PANEL features (obs_dim <= 30)."""
 _EPS = float(np.finfo(np.float64).eps)
 
 
@@ -158,22 +160,39 @@ def _feature_row(obs, k, out):
 @njit(cache=True)
 def _normal_equations(obs, index, returns):
     """X'X and X'y of the features X of ``obs`` and ``index``, each entry a sum over the rows in
-    batch order. X'X is symmetric: its upper triangle is summed and mirrored (f_a f_b and f_b f_a
-    are the same product). :data:`ROWS` rows are taken at a time, their features in ``block``: an
-    entry adds their terms in turn while held in a register (the loop over the rows has a
-    constant length, so LLVM unrolls it inside the loop along the Gram matrix's row, which it
-    vectorises), so the matrix is loaded and stored once per ROWS rows. The work is padded to a
-    multiple of 8 features with zero features, and each row of the triangle starts at a multiple
-    of 8 (the few entries left of the diagonal that this also sums are overwritten by the
-    mirror), so that every pass along a row is whole vectors."""
-    n, width = obs.shape[0], 2 * obs.shape[1] + 4
+    batch order (:func:`_add_rows`). The features are padded with zeros to a multiple of 8."""
+    width = 2 * obs.shape[1] + 4
     wide = -(-width // 8) * 8
-    block = np.zeros((ROWS, wide))
     gram, rhs = np.zeros((wide, wide)), np.zeros(width)
+    if wide <= PANEL:  # a row stride LLVM sees as a constant
+        _add_rows(obs, index, returns, np.zeros(ROWS * PANEL), PANEL, gram, rhs)
+    else:
+        _add_rows(obs, index, returns, np.zeros(ROWS * wide), wide, gram, rhs)
+    for a in range(width):
+        for b in range(a):
+            gram[a, b] = gram[b, a]
+    return gram[:width, :width].copy(), rhs
+
+
+@njit(cache=True, inline="always")
+def _add_rows(obs, index, returns, block, stride, gram, rhs):
+    """Add every row's terms to the upper triangle of X'X (``gram``) and to X'y (``rhs``).
+
+    The order of the work is free as long as each entry's terms are added in batch order (the
+    caller mirrors the triangle: f_a f_b and f_b f_a are the same product). :data:`ROWS` rows are
+    taken at a time, their features in ``block``, row r at ``r * stride``: an entry adds their
+    terms in turn while held in a register (the loop over the rows has a constant length, so LLVM
+    unrolls it inside the loop along the Gram matrix's row, which it vectorises), so the matrix is
+    loaded and stored once per ROWS rows. Where ``stride`` is a constant (the function is inlined),
+    LLVM sees from the rows' constant offsets that its loads cannot overlap the matrix's row;
+    otherwise it checks every pair before each pass, which costs more than the pass. Each pass
+    along a row of the triangle starts at a multiple of 8 (entries left of the diagonal that this
+    also sums are overwritten by the mirror), so that it is whole vectors."""
+    n, width = obs.shape[0], len(rhs)
     for n0 in range(0, n, ROWS):
         rows = min(ROWS, n - n0)
         for r in range(rows):
-            _feature_row(obs[n0 + r], index[n0 + r], block[r])
+            _feature_row(obs[n0 + r], index[n0 + r], block[r * stride:r * stride + width])
         for a in range(width):
             start = a - a % 8
             row = gram[a, start:]
@@ -182,19 +201,15 @@ def _normal_equations(obs, index, returns):
                     total = row[b]
                     col = np.uint64(start + b)
                     for r in range(ROWS):
-                        total += block[r, a] * block[r, col]
+                        total += block[r * stride + a] * block[np.uint64(r * stride) + col]
                     row[b] = total
             else:
                 for r in range(rows):
-                    fr, br = block[r, start:], block[r, a]
+                    fr, fa = block[r * stride + start:(r + 1) * stride], block[r * stride + a]
                     for b in range(row.shape[0]):
-                        row[b] += br * fr[b]
+                        row[b] += fa * fr[b]
             for r in range(rows):
-                rhs[a] += block[r, a] * returns[n0 + r]
-    for a in range(width):
-        for b in range(a):
-            gram[a, b] = gram[b, a]
-    return gram[:width, :width].copy(), rhs
+                rhs[a] += block[r * stride + a] * returns[n0 + r]
 
 
 @njit(cache=True)
