@@ -16,7 +16,8 @@ STAMP  := $(VENV)/.installed
 # alias target (tests/test_make.py checks both).
 .PHONY: help setup reproduce test test-fast lint claims transfer transfer-heuristics transfer-dt \
 	transfer-order transfer-ablation transfer-inputs bus-thresholds bus-lambda bus-batch \
-	bus-arrivals bus-loads bus-eval race wildfire-races scaling wildfire-behaviour wildfire-eval \
+	bus-lambda-pool bus-batch-pool \
+	bus-arrivals bus-loads bus-eval race wildfire-races scaling wildfire-behaviour wildfire-penalty wildfire-eval \
 	render advantage-estimators train plot-runs bench-bus bench-wildfire bench-learn clean \
 	table-race table-thresholds fig-scaling fig-transfer wildfire-heuristics beyond-transfer-dt \
 	beyond-order learner-ablation c9-inputs fig-bus-lambda fig-bus-batch fig-bus-arrivals \
@@ -56,6 +57,8 @@ reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke che
 	$(MAKE) bus-thresholds SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) bus-lambda SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) bus-batch SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) bus-lambda-pool SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) bus-batch-pool SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) bus-arrivals SCALE=$(SCALE)
 	$(MAKE) bus-loads SCALE=$(SCALE)
 	$(MAKE) scaling SCALE=$(SCALE) SEED=$(SEED)
@@ -64,6 +67,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke che
 	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
 	$(MAKE) transfer-heuristics SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
+	$(MAKE) wildfire-penalty SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-races SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) advantage-estimators SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) advantage-sb3 SCALE=$(SCALE) SEED=$(SEED)
@@ -94,6 +98,12 @@ bus-lambda: $(STAMP) ## bus training curves over lambda (C1, C2; needs bus-thres
 
 bus-batch: $(STAMP) ## bus training curves over the batch size (C3; needs bus-thresholds)
 	$(REPRO) bus-batch --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+bus-lambda-pool: $(STAMP) ## bus-lambda on the released runner's shared-stream pool, as the paper's curves were drawn (C1, C2)
+	$(REPRO) bus-lambda --sampler released-pool --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+bus-batch-pool: $(STAMP) ## bus-batch on the released runner's shared-stream pool (C3)
+	$(REPRO) bus-batch --sampler released-pool --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 bus-arrivals: $(STAMP) ## bus arrival times per policy (C5; needs bus-thresholds, bus-lambda)
 	$(REPRO) bus-arrivals --scale $(SCALE) $(ARGS)
@@ -130,6 +140,9 @@ transfer-heuristics: $(STAMP) ## heuristic policies on the transfer study's ED t
 
 wildfire-behaviour: $(STAMP) ## frequencies of a long ED-trained policy vs the flowchart (C6, C7)
 	$(REPRO) wildfire-behaviour --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+wildfire-penalty: $(STAMP) ## the behaviour study over crowding penalties 1-20, as the authors measured it (C6, C7)
+	$(REPRO) wildfire-penalty --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 wildfire-races: $(STAMP) ## X2: races in the wildfire simulator, dT against N, beside C10 (after race)
 	$(REPRO) wildfire-races --scale $(SCALE) --seed $(SEED) $(ARGS)

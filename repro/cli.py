@@ -49,6 +49,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     # how does a learned wildfire policy behave?
     "wildfire-behaviour": (S + "wildfire.behaviour",
                            "frequencies of a long ED-trained policy vs the flowchart (C6, C7)"),
+    "wildfire-penalty": (S + "wildfire.penalty",
+                         "the behaviour study over crowding penalties, as the authors measured it"
+                         " (C6, C7)"),
     "wildfire-eval": (S + "wildfire.evaluate", "ADR of a heuristic wildfire policy"),
     "render": (S + "wildfire.render", "an animation (GIF) of one episode of a policy"),
     # training, and does M-GAE matter?

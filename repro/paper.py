@@ -73,9 +73,10 @@ PAPER_LOADS = {
 """Load at arrival per paper panel (No Holding, Optimized Thresholds, the trained policy), per
 bus 1-5, per record 40..50."""
 PAPER_PANEL = {"nohold": "nohold", "authors": "thresholds", "thresholds": "thresholds",
-               "mlp": "mlp"}
+               "mlp": "mlp", "gru": "mlp", "gru-greedy": "mlp"}
 """Our policy -> the paper panel it is compared with (both thresholds policies with the paper's
-thresholds panel, which the authors' thresholds drew)."""
+thresholds panel, which the authors' thresholds drew; the paper's "MLP" panel was drawn by the
+released GRU policy, sampled: ``busbunchingenv.py`` ``test()``)."""
 
 
 def paper_loads(policy: str) -> pd.DataFrame:

@@ -142,21 +142,61 @@ def test_c2_verdict_compares_the_spread_over_lambda_with_the_gap(tmp_path, store
     assert check_c2(tmp_path).verdict == verdict
 
 
+def _write_curves(res, early: dict[int, list[float]], final: float, epochs: int = 6) -> None:
+    """A batch sweep's per-epoch table: each run at its early level for the first half of its
+    epochs, then at ``final``; the sidecar records the epochs the reading takes."""
+    rows = [dict(batch=b, seed=s, epoch=e, average_return=level if e < epochs // 2 else final,
+                 average_discounted_return=0.0, **{"lambda": 2.0})
+            for b, levels in early.items() for s, level in enumerate(levels)
+            for e in range(epochs)]
+    write_result_csv(pd.DataFrame(rows), res / "bus_batch.csv",
+                     config=dict(epochs=epochs, final_epochs=2, early_epochs=epochs // 2))
+
+
 @pytest.mark.parametrize("means, verdict", [
     ((-300.0, -200.0, -100.0), "PASS"),     # monotone, ends separated
     ((-300.0, -50.0, -100.0), "PARTIAL"),   # not monotone, but the largest beats the smallest
     ((-100.0, -200.0, -300.0), "FAIL"),
 ])
-def test_c3_verdict_needs_a_monotone_rise(tmp_path, stored_intervals, means, verdict):
-    settings = {b: [m - 1.0, m, m + 1.0] for b, m in zip((54, 135, 540), means)}
-    _write_summary(tmp_path, "batch", settings, thresholds=-400.0)
-    assert check_c3(tmp_path).verdict == verdict
+def test_c3_verdict_reads_convergence_over_the_run(tmp_path, stored_intervals, means, verdict):
+    """C3 reads the early return (the first early_epochs), not the final level: every run here
+    ends at one level."""
+    early = {b: [m - 1.0, m, m + 1.0] for b, m in zip((54, 135, 540), means)}
+    _write_summary(tmp_path, "batch", {b: [-150.0] * 3 for b in early}, thresholds=-120.0)
+    _write_curves(tmp_path, early, final=-150.0)
+    v = check_c3(tmp_path)
+    assert v.verdict == verdict
+    assert "thresholds reached by 0/3" in v.ours or "thresholds reached by 3/3" in v.ours
+
+
+def test_pool_sweep(tmp_path):
+    """The batch sweep on the released pool: its own files and run folders, the batches'
+    distinct episodes in the table, the convergence readings; refused for the suite's learner."""
+    res, runs = tmp_path / "res", tmp_path / "runs"
+    assert main(["bus-thresholds", "--scale", "smoke", "--results-dir", str(res)]) == 0
+    args = ["fig-bus-batch", "--sampler", "released-pool", "--scale", "smoke", "--results-dir",
+            str(res), "--figures-dir", str(tmp_path / "fig"), "--runs-dir", str(runs),
+            "--n-jobs", "1", "--seeds", "1"]
+    assert main(args) == 0
+    table = pd.read_csv(res / "bus_batch_pool.csv")
+    assert (table.distinct_episodes >= 1).all()
+    assert (table.distinct_episodes <= 4).all()  # the smoke learner's 4 workers
+    read = pd.read_csv(res / "bus_batch_pool_convergence.csv")
+    assert list(read.columns) == ["lambda", "batch", "seed", "early_return",
+                                  "epochs_to_thresholds", "final_return"]
+    assert sorted(p.name for p in (runs / "bus-released").iterdir() if p.is_dir()) == [
+        f"pool_lam2_dec{b}_seed0" for b in (12, 24, 6)]
+    assert (tmp_path / "fig" / "bus_batch_pool.png").exists()
+    assert not (res / "bus_batch.csv").exists()
+    assert main([*args, "--learner", "suite"]) == 2
 
 
 @pytest.mark.parametrize("args", [
     ["fig-bus-lambda", "--seeds", "0"],
     ["fig-bus-batch", "--epochs", "2", "--final-epochs", "3"],
     ["fig-bus-lambda", "--n-jobs", "0"],
+    ["fig-bus-batch", "--sampler", "shared"],
+    ["fig-bus-batch", "--early-epochs", "0"],
     ["fig-bus-lambda"],  # no results/bus_thresholds.csv yet
     ["fig-bus-arrivals", "--policies", "mlp"],  # no lambda sweep yet
 ])

@@ -12,7 +12,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from repro.core.config import SCALES, Validated, add_config_arguments, given_fields, settings
+from repro.core.config import (SCALES, Validated, add_config_arguments, flag, given_fields,
+                               settings)
 from repro.core.errors import require
 from repro.envs import env_package, train_defaults
 from repro.learn.baseline import BASELINES
@@ -62,12 +63,31 @@ class TrainConfig(Validated):
     lambda constant per decision. Runs recorded before this setting existed used "m-gae"."""
     max_kl: float = 0.01
     """TRPO max step: bound on the mean KL between consecutive policies."""
+    policy: str = "mlp"
+    """The shared policy network (:data:`POLICIES`): "mlp", a categorical MLP of the agent's
+    observation (``hidden``, ``init``; the paper's bus and wildfire curves); "gru", the released
+    runner's recurrent policy (``--recurrent gru --feature_net``): a feature MLP of the observation
+    and the agent's previous action, a GRU over the agent's own decisions, softmax logits
+    (``gru_*``; :mod:`repro.learn.gru`), which drew the paper's bus arrival and load pictures."""
     hidden: tuple[int, ...] = (32,)
     """Hidden layer sizes of the policy MLP (tanh); the released runner's ``policy_hidden='32'``."""
     init: str = "xavier"
     """Initial weights of the policy MLP: "xavier" (Glorot-uniform weights, zero biases, as the
     released CategoricalMLPPolicy) or "orthogonal" (gain sqrt 2, the output layer's 0.01, zero
     biases: a nearly uniform first policy)."""
+    gru_hidden: int = 32
+    """Units of the gru policy's GRU (the released runner's ``--policy_hidden 32``)."""
+    gru_features: tuple[int, ...] = (128, 64, 32)
+    """Hidden layer sizes (tanh) of the gru policy's feature MLP (the released runner's
+    ``--feature_hidden`` default)."""
+    gru_feature_output: int = 16
+    """Outputs (linear) of the gru policy's feature MLP, the GRU's input (``--feature_output``)."""
+    gru_fvp: str = "finite-difference"
+    """How the gru's TRPO step computes Fisher-vector products (:data:`GRU_FVPS`):
+    "finite-difference", the released ``FiniteDifferenceHvp``: the KL's gradient at theta +- eps v,
+    eps = gru_fvp_eps / (|theta| + 1e-8); "exact", the second derivative by double backward."""
+    gru_fvp_eps: float = 1e-5
+    """Base step of the finite-difference products (the released ``base_eps``, 1e-5)."""
     baseline: str = "linear"
     """Value baseline: "linear" (rllab's linear feature baseline, as the released implementation)
     or "mlp" (see repro.learn.baseline)."""
@@ -123,6 +143,21 @@ class TrainConfig(Validated):
         self.check(self.max_kl > 0 and math.isfinite(self.max_kl), "max_kl", "a number > 0")
         self.check(len(self.hidden) >= 1 and min(self.hidden) >= 1, "hidden",
                    "one or more positive layer sizes")
+        self.check(self.policy in POLICIES, "policy", "one of " + ", ".join(POLICIES))
+        if self.policy == "mlp":
+            for name in GRU_FIELDS:
+                self.check(getattr(self, name) == getattr(TrainConfig, name), name,
+                           f"{getattr(TrainConfig, name)!r} (its default) with --policy mlp: "
+                           "a setting of the gru policy")
+        self.check(self.gru_hidden >= 1, "gru_hidden", "an integer >= 1")
+        self.check(len(self.gru_features) >= 1 and min(self.gru_features) >= 1, "gru_features",
+                   "one or more positive layer sizes")
+        self.check(self.gru_feature_output >= 1, "gru_feature_output", "an integer >= 1")
+        self.check(self.gru_fvp in GRU_FVPS, "gru_fvp", "one of " + ", ".join(GRU_FVPS))
+        self.check(self.gru_fvp_eps > 0 and math.isfinite(self.gru_fvp_eps), "gru_fvp_eps",
+                   "a number > 0")
+        self.check(self.policy != "gru" or self.fvp_subsample == 1, "fvp_subsample",
+                   "1 with --policy gru (its Fisher products run over whole agent paths)")
         self.check(self.baseline in BASELINES, "baseline", "one of " + ", ".join(BASELINES))
         self.check(len(self.baseline_hidden) >= 1 and min(self.baseline_hidden) >= 1,
                    "baseline_hidden", "one or more positive layer sizes")
@@ -136,6 +171,16 @@ class TrainConfig(Validated):
 
 
 INITS = ("xavier", "orthogonal")
+POLICIES = ("mlp", "gru")
+"""The policy networks (``TrainConfig.policy``)."""
+GRU_FVPS = ("finite-difference", "exact")
+"""The gru's Fisher-vector products (``TrainConfig.gru_fvp``)."""
+GRU_FIELDS = ("gru_hidden", "gru_features", "gru_feature_output", "gru_fvp", "gru_fvp_eps")
+"""The TrainConfig settings of the gru policy only."""
+MLP_FIELDS = ("hidden", "init")
+"""The TrainConfig settings of the mlp policy only: a named learner sets them for both policies,
+and with --policy gru a value other than the learner's is refused (the gru's settings, other
+than their defaults, are refused with --policy mlp)."""
 SAMPLERS = ("independent", "released-pool")
 """The batch samplers (``TrainConfig.sampler``)."""
 
@@ -195,8 +240,12 @@ def train_config(scale: str, env: str, learner: str = DEFAULT_LEARNER,
     require(learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS), learner)
     preset = {k: v for k, v in LEARNERS[learner].items() if k != "batch_unit"}
     given = {k: v for k, v in overrides.items() if v is not None}
-    fields = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], **preset,
-              "env": env, **given}
+    base = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], **preset}
+    if given.get("policy") == "gru":  # the mlp's settings as set without flags (a run's
+        for name in MLP_FIELDS:       # config.json gives them) or refused
+            require(given.get(name, base[name]) == base[name], flag(name), "left out with "
+                    "--policy gru (a setting of the mlp policy)", given.get(name))
+    fields = {**base, "env": env, **given}
     units = ("batch_decisions", "batch_episodes")
     require(not all(u in given for u in units), "--batch-decisions",
             "given instead of --batch-episodes, not with it", given.get("batch_decisions"))

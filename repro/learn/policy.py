@@ -206,6 +206,10 @@ class Sampler:
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
         return self.act(batch, self.rng.random(len(batch.obs)))
 
+    def greedy(self, batch: DecisionBatch) -> np.ndarray:
+        """The most probable action of every row (ties: the lowest)."""
+        return self.probabilities(batch.obs).argmax(axis=1).astype(np.int64)
+
     def act(self, batch: DecisionBatch, u: np.ndarray) -> np.ndarray:
         """The actions of ``batch``'s rows, row r's by inverse-CDF sampling with the uniform
         ``u[r]`` (the released pool draws them from each episode's own stream:

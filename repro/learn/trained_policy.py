@@ -9,6 +9,7 @@ import numpy as np
 
 from repro.core.config import saved_defaults
 from repro.core.errors import UsageError, require
+from repro.learn.gru import GRUSampler, gru_policy
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.runs.provenance import note_trained_under
 from repro.runs.run_folder import (CHECKPOINT, CONFIG, KEPT, PROGRESS, load_checkpoint,
@@ -38,22 +39,27 @@ def load_trained_run(path: str | Path, env_name: str,
     return state
 
 
-def policy_from_checkpoint(path: str | Path, rng: np.random.Generator) -> Sampler:
+def policy_from_checkpoint(path: str | Path,
+                           rng: np.random.Generator) -> Sampler | GRUSampler:
     """The trained policy of a run folder's checkpoint, ready to hand to an engine (a UsageError
     if the file is not a whole checkpoint of this suite)."""
     return policy_from_state(load_checkpoint(path, "checkpoint"), rng)
 
 
-def policy_from_state(state: dict[str, Any], rng: np.random.Generator) -> Sampler:
-    """The trained policy of a loaded checkpoint (:func:`load_checkpoint`)."""
+def policy_from_state(state: dict[str, Any], rng: np.random.Generator) -> Sampler | GRUSampler:
+    """The trained policy of a loaded checkpoint (:func:`load_checkpoint`): an MLP's
+    :class:`Sampler` or a gru's :class:`GRUSampler` (which keeps each agent's state: one per
+    rollout at a time). Both sample with ``rng`` when called and have ``greedy``."""
     cfg = state["run_config"]["train"]
     obs_dim = len(state["normalizer"]["mean"])
     n_actions = state["policy"][next(reversed(state["policy"]))].shape[0]
-    policy = CategoricalPolicy(obs_dim, n_actions, cfg["hidden"])
+    gru = cfg.get("policy", "mlp") == "gru"
+    policy = (gru_policy(obs_dim, n_actions, cfg) if gru
+              else CategoricalPolicy(obs_dim, n_actions, cfg["hidden"]))
     policy.load_state_dict(state["policy"])
     normalizer = ObsNormalizer(obs_dim)
     normalizer.load_state_dict(state["normalizer"])
-    return Sampler(policy, normalizer, rng)
+    return (GRUSampler if gru else Sampler)(policy, normalizer, rng)
 
 
 def trained_env_config(state: dict[str, Any], config: type[C],

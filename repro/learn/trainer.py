@@ -35,8 +35,9 @@ import pandas as pd
 import torch
 
 from repro.core.errors import require
-from repro.core.rollout import BatchEnv, RunsToEnd
-from repro.learn import batch
+from repro.core.config import to_dict
+from repro.core.rollout import BatchEnv, Rollout, RunsToEnd
+from repro.learn import batch, gru
 from repro.learn.baseline import make_baseline
 from repro.learn.config import TrainConfig
 from repro.learn.m_gae import advantage_paths
@@ -45,7 +46,7 @@ from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn.pool import ReleasedPool
 from repro.learn.run_identity import run_config, saved_run_aliases, saved_run_defaults
 from repro.learn.sizes import check_training_size
-from repro.learn.trpo import normalize, trpo_step
+from repro.learn.trpo import TRPOStats, normalize, trpo_step
 from repro.runs import run_folder
 from repro.runs.kernels import check as check_kernels
 from repro.runs.progress import progress
@@ -84,7 +85,9 @@ class Trainer:
         check_training_size(cfg, env)  # before the networks are built
         check_kernels()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))
-        self.policy = CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden, cfg.init)
+        self.policy = (gru.gru_policy(env.obs_dim, env.n_actions, to_dict(cfg))
+                       if cfg.policy == "gru" else
+                       CategoricalPolicy(env.obs_dim, env.n_actions, cfg.hidden, cfg.init))
         self.baseline = make_baseline(cfg.baseline, env.obs_dim, cfg.baseline_hidden,
                                       cfg.baseline_iters)
         self.normalizer = ObsNormalizer(env.obs_dim)
@@ -99,7 +102,8 @@ class Trainer:
     def run_epoch(self) -> dict[str, Any]:
         cfg, env = self.cfg, self.env
         t0 = time.perf_counter()
-        sampler = Sampler(self.policy, self.normalizer, self.rng)
+        sampler = (gru.GRUSampler(self.policy, self.normalizer, self.rng) if cfg.policy == "gru"
+                   else Sampler(self.policy, self.normalizer, self.rng))
         if self.pool is not None:
             ro, distinct = self.pool.sample(env, sampler.act, cfg.batch_decisions)
         else:
@@ -115,10 +119,7 @@ class Trainer:
         adv, ret = advantage_paths(cfg.advantage, ro.rewards, ro.durations, values, ro.path_start,
                                    env.gamma, cfg.lam)
         explained = 1.0 - np.var(ret - values) / np.var(ret) if np.var(ret) > 0 else 0.0
-        stats = trpo_step(TanhMLP(self.policy.net), z, ro.actions, normalize(adv),
-                          max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
-                          backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks,
-                          fvp_rows=self.fvp_rows(ro.n_decisions))
+        stats = self.trpo_step(z, ro, normalize(adv))
         t2 = time.perf_counter()
         # the normaliser moves on first, so that the baseline is fitted in the coordinates in which
         # it will predict the next batch's values
@@ -141,6 +142,19 @@ class Trainer:
         )
         self.epoch += 1
         return row
+
+    def trpo_step(self, z: np.ndarray, ro: Rollout, adv: np.ndarray) -> TRPOStats:
+        """The epoch's TRPO step on the batch ``ro`` (normalised observations ``z``, normalised
+        advantages ``adv``): the MLP's on its decisions, the gru's on its agent paths."""
+        cfg = self.cfg
+        step = dict(max_kl=cfg.max_kl, cg_iters=cfg.cg_iters, cg_damping=cfg.cg_damping,
+                    backtrack_ratio=cfg.backtrack_ratio, max_backtracks=cfg.max_backtracks)
+        if cfg.policy == "gru":
+            paths = gru.Paths.pack(z, ro.actions, ro.path_start, self.env.n_actions)
+            return gru.trpo_step(self.policy, paths, ro.actions, adv, fvp=cfg.gru_fvp,
+                                 fvp_eps=cfg.gru_fvp_eps, **step)
+        return trpo_step(TanhMLP(self.policy.net), z, ro.actions, adv,
+                         fvp_rows=self.fvp_rows(ro.n_decisions), **step)
 
     def fvp_rows(self, n_decisions: int) -> np.ndarray | None:
         """The decisions of this epoch's batch on which TRPO computes Fisher-vector products:

@@ -143,7 +143,9 @@ def state_problem(state: dict[str, Any], obs_dim: int | None = None,
     if (not isinstance(hidden, (list, tuple)) or not hidden
             or not all(isinstance(h, int) and h >= 1 for h in hidden)):
         return "its run config has no hidden layer sizes"
-    problem, sizes = _policy_problem(state["policy"], list(hidden), obs_dim, n_actions)
+    problem, sizes = (_gru_problem(state["policy"], train, obs_dim, n_actions)
+                      if train.get("policy", "mlp") == "gru" else
+                      _policy_problem(state["policy"], list(hidden), obs_dim, n_actions))
     problem = problem or _normaliser_problem(state["normalizer"], sizes[0])
     if problem or not whole:
         return problem
@@ -165,6 +167,32 @@ def _policy_problem(policy: Any, hidden: list[int], obs_dim: int | None,
         if want is not None and have != want:
             return f"its policy has {have} {name}, the environment {want}", sizes
     return None, sizes
+
+
+def _gru_problem(policy: Any, train: dict[str, Any], obs_dim: int | None,
+                 n_actions: int | None) -> tuple[str | None, list[int]]:
+    """What is wrong with a state's gru policy (``repro.learn.gru.GRUPolicy``, of the sizes its
+    run config names), and [its observation size]."""
+    hidden, features, output = (train.get(k) for k in ("gru_hidden", "gru_features",
+                                                        "gru_feature_output"))
+    first = policy.get("features.0.weight") if isinstance(policy, dict) else None
+    out = policy.get("out.weight") if isinstance(policy, dict) else None
+    if not (isinstance(hidden, int) and isinstance(output, int)
+            and isinstance(features, (list, tuple)) and _is_tensor(first, 2)
+            and _is_tensor(out, 2)):
+        return "its policy is not the gru its run config names", [0]
+    actions = out.shape[0]
+    sizes = [first.shape[1], *features, output]
+    expect = {**_mlp_shapes(sizes, "features", F64),
+              "gru.x_weight": ((3 * hidden, output), F64),
+              "gru.h_weight": ((3 * hidden, hidden), F64), "gru.bias": ((3 * hidden,), F64),
+              "out.weight": ((actions, hidden), F64), "out.bias": ((actions,), F64)}
+    d = first.shape[1] - actions
+    problem = _tensors_problem("policy", policy, expect)
+    for name, want, have in (("inputs", obs_dim, d), ("actions", n_actions, actions)):
+        if problem is None and want is not None and have != want:
+            problem = f"its policy has {have} {name}, the environment {want}"
+    return problem, [d]
 
 
 def _normaliser_problem(norm: Any, d: int) -> str | None:
@@ -217,12 +245,13 @@ DTYPE = torch.float32
 """The networks' dtype (:data:`repro.learn.policy.DTYPE`, which this layer cannot import)."""
 
 
-def _mlp_shapes(sizes: list[int]) -> dict[str, tuple[tuple[int, ...], torch.dtype]]:
-    """The entries of an MLP of layer ``sizes`` (inputs first): each layer's weight and bias, in
-    the networks' dtype."""
-    return {**{f"net.{2 * i}.weight": ((b, a), DTYPE) for i, (a, b) in
+def _mlp_shapes(sizes: list[int], prefix: str = "net",
+                dtype: torch.dtype = DTYPE) -> dict[str, tuple[tuple[int, ...], torch.dtype]]:
+    """The entries of an MLP of layer ``sizes`` (inputs first) named ``prefix``: each layer's
+    weight and bias, in ``dtype`` (the networks' by default; the gru's are float64)."""
+    return {**{f"{prefix}.{2 * i}.weight": ((b, a), dtype) for i, (a, b) in
                enumerate(zip(sizes, sizes[1:]))},
-            **{f"net.{2 * i}.bias": ((b,), DTYPE) for i, b in enumerate(sizes[1:])}}
+            **{f"{prefix}.{2 * i}.bias": ((b,), dtype) for i, b in enumerate(sizes[1:])}}
 
 
 def _tensors_problem(what: str, tensors: Any,

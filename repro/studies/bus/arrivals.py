@@ -4,7 +4,10 @@ bbarrival_times): a 6 h episode, buses 1-5 as the paper drew them (``--all-buses
 Writes results/bus_arrivals.csv (every served stop visit of one 6 h episode per policy, all
 buses) and figures/bus_arrivals. Panels: No Holding, the authors' thresholds, ours, the trained
 MLP, which is the lambda sweep's best run (highest final return; ``--mlp-run`` names another),
-acting greedily. A new policy is one more name in ``POLICIES`` / ``make_policy``. The figure is
+acting greedily; with ``--policies ... gru gru-greedy`` also the released GRU policy that drew the
+paper's pictures, sampled and greedy, the best of its runs, trained here where they are not
+finished (:mod:`repro.studies.bus.gru_runs`; ``--gru-run`` names another). A new policy is one
+more name in ``POLICIES`` / ``make_policy``. The figure is
 one column wide, the panels two by two; ``--replot`` draws it again from the CSV.
 """
 

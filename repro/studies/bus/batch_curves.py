@@ -7,6 +7,8 @@ import argparse
 
 from repro.studies.bus import sweeps as bus_sweeps
 
+VARIANTS = bus_sweeps.VARIANTS
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     bus_sweeps.add_arguments(p)

@@ -1,11 +1,12 @@
 """Evaluate a bus policy: return, discounted return, the paper's load records, time to regularity.
 
-``python -m repro bus-eval --policy {nohold,authors,thresholds,mlp} [--thresholds T1 T2 T3]
-[--json]`` prints the numbers and writes nothing. The corridor is deterministic and so is every
-policy here (the MLP acts greedily), so one episode is the exact value. The returns are those of the
-training episode (3 h); the loads and the time to regularity those of the paper's pictures, a 6 h
-episode (docs/semantics.md section 6.5). :func:`evaluate` also takes more episodes, for sampling
-policies built in code (its per-episode figures come from episode 0).
+``python -m repro bus-eval --policy {nohold,authors,thresholds,mlp,gru,gru-greedy} [--thresholds
+T1 T2 T3] [--gru-run RUN] [--json]`` prints the numbers and writes nothing. The corridor is
+deterministic and so is every policy here but gru (the MLP and gru-greedy act greedily), so one
+episode is the exact value; gru samples its actions, so its episode is one draw. The returns are
+those of the training episode (3 h); the loads and the time to regularity those of the paper's
+pictures, a 6 h episode (docs/semantics.md section 6.5). :func:`evaluate` also takes more
+episodes, for sampling policies built in code (its per-episode figures come from episode 0).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, ma
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, record_loads, time_to_regularity,
                                     time_to_uniform)
 from repro.learn.config import LEARNERS
-from repro.studies.bus.policies import POLICIES, picture_arrivals, policy_from_args
+from repro.studies.bus.policies import GRU_PANELS, POLICIES, picture_arrivals, policy_from_args
 
 
 def _finite_or_none(x: float) -> float | None:
@@ -56,6 +57,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="thresholds in seconds (default: ours in results/bus_thresholds.csv)")
     p.add_argument("--mlp-run", help="training run folder of the mlp policy "
                    "(default: the best run in results/bus_lambda_summary.csv)")
+    p.add_argument("--gru-run", help="training run folder of the gru and gru-greedy policies "
+                   "(gru samples its actions, from the stream of the run's name)")
     p.add_argument("--learner", choices=tuple(LEARNERS),
                    help="the mlp policy is the best run of this learner's lambda "
                    "sweep: " + ", ".join(LEARNERS) + " (default authors)")
@@ -66,9 +69,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    for option, value, used_by in (("--thresholds", args.thresholds, "thresholds"),
-                                   ("--mlp-run", args.mlp_run, "mlp")):
-        require(value is None or args.policy == used_by, option, f"used with --policy {used_by}")
+    for option, value, used_by in (("--thresholds", args.thresholds, ("thresholds",)),
+                                   ("--mlp-run", args.mlp_run, ("mlp",)),
+                                   ("--gru-run", args.gru_run, GRU_PANELS)):
+        require(value is None or args.policy in used_by, option,
+                f"used with --policy {' or '.join(used_by)}")
     cfg = config_from_args(args)
     policy = policy_from_args(args.policy, args, cfg)
     summary, _ = evaluate(policy, cfg)

@@ -10,8 +10,10 @@ authors' thresholds (fixed policies, so the corridor alone decides), the L1 dist
 the paper's panel with each of B1-B5 turned off alone (``off``: none, a switch, or all); and,
 with the MLP panel taken from the lambda sweep, results/bus_load_mlp_runs.csv: every trained run
 of that sweep (lambda, seed, final return), acting greedily, with its L1 distance per point to the
-paper's MLP panel. The figure is one column wide, the panels two by two; ``--replot`` draws it
-again from results/bus_load.csv (and writes nothing else).
+paper's MLP panel. The GRU panels (``--policies ... gru gru-greedy``: the arrival figure's) are
+compared with the paper's MLP panel too, which the released GRU drew. The figure is one column
+wide, the panels two by two; ``--replot`` draws it again from results/bus_load.csv (and writes
+nothing else).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
 from repro.studies.bus.pictures import (add_policy_arguments, learner_csv, policy_grid,
                                         run_policy_figure)
-from repro.studies.bus.policies import (GreedyPolicy, lambda_summary_csv, make_policy,
+from repro.studies.bus.policies import (TrainedPolicy, lambda_summary_csv, make_policy,
                                         picture_arrivals)
 
 LOAD_CSV = "bus_load.csv"
@@ -98,7 +100,7 @@ def mlp_run_distances(cfg: BusConfig, results: Path, learner: str | None) -> pd.
     runs = read_result(results / lambda_summary_csv(learner))
     rows = []
     for lam, ret, run in runs[runs.policy == "mlp-run"][["lambda", "final_iqm", "run"]].values:
-        arrivals = picture_arrivals(GreedyPolicy(run, cfg), cfg).assign(policy="mlp")
+        arrivals = picture_arrivals(TrainedPolicy(run, cfg), cfg).assign(policy="mlp")
         rows.append({"lambda": lam, "seed": int(Path(run).name.split("seed")[-1]),
                      "final_return": ret, "run": run,
                      "l1_per_point": l1_per_point(loads(arrivals))})

@@ -17,25 +17,35 @@ from repro.learn.config import DEFAULT_LEARNER, add_learner_option, learner_stem
 from repro.paper import BUS_BUSES_DRAWN
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.bus.policies import POLICIES, best_run, picture_arrivals, policy_from_args
+from repro.studies.bus.gru_runs import best_gru_run
+from repro.studies.bus.policies import (DEFAULT_PANELS, GRU_PANELS, POLICIES, best_run,
+                                        picture_arrivals, policy_from_args)
 from repro.studies.kit.options import (add_common, add_replot, figures_folder, read_for_replot,
                                        replot_figures, results_folder)
+from repro.studies.kit.sweep import add_sweep_arguments, check_sweep_arguments
 
 
 TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",
-          "authors": "Authors' Thresholds", "thresholds": "Optimized Thresholds (ours)"}
+          "authors": "Authors' Thresholds", "thresholds": "Optimized Thresholds (ours)",
+          "gru": "Optimized GRU Policy (sampled)", "gru-greedy": "Optimized GRU Policy (greedy)"}
 
 
 def add_policy_arguments(p: argparse.ArgumentParser) -> None:
     """The options both bus figure drivers share."""
     add_common(p, seed=None)
-    p.add_argument("--policies", nargs="+", default=list(POLICIES),
-                   help="panels, in order: " + ", ".join(POLICIES))
+    p.add_argument("--policies", nargs="+", default=list(DEFAULT_PANELS),
+                   help="panels, in order, of " + ", ".join(POLICIES) + " (default: "
+                   + " ".join(DEFAULT_PANELS) + "; gru and gru-greedy: the released GRU policy "
+                   "that drew the paper's pictures, sampled and greedy)")
     p.add_argument("--thresholds", type=float, nargs=3, metavar=("T1", "T2", "T3"),
                    help="our thresholds in seconds (default: results/bus_thresholds.csv)")
     p.add_argument("--mlp-run", help="training run folder of the mlp panel, acting greedily "
                    "(default: the lambda sweep's best run, from results/bus_lambda_summary.csv)")
     add_learner_option(p, "<figure>_suite*; the mlp panel is then the suite learner's best run")
+    p.add_argument("--gru-run", help="training run folder of the gru panels (default: the best "
+                   "by test return of the GRU runs in --runs-dir, trained first where they are "
+                   "not finished; results/bus_gru_runs.csv lists them)")
+    add_sweep_arguments(p)
     p.add_argument("--all-buses", action="store_true",
                    help="draw all six buses (the paper drew buses 1-5)")
     add_replot(p)
@@ -54,6 +64,16 @@ def mlp_source(args: argparse.Namespace) -> str | None:
         return None
     return str(args.mlp_run if args.mlp_run is not None
                else best_run(args.results_dir, learner=args.learner))
+
+
+def gru_source(args: argparse.Namespace) -> str | None:
+    """The run folder the gru panels come from (None without a gru panel): --gru-run, else the
+    best of the GRU runs, trained here where they are not finished
+    (:func:`repro.studies.bus.gru_runs.best_gru_run`)."""
+    if not set(GRU_PANELS) & set(args.policies):
+        return None
+    return str(args.gru_run if args.gru_run is not None
+               else best_gru_run(args, config_from_args(args)))
 
 
 def collect(args: argparse.Namespace) -> pd.DataFrame:
@@ -92,6 +112,7 @@ def policy_grid(names: list[str], what: str, all_buses: bool):
     flat = list(axes.flat)
     for ax in flat[len(names):]:
         ax.set_visible(False)
+        flat[flat.index(ax) - cols].tick_params(labelbottom=True)  # the panel above is the last
     for ax, name in zip(flat, names):
         ax.set_title(TITLES.get(name, name), fontsize=7, pad=2)
         ax.tick_params(labelsize=6, length=2, pad=1)
@@ -107,6 +128,9 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
     ``--replot``, draw the table written before (the panels of ``--policies``)."""
     for name in args.policies:
         require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
+    require(args.gru_run is None or bool(set(GRU_PANELS) & set(args.policies)), "--gru-run",
+            "given with a gru panel (--policies gru or gru-greedy)", args.gru_run)
+    check_sweep_arguments(args)
     if args.thresholds is not None:  # checked even where no panel uses them
         check_thresholds(args.thresholds)
     csv_name = learner_csv(csv_name, args.learner)
@@ -120,10 +144,12 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
     figures_folder(args)
     results = results_folder(args)
     t0 = time.perf_counter()
+    args.gru_run = gru_source(args)  # the panels and the provenance name the run chosen
     table = table_of(collect(args))
     prov = provenance(config_from_args(args), command=command, scale=args.scale, seed=None,
                       wall_seconds=time.perf_counter() - t0,
                       extra={"policies": args.policies, "mlp_run": mlp_source(args),
+                             "gru_run": args.gru_run,
                              "learner": args.learner or DEFAULT_LEARNER})
     plot_table(table, stem, args.all_buses, [write_result(results / csv_name, table, prov)])
     print(f"wrote {results / csv_name} and {stem}.png/.pdf")

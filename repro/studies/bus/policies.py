@@ -1,5 +1,6 @@
-"""The bus policies the drivers name (No Holding, the authors' and our thresholds, a trained MLP),
-made from the result files and run folders where they come from."""
+"""The bus policies the drivers name (No Holding, the authors' and our thresholds, a trained MLP,
+a trained GRU sampled or greedy), made from the result files and run folders where they come
+from."""
 
 from __future__ import annotations
 
@@ -22,34 +23,45 @@ from repro.learn.trained_policy import (check_fits, load_trained_run, policy_fro
                                         trained_env_config)
 from repro.runs.results import read_result
 from repro.runs.run_folder import CHECKPOINT
+from repro.studies.kit.sweep import policy_stream
 
 
-class GreedyPolicy:
-    """A trained policy acting greedily: the most probable action of its MLP (ties: the lowest).
+class TrainedPolicy:
+    """A trained policy (MLP or GRU) acting greedily, the most probable action (ties: the
+    lowest), or, given ``rng``, sampling its actions from that generator.
 
     The figures show one episode per policy; acting greedily makes that episode the trained
-    policy's exact behaviour, as it is for the deterministic baselines. The run must have been
-    trained with the switches B1-B5 of ``cfg`` (they change what it observes). ``param``: the
-    option that named the run, which a refusal names.
+    policy's exact behaviour, as it is for the deterministic baselines; the paper's GRU panel was
+    drawn with sampled actions. The run must have been trained with the switches B1-B5 of ``cfg``
+    (they change what it observes). ``param``: the option that named the run, which a refusal
+    names.
     """
 
-    def __init__(self, run: str | Path, cfg: BusConfig, param: str = "--mlp-run"):
+    def __init__(self, run: str | Path, cfg: BusConfig, param: str = "--mlp-run",
+                 rng: np.random.Generator | None = None):
         state = load_trained_run(Path(run) / CHECKPOINT, "bus", param)
         trained = trained_env_config(state, BusConfig, param)
         check_fits(state, make_env(trained), param, run)
         differ = [f for f in SWITCHES if getattr(trained, f) != getattr(cfg, f)]
         require(not differ, param, "a run trained with this command's switches B1-B5 "
                 f"(it differs in {', '.join(differ)})", str(run))
-        # the generator is never drawn from: greedy actions need no randomness
-        self.sampler = policy_from_state(state, np.random.default_rng(0))
+        self.sampled = rng is not None
+        # without rng the generator is never drawn from: greedy actions need no randomness
+        self.sampler = policy_from_state(state, rng or np.random.default_rng(0))
 
     def __call__(self, batch: DecisionBatch) -> np.ndarray:
-        return self.sampler.probabilities(batch.obs).argmax(axis=1).astype(np.int64)
+        return self.sampler(batch) if self.sampled else self.sampler.greedy(batch)
 
 
-POLICIES = ("nohold", "authors", "thresholds", "mlp")
+POLICIES = ("nohold", "authors", "thresholds", "mlp", "gru", "gru-greedy")
 """Policy names the bus drivers accept, in panel order: No Holding, the authors' thresholds, ours
-(``make bus-thresholds``), the trained MLP."""
+(``make bus-thresholds``), the trained MLP (greedy), the trained GRU sampled and greedy."""
+DEFAULT_PANELS = POLICIES[:4]
+"""The panels of a bus picture without ``--policies``."""
+GRU_PANELS = ("gru", "gru-greedy")
+PICTURE_STREAM = 7
+"""The child stream, of the trained run's name (:func:`repro.studies.kit.sweep.policy_stream`,
+root 0), that a sampled picture's actions draw from."""
 
 THRESHOLDS_CSV = "bus_thresholds.csv"
 
@@ -106,19 +118,25 @@ def best_run(results_dir: str | Path, param: str = "--mlp-run",
 def make_policy(name: str, cfg: BusConfig, *, thresholds: np.ndarray | None = None,
                 results_dir: str | Path = "results/paper",
                 mlp_run: str | Path | None = None, results_param: str | None = None,
-                mlp_param: str = "--mlp-run", learner: str | None = None) -> Policy:
+                mlp_param: str = "--mlp-run", learner: str | None = None,
+                gru_run: str | Path | None = None) -> Policy:
     """The policy called ``name`` on corridor ``cfg``; our thresholds default to the optimised
     ones in ``results_dir``, the trained MLP to the best run of ``learner``'s lambda sweep
-    recorded there.
+    recorded there; the GRU is the run ``gru_run`` (sampled: from the stream of its name).
     Refusals name the options the caller has: ``mlp_param`` for the run, ``results_param`` (if
     given) for the results folder, else --thresholds and --mlp-run."""
     require(name in POLICIES, "--policy", "one of " + ", ".join(POLICIES), name)
+    if name in GRU_PANELS:
+        require(gru_run is not None, "--gru-run", f"given with --policy {name}", gru_run)
+        rng = (np.random.default_rng(policy_stream(0, PICTURE_STREAM, Path(gru_run).name))
+               if name == "gru" else None)
+        return TrainedPolicy(gru_run, cfg, "--gru-run", rng)
     if name == "nohold":
         return no_holding
     if name == "mlp":
         run = (best_run(results_dir, results_param or mlp_param, learner) if mlp_run is None
                else mlp_run)
-        return GreedyPolicy(run, cfg, mlp_param)
+        return TrainedPolicy(run, cfg, mlp_param)
     if name == "authors":
         thresholds = np.array(AUTHORS_THRESHOLDS)
     elif thresholds is None:
@@ -131,11 +149,12 @@ PICTURE_HORIZON = 6 * 3600.0
 
 
 def policy_from_args(name: str, args: argparse.Namespace, cfg: BusConfig) -> Policy:
-    """The named policy on corridor ``cfg``; --thresholds / --mlp-run, else the optimised
-    thresholds and the best trained run recorded in --results-dir."""
+    """The named policy on corridor ``cfg``; --thresholds / --mlp-run / --gru-run, else the
+    optimised thresholds and the best trained run recorded in --results-dir."""
     thresholds = None if args.thresholds is None else np.array(args.thresholds, float)
     return make_policy(name, cfg, thresholds=thresholds, results_dir=args.results_dir,
-                       mlp_run=args.mlp_run, learner=args.learner)
+                       mlp_run=args.mlp_run, learner=args.learner,
+                       gru_run=getattr(args, "gru_run", None))
 
 
 def picture_arrivals(policy: Policy, cfg: BusConfig, n_episodes: int = 1) -> pd.DataFrame:

@@ -9,12 +9,22 @@ otherwise (see
 a driver skips what is finished. Outputs, for sweep ``s`` in {lambda, batch}:
 
 - ``results/bus_<s>.csv``: one row per run and epoch (lambda, batch, seed, epoch, average_return,
-  average_discounted_return);
+  average_discounted_return; on the released pool also distinct_episodes);
 - ``results/bus_<s>_summary.csv``: per setting the final return (mean of a run's last
   ``final_epochs`` epochs) as IQM with a 95% bootstrap CI over seeds, and the two baselines' returns
   (deterministic: one episode each, so no interval); for the lambda sweep also one row per run
   (``policy = mlp-run``) naming its run folder, from which the figure drivers take the best policy;
-- ``figures/bus_<s>.png/.pdf``: mean curve per setting with a 95% t-interval band over seeds.
+- ``results/bus_<s>_convergence.csv``: one row per run, the curve read as the paper reads it
+  (convergence over the run, not only its end): ``early_return``, the mean average return of the
+  first ``early_epochs`` epochs; ``epochs_to_thresholds``, the first epoch whose average return
+  reaches the Optimized Thresholds' (empty if none does); ``final_return`` as above;
+- ``figures/bus_<s>.png/.pdf``: mean curve per setting with a 95% t-interval band over seeds; on
+  the released pool a second panel with the batch's distinct episodes per epoch.
+
+Samplers (``--sampler``): the paper's bus curves were drawn by the released runner, whose 40
+unseeded workers share one random stream (:mod:`repro.learn.pool`); ``released-pool`` trains that
+way (files ``bus_<s>_pool*``, run folders ``pool_*``), ``independent`` (the default) gives every
+episode its own seeded stream.
 
 Epoch count: the paper gives none. In a pilot run (lambda = 2, 540 episodes per epoch, seed 0,
 70 epochs) the average return rose steeply for about 20 epochs and plateaued from about epoch 25
@@ -37,8 +47,8 @@ from scipy import stats as sps
 from repro.core.config import Validated, for_scale, from_recorded, given_fields
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.policies import ThresholdPolicy, no_holding
-from repro.learn.config import (LEARNERS, add_learner_option, learner_label, learner_stem,
-                                train_config)
+from repro.learn.config import (LEARNERS, SAMPLERS, add_learner_option, learner_label,
+                                learner_stem, train_config)
 from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
@@ -72,6 +82,13 @@ class BusSweepConfig(Validated):
     """Policy updates per run (the released runner.sh: 500)."""
     final_epochs: int = 10
     """A run's final return is the mean average return of its last final_epochs epochs."""
+    sampler: str = "independent"
+    """The runs' batch sampler (``repro.learn.config.SAMPLERS``): "independent", every episode its
+    own seeded stream; "released-pool", the released runner's 40 unseeded workers forked from one
+    random state, as the paper's curves were drawn (needs a batch counted in decisions)."""
+    early_epochs: int = 100
+    """A run's early return is the mean average return of its first early_epochs epochs (all of
+    them in a shorter run): how fast it converges, as the paper reads its curves."""
     fvp_subsample: float | None = None
     """Fraction of decisions for TRPO's Fisher-vector products; None: the learner's."""
     n_boot: int = 2000
@@ -98,6 +115,10 @@ class BusSweepConfig(Validated):
         self.check(self.seeds >= 1, "seeds", "an integer >= 1")
         self.check(self.epochs >= 1, "epochs", "an integer >= 1")
         self.check(1 <= self.final_epochs <= self.epochs, "final_epochs", "in [1, epochs]")
+        self.check(self.early_epochs >= 1, "early_epochs", "an integer >= 1")
+        self.check(self.sampler in SAMPLERS, "sampler", "one of " + ", ".join(SAMPLERS))
+        self.check(not self.pool or self.unit == "batch_decisions", "sampler",
+                   "independent for a learner that counts its batch in episodes")
 
     def settings(self, sweep: str) -> list[tuple[float, int]]:
         """(lambda, batch) of every setting of ``sweep``, in plotting order."""
@@ -107,13 +128,19 @@ class BusSweepConfig(Validated):
 
 
     @property
+    def pool(self) -> bool:
+        """Whether the runs sample with the released pool."""
+        return self.sampler == "released-pool"
+
+    @property
     def unit(self) -> str:
         """The TrainConfig field the batch sizes fill: batch_decisions or batch_episodes."""
         return LEARNERS[self.learner]["batch_unit"]
 
     def stem(self, sweep: str) -> str:
-        """File stem of a sweep's results: bus_<sweep>, then _suite for the suite's learner."""
-        return learner_stem(f"bus_{sweep}", self.learner)
+        """File stem of a sweep's results: bus_<sweep>, then _suite for the suite's learner and
+        _pool for the released pool."""
+        return learner_stem(f"bus_{sweep}", self.learner) + ("_pool" if self.pool else "")
 
 
 def sweep_config(scale: str, learner: str | None = None, **overrides: Any) -> BusSweepConfig:
@@ -137,9 +164,11 @@ def jobs(cfg: BusSweepConfig, sweep: str, seed: int, bus: BusConfig) -> list[Tra
     for lam, batch in cfg.settings(sweep):
         for s in range(seed, seed + cfg.seeds):
             train = train_config("quick", "bus", cfg.learner, seed=s, epochs=cfg.epochs,
-                                 **{cfg.unit: batch}, lam=lam, fvp_subsample=cfg.fvp_subsample)
+                                 **{cfg.unit: batch}, lam=lam, fvp_subsample=cfg.fvp_subsample,
+                                 sampler=cfg.sampler if cfg.pool else None)
             size = "batch" if cfg.unit == "batch_episodes" else "dec"
-            out.append(TrainJob(f"lam{lam:g}_{size}{batch}_seed{s}", train, bus))
+            pool = "pool_" if cfg.pool else ""
+            out.append(TrainJob(f"{pool}lam{lam:g}_{size}{batch}_seed{s}", train, bus))
     return out
 
 
@@ -148,10 +177,11 @@ def curves(cfg: BusSweepConfig, job_list: list[TrainJob], root: Path) -> pd.Data
     frames = []
     for job in job_list:
         prog = pd.read_csv(run_dir(root, job) / "progress.csv").iloc[:cfg.epochs]
+        pool = {"distinct_episodes": prog.distinct_episodes} if cfg.pool else {}
         frames.append(pd.DataFrame({
             "lambda": job.train.lam, "batch": getattr(job.train, cfg.unit), "seed": job.train.seed,
             "epoch": prog.epoch, "average_return": prog.average_return,
-            "average_discounted_return": prog.average_discounted_return}))
+            "average_discounted_return": prog.average_discounted_return, **pool}))
     return pd.concat(frames, ignore_index=True)
 
 
@@ -160,6 +190,23 @@ def final_returns(cfg: BusSweepConfig, table: pd.DataFrame) -> pd.DataFrame:
     last = table[table.epoch >= cfg.epochs - cfg.final_epochs]
     return (last.groupby(["lambda", "batch", "seed"], sort=False).average_return.mean()
             .rename("final_return").reset_index())
+
+
+def convergence(table: pd.DataFrame, early_epochs: int, final_epochs: int,
+                thresholds: float) -> pd.DataFrame:
+    """One row per run of a sweep's per-epoch ``table``: lambda, batch, seed, early_return (mean
+    of its first ``early_epochs`` epochs), epochs_to_thresholds (1 + the first epoch whose
+    average return reaches ``thresholds``; NaN if none does) and final_return (mean of its last
+    ``final_epochs``)."""
+    rows = []
+    for (lam, batch, seed), run in table.groupby(["lambda", "batch", "seed"], sort=False):
+        ret = run.sort_values("epoch").average_return.to_numpy()
+        reached = np.flatnonzero(ret >= thresholds)
+        rows.append({"lambda": lam, "batch": batch, "seed": seed,
+                     "early_return": float(ret[:early_epochs].mean()),
+                     "epochs_to_thresholds": float(reached[0] + 1) if reached.size else np.nan,
+                     "final_return": float(ret[-final_epochs:].mean())})
+    return pd.DataFrame(rows)
 
 
 def baseline_returns(results: Path, bus: BusConfig) -> dict[str, float]:
@@ -201,9 +248,15 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig, axes = plt.subplots(2 if cfg.pool else 1, 1, sharex=True, squeeze=False,
+                             figsize=(6.4, 6.6 if cfg.pool else 4.2),
+                             gridspec_kw=dict(height_ratios=[3, 1.3][:1 + cfg.pool]))
+    ax = axes[0, 0]
     for lam, batch in cfg.settings(sweep):
         sel = table[(table["lambda"] == lam) & (table.batch == batch)]
+        if cfg.pool:
+            distinct = sel.groupby("epoch").distinct_episodes.mean()
+            axes[1, 0].plot(distinct.index, distinct, lw=1.0)
         by_epoch = sel.groupby("epoch").average_return
         mean, n = by_epoch.mean(), by_epoch.count()
         half = by_epoch.sem().fillna(0.0) * sps.t.ppf(0.975, np.maximum(n - 1, 1))
@@ -214,17 +267,25 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
     ax.axhline(baselines["nohold"], color="k", ls=":", lw=1, label="No Holding")
     fixed = (f"batch {cfg.lambda_batch} {cfg.unit.split('_')[1]}/epoch" if sweep == "lambda"
              else f"$\\lambda$ = {cfg.batch_lambda:g}")
-    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {learner_label(cfg.learner)} ({fixed}; "
+    pool = ", released pool" if cfg.pool else ""
+    ax.set_title(f"Bus holding, PS-TRPO + M-GAE, {learner_label(cfg.learner)}{pool} ({fixed}; "
                  f"{cfg.seeds} seeds, 95% CI)", fontsize=9)
-    ax.set_xlabel("Epoch")
     ax.set_ylabel("Average return per episode")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
+    if cfg.pool:
+        axes[1, 0].set_ylabel("Distinct episodes\nper batch (mean)", fontsize=8)
+        axes[1, 0].set_yscale("log")
+        axes[1, 0].grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("Epoch")
     save_figure(fig, stem, sources)
 
 
-FLAGS = ("seeds", "epochs", "final_epochs")
+FLAGS = ("seeds", "epochs", "final_epochs", "early_epochs", "sampler")
 """The BusSweepConfig fields the sweeps take as flags, besides ``--learner``."""
+VARIANTS = ("sampler",)
+"""The option that chooses the study (``*_pool``), not its settings
+(:func:`repro.studies.kit.options.scale_departures`)."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -266,10 +327,12 @@ def run_named(sweep: str, args: argparse.Namespace) -> int:
     runs = {(j.train.lam, getattr(j.train, cfg.unit), j.train.seed): run_dir(root, j)
             for j in job_list}
     summ = summary(cfg, finals, baselines, args.seed, runs if sweep == "lambda" else None)
+    read = convergence(table, cfg.early_epochs, cfg.final_epochs, baselines["thresholds"])
     prov = provenance(cfg, command=f"fig-bus-{sweep}", scale=args.scale, seed=args.seed,
                       wall_seconds=time.perf_counter() - t0, extra={"runs_dir": str(root)})
     sources = [write_result(results / f"{cfg.stem(sweep)}.csv", table, prov),
-               write_result(results / f"{cfg.stem(sweep)}_summary.csv", summ, prov)]
+               write_result(results / f"{cfg.stem(sweep)}_summary.csv", summ, prov),
+               write_result(results / f"{cfg.stem(sweep)}_convergence.csv", read, prov)]
     plot(cfg, sweep, table, baselines, figures / cfg.stem(sweep), sources)
     print(summ[summ.policy != "mlp-run"].to_string(index=False))
     return 0
