@@ -25,6 +25,10 @@ from torch import nn
 from repro.learn.policy import DTYPE, mlp
 
 BASELINES = ("linear", "mlp")
+ROWS = 16
+"""Rows of features the normal equations add per pass over the Gram matrix."""
+PANEL = 64
+"""The row stride of those rows' features, compiled in, for up to PANEL features (obs_dim <= 30)."""
 _EPS = float(np.finfo(np.float64).eps)
 
 
@@ -155,18 +159,57 @@ def _feature_row(obs, k, out):
 
 @njit(cache=True)
 def _normal_equations(obs, index, returns):
-    """X'X and X'y of the features X of ``obs`` and ``index``, row by row in batch order: each
-    row's outer product added along contiguous rows of the Gram matrix, which vectorises."""
-    f = np.empty(2 * obs.shape[1] + 4)
-    gram, rhs = np.zeros((len(f), len(f))), np.zeros(len(f))
-    for n in range(obs.shape[0]):
-        _feature_row(obs[n], index[n], f)
-        for a in range(len(f)):
-            fa, row = f[a], gram[a]
-            for b in range(len(f)):
-                row[b] += fa * f[b]
-            rhs[a] += fa * returns[n]
-    return gram, rhs
+    """X'X and X'y of the features X of ``obs`` and ``index``, each entry a sum over the rows in
+    batch order (:func:`_add_rows`). The features are padded with zeros to a multiple of 8."""
+    width = 2 * obs.shape[1] + 4
+    wide = -(-width // 8) * 8
+    gram, rhs = np.zeros((wide, wide)), np.zeros(width)
+    if wide <= PANEL:  # a row stride LLVM sees as a constant
+        _add_rows(obs, index, returns, np.zeros(ROWS * PANEL), PANEL, gram, rhs)
+    else:
+        _add_rows(obs, index, returns, np.zeros(ROWS * wide), wide, gram, rhs)
+    for a in range(width):
+        for b in range(a):
+            gram[a, b] = gram[b, a]
+    return gram[:width, :width].copy(), rhs
+
+
+@njit(cache=True, inline="always")
+def _add_rows(obs, index, returns, block, stride, gram, rhs):
+    """Add every row's terms to the upper triangle of X'X (``gram``) and to X'y (``rhs``).
+
+    The order of the work is free as long as each entry's terms are added in batch order (the
+    caller mirrors the triangle: f_a f_b and f_b f_a are the same product). :data:`ROWS` rows are
+    taken at a time, their features in ``block``, row r at ``r * stride``: an entry adds their
+    terms in turn while held in a register (the loop over the rows has a constant length, so LLVM
+    unrolls it inside the loop along the Gram matrix's row, which it vectorises), so the matrix is
+    loaded and stored once per ROWS rows. Where ``stride`` is a constant (the function is inlined),
+    LLVM sees from the rows' constant offsets that its loads cannot overlap the matrix's row;
+    otherwise it checks every pair before each pass, which costs more than the pass. Each pass
+    along a row of the triangle starts at a multiple of 8 (entries left of the diagonal that this
+    also sums are overwritten by the mirror), so that it is whole vectors."""
+    n, width = obs.shape[0], len(rhs)
+    for n0 in range(0, n, ROWS):
+        rows = min(ROWS, n - n0)
+        for r in range(rows):
+            _feature_row(obs[n0 + r], index[n0 + r], block[r * stride:r * stride + width])
+        for a in range(width):
+            start = a - a % 8
+            row = gram[a, start:]
+            if rows == ROWS:
+                for b in range(row.shape[0]):
+                    total = row[b]
+                    col = np.uint64(start + b)
+                    for r in range(ROWS):
+                        total += block[r * stride + a] * block[np.uint64(r * stride) + col]
+                    row[b] = total
+            else:
+                for r in range(rows):
+                    fr, fa = block[r * stride + start:(r + 1) * stride], block[r * stride + a]
+                    for b in range(row.shape[0]):
+                        row[b] += fa * fr[b]
+            for r in range(rows):
+                rhs[a] += block[r * stride + a] * returns[n0 + r]
 
 
 @njit(cache=True)

@@ -82,6 +82,7 @@ class Forward:
     logits: np.ndarray
     """Outputs, (n_actions, padded n)."""
     _logp: np.ndarray | None = field(default=None, repr=False)
+    _probs: np.ndarray | None = field(default=None, repr=False)
 
     def log_probs(self) -> np.ndarray:
         """log pi(. | o), (n, n_actions), float64 (computed once: the step and its Fisher products
@@ -90,6 +91,14 @@ class Forward:
             self._logp = np.empty((self.n, len(self.logits)))
             _log_softmax(self.logits, self._logp)
         return self._logp
+
+    def probs(self) -> np.ndarray:
+        """pi(. | o) = exp(log_probs()), (n, n_actions), float64, by libm's exp (numpy's own exp
+        has CPU-specific kernels); computed once: the entropy, the gradient, the Fisher products
+        and every KL against this policy use them. Not to be written to."""
+        if self._probs is None:
+            self._probs = libm_exp(self.log_probs())
+        return self._probs
 
     def rows(self, index: np.ndarray) -> Forward:
         """The same pass restricted to the batch entries ``index``."""
@@ -189,19 +198,17 @@ class TanhMLP:
     def fisher_product(self, fwd: Forward, probs: np.ndarray, v: np.ndarray) -> np.ndarray:
         """J' M J v / N, M = diag(p) - p p' per decision: the Hessian of the mean KL in the
         parameters applied to ``v``, in one pass over the batch. ``probs``: pi(. | o) as
-        :func:`probabilities` gives it for the batch's decisions."""
+        :func:`probabilities` gives it for the pass ``fwd``."""
         vw, vb = self.split(np.asarray(v, dtype=self.dtype))
         gw, gb = self._accumulators()
         _fisher(fwd.x, fwd.hidden, fwd.slopes, probs, self.weights, vw, vb, 1.0 / fwd.n, gw, gb)
         return self._flat(gw, gb)
 
 
-def probabilities(logp: np.ndarray) -> np.ndarray:
-    """pi(. | o), feature-major and zero-padded as the batch, from log-probabilities (N,
-    n_actions): exp by libm (numpy's own exp has CPU-specific kernels)."""
-    out = np.zeros((logp.shape[1], padded(len(logp))))
-    _exp_rows(np.ascontiguousarray(logp, dtype=np.float64), out)
-    return out
+def probabilities(fwd: Forward) -> np.ndarray:
+    """pi(. | o) of the pass ``fwd``'s decisions (:meth:`Forward.probs`), feature-major and
+    zero-padded as the batch."""
+    return _padded_rows(fwd.probs(), np.float64)
 
 
 # --- compiled loops ---------------------------------------------------------------------------
@@ -217,14 +224,10 @@ def _forward(x, weights, biases, hidden, slopes, logits):
             w, b = weights[k], biases[k]
             src = x if k == 0 else hidden[k - 1]
             dst = logits if k == last else hidden[k]
+            dst[:, n0:n0 + CHUNK] = 0.0
+            _add_products(dst, n0, src, n0, w)
             for j in range(w.shape[0]):
                 out = dst[j, n0:n0 + CHUNK]
-                out[:] = 0.0
-                for i in range(w.shape[1]):
-                    wji = w[j, i]
-                    s = src[i, n0:n0 + CHUNK]
-                    for u in range(out.shape[0]):
-                        out[u] += s[u] * wji
                 for u in range(out.shape[0]):
                     out[u] += b[j]
                 if k < last:
@@ -235,27 +238,65 @@ def _forward(x, weights, biases, hidden, slopes, logits):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _add_products(dst, d0, src, s0, coef):
+    """dst[j, d0 + u] += src[i, s0 + u] coef[j, i] for every input i in turn, for every row j of
+    ``coef`` and u < CHUNK: each element's terms are added one at a time in input order. Four rows
+    j and four inputs i are done in one pass over the chunk, their sums held in registers (the
+    inner loop over the four inputs has a constant length, so LLVM unrolls it inside the loop
+    over u, which it vectorises): each element of ``dst`` is loaded and stored once per four
+    inputs, each of ``src`` once per four rows. ``src`` is indexed with an unsigned column, which
+    numba does not wrap around, so its loads along u are contiguous."""
+    rows, inputs = coef.shape
+    i4, j4 = inputs - inputs % 4, rows - rows % 4
+    for j in range(0, j4, 4):
+        o0, o1 = dst[j, d0:d0 + CHUNK], dst[j + 1, d0:d0 + CHUNK]
+        o2, o3 = dst[j + 2, d0:d0 + CHUNK], dst[j + 3, d0:d0 + CHUNK]
+        for i in range(0, i4, 4):
+            for u in range(o0.shape[0]):
+                a0, a1, a2, a3 = o0[u], o1[u], o2[u], o3[u]
+                col = np.uint64(s0 + u)
+                for di in range(4):
+                    v = src[i + di, col]
+                    a0 += v * coef[j, i + di]
+                    a1 += v * coef[j + 1, i + di]
+                    a2 += v * coef[j + 2, i + di]
+                    a3 += v * coef[j + 3, i + di]
+                o0[u], o1[u], o2[u], o3[u] = a0, a1, a2, a3
+        for i in range(i4, inputs):
+            for u in range(o0.shape[0]):
+                v = src[i, np.uint64(s0 + u)]
+                o0[u] += v * coef[j, i]
+                o1[u] += v * coef[j + 1, i]
+                o2[u] += v * coef[j + 2, i]
+                o3[u] += v * coef[j + 3, i]
+    for j in range(j4, rows):
+        out = dst[j, d0:d0 + CHUNK]
+        for i in range(0, i4, 4):
+            for u in range(out.shape[0]):
+                a = out[u]
+                col = np.uint64(s0 + u)
+                for di in range(4):
+                    a += src[i + di, col] * coef[j, i + di]
+                out[u] = a
+        for i in range(i4, inputs):
+            for u in range(out.shape[0]):
+                out[u] += src[i, np.uint64(s0 + u)] * coef[j, i]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy):
     """J v for the chunk of decisions at ``n0``: rows [:n_actions] of ``dy`` (width, CHUNK);
-    ``da`` is scratch of the same shape."""
+    ``da`` is scratch of the same shape. Per unit, the bias's change, then the terms of the
+    weights' change in input order, then (past the first layer) those of the inputs' change."""
     last = len(weights) - 1
     for k in range(last + 1):
         w, dw, db = weights[k], vw[k], vb[k]
         src = x if k == 0 else hidden[k - 1]
         for j in range(w.shape[0]):
-            out = dy[j]
-            out[:] = db[j]
-            for i in range(w.shape[1]):
-                dwji = dw[j, i]
-                s = src[i, n0:n0 + CHUNK]
-                for u in range(out.shape[0]):
-                    out[u] += s[u] * dwji
-            if k > 0:
-                for i in range(w.shape[1]):
-                    wji = w[j, i]
-                    a = da[i]
-                    for u in range(out.shape[0]):
-                        out[u] += a[u] * wji
+            dy[j, :] = db[j]
+        _add_products(dy, 0, src, n0, dw)
+        if k > 0:
+            _add_products(dy, 0, da, 0, w)
         if k < last:
             for j in range(w.shape[0]):
                 s, out, a = slopes[k][j, n0:n0 + CHUNK], dy[j], da[j]
@@ -266,20 +307,16 @@ def _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy):
 @njit(cache=True, inline="always", error_model="numpy")
 def _backward_chunk(n0, slopes, weights, deltas):
     """Carry the output cotangent in ``deltas[-1]`` (the chunk of decisions at ``n0``) back to
-    every hidden layer's ``deltas[k]``."""
+    every hidden layer's ``deltas[k]``: per unit, the terms of the outputs in output order, then
+    times tanh'."""
     for k in range(len(weights) - 1, 0, -1):
-        w, d = weights[k], deltas[k]
-        for i in range(w.shape[1]):
-            prev = deltas[k - 1][i]
-            prev[:] = 0.0
-            for j in range(w.shape[0]):
-                wji = w[j, i]
-                dj = d[j]
-                for u in range(prev.shape[0]):
-                    prev[u] += dj[u] * wji
-            s = slopes[k - 1][i, n0:n0 + CHUNK]
-            for u in range(prev.shape[0]):
-                prev[u] *= s[u]
+        prev = deltas[k - 1]
+        prev[:, :] = 0.0
+        _add_products(prev, 0, deltas[k], 0, weights[k].T)
+        for i in range(prev.shape[0]):
+            p, s = prev[i], slopes[k - 1][i, n0:n0 + CHUNK]
+            for u in range(p.shape[0]):
+                p[u] *= s[u]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -288,28 +325,69 @@ def _accumulate(n0, x, hidden, deltas, gw, gb):
     ((outputs, inputs, LANES)) and ``gb`` ((outputs, LANES)): lane u of a weight's sum gets
     delta_j x_i of the chunk's decisions u, u + LANES, u + 2 LANES, ... in that order, summed in the
     network's dtype, then added in float64."""
-    acc = np.empty(gb[0].shape[1], x.dtype)
-    lanes = acc.shape[0]
     for k in range(len(gw)):
-        src = x if k == 0 else hidden[k - 1]
-        d, g, gbk = deltas[k], gw[k], gb[k]
-        for j in range(g.shape[0]):
-            acc[:] = 0.0
-            for c in range(0, CHUNK, lanes):
-                dj = d[j, c:c + lanes]
-                for u in range(lanes):
-                    acc[u] += dj[u]
-            for u in range(lanes):
-                gbk[j, u] += acc[u]
-            for i in range(g.shape[1]):
-                acc[:] = 0.0
-                for c in range(0, CHUNK, lanes):
-                    dj, s = d[j, c:c + lanes], src[i, n0 + c:n0 + c + lanes]
-                    for u in range(lanes):
-                        acc[u] += dj[u] * s[u]
-                gji = g[j, i]
-                for u in range(lanes):
-                    gji[u] += acc[u]
+        _accumulate_layer(n0, x if k == 0 else hidden[k - 1], deltas[k], gw[k], gb[k])
+
+
+@njit(cache=True, error_model="numpy")
+def _accumulate_layer(n0, src, d, g, gb):
+    """:func:`_accumulate` for one layer, inputs ``src`` and cotangents ``d``.
+
+    The loop over a lane's CHUNK / LANES terms has a constant length, so LLVM unrolls it inside
+    the loop over lanes, which it vectorises: the lanes' sums stay in registers (columns unsigned,
+    as in :func:`_add_products`). Four outputs j share each load of an input's row. Their sums
+    go to ``lanes``, scratch allocated here, before they are added in float64: LLVM vectorises the
+    loop only where its stores cannot overlap its many loads, which it knows of memory allocated
+    here and not of arrays passed in."""
+    zero = np.zeros(1, src.dtype)[0]
+    lanes = np.empty((4, LANES), src.dtype)
+    rows = g.shape[0]
+    for j in range(0, rows - rows % 4, 4):
+        for u in range(lanes.shape[1]):
+            a0 = a1 = a2 = a3 = zero
+            for c in range(0, CHUNK, LANES):
+                col = np.uint64(c + u)
+                a0 += d[j, col]
+                a1 += d[j + 1, col]
+                a2 += d[j + 2, col]
+                a3 += d[j + 3, col]
+            lanes[0, u], lanes[1, u], lanes[2, u], lanes[3, u] = a0, a1, a2, a3
+        for q in range(4):
+            _add_lane_sums(gb[j + q], lanes[q])
+        for i in range(g.shape[1]):
+            for u in range(lanes.shape[1]):
+                a0 = a1 = a2 = a3 = zero
+                for c in range(0, CHUNK, LANES):
+                    col = np.uint64(c + u)
+                    v = src[i, np.uint64(n0 + c + u)]
+                    a0 += d[j, col] * v
+                    a1 += d[j + 1, col] * v
+                    a2 += d[j + 2, col] * v
+                    a3 += d[j + 3, col] * v
+                lanes[0, u], lanes[1, u], lanes[2, u], lanes[3, u] = a0, a1, a2, a3
+            for q in range(4):
+                _add_lane_sums(g[j + q, i], lanes[q])
+    for j in range(rows - rows % 4, rows):
+        for u in range(lanes.shape[1]):
+            acc = zero
+            for c in range(0, CHUNK, LANES):
+                acc += d[j, np.uint64(c + u)]
+            lanes[0, u] = acc
+        _add_lane_sums(gb[j], lanes[0])
+        for i in range(g.shape[1]):
+            for u in range(lanes.shape[1]):
+                acc = zero
+                for c in range(0, CHUNK, LANES):
+                    acc += d[j, np.uint64(c + u)] * src[i, np.uint64(n0 + c + u)]
+                lanes[0, u] = acc
+            _add_lane_sums(g[j, i], lanes[0])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _add_lane_sums(out, add):
+    """out += add (float64 += the network's dtype)."""
+    for u in range(out.shape[0]):
+        out[u] += add[u]
 
 
 @njit(cache=True, error_model="numpy")
@@ -352,21 +430,23 @@ def _fisher(x, hidden, slopes, probs, weights, vw, vb, scale, gw, gb):
     mean = np.empty(CHUNK)
     for n0 in range(0, x.shape[1], CHUNK):
         _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy)
-        _kl_weighting(probs[:, n0:n0 + CHUNK], dy, scale, mean, deltas[-1])
+        _kl_weighting(n0, probs, dy, scale, mean, deltas[-1])
         _backward_chunk(n0, slopes, weights, deltas)
         _accumulate(n0, x, hidden, deltas, gw, gb)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _kl_weighting(p, jv, scale, mean, out):
-    """out = p (jv - p . jv) scale per decision (column): M J v / N of a block, in float64."""
+def _kl_weighting(n0, probs, jv, scale, mean, out):
+    """out = p (jv - p . jv) scale per decision (column) of the chunk at ``n0``: M J v / N of a
+    block, in float64, p . jv summed in action order. Rows of ``probs`` are taken as contiguous
+    slices (a slice across its rows would be strided, and the loops would not vectorise)."""
     mean[:] = 0.0
-    for a in range(p.shape[0]):
-        pa, ja = p[a], jv[a]
+    for a in range(len(probs)):
+        pa, ja = probs[a, n0:n0 + CHUNK], jv[a]
         for u in range(mean.shape[0]):
             mean[u] += pa[u] * ja[u]
-    for a in range(p.shape[0]):
-        pa, ja, oa = p[a], jv[a], out[a]
+    for a in range(len(probs)):
+        pa, ja, oa = probs[a, n0:n0 + CHUNK], jv[a], out[a]
         for u in range(mean.shape[0]):
             oa[u] = pa[u] * (ja[u] - mean[u]) * scale
 
@@ -406,7 +486,11 @@ def _log_softmax(logits, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _exp_rows(logp, out):
+def libm_exp(logp):
+    """exp of every entry of a 2-d float64 array, by libm (numpy's own exp has CPU-specific
+    kernels)."""
+    out = np.empty(logp.shape)
     for n in range(logp.shape[0]):
         for a in range(logp.shape[1]):
-            out[a, n] = math.exp(logp[n, a])
+            out[n, a] = math.exp(logp[n, a])
+    return out

@@ -82,14 +82,25 @@ def logits_into(obs, weights, biases, mean, scale, x, y):
     for k in range(len(weights)):
         w, b = weights[k], biases[k]
         n_in, n_out = w.shape
-        for j in range(n_out):
-            y[j] = 0.0
-        for i in range(n_in):
-            xi = x[i]
-            for j in range(n_out):  # along a weight row: vectorised
-                y[j] += xi * w[i, j]
-        for j in range(n_out):
-            x[j] = tanh32(y[j] + b[j]) if k < last else y[j] + b[j]
+        out = y[:n_out]
+        out[:] = 0.0
+        # four inputs per pass along the outputs (vectorised): each sum is loaded and stored once
+        # per four of its terms, which it still adds one at a time in input order
+        for i in range(0, n_in - n_in % 4, 4):
+            x0, x1, x2, x3 = x[i], x[i + 1], x[i + 2], x[i + 3]
+            w0, w1, w2, w3 = w[i], w[i + 1], w[i + 2], w[i + 3]
+            for j in range(out.shape[0]):
+                out[j] = (((out[j] + x0 * w0[j]) + x1 * w1[j]) + x2 * w2[j]) + x3 * w3[j]
+        for i in range(n_in - n_in % 4, n_in):
+            xi, wi = x[i], w[i]
+            for j in range(out.shape[0]):
+                out[j] += xi * wi[j]
+        if k < last:
+            for j in range(n_out):
+                x[j] = tanh32(out[j] + b[j])
+        else:
+            for j in range(n_out):
+                x[j] = out[j] + b[j]
     return x[:weights[last].shape[1]]
 
 

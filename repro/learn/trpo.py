@@ -25,7 +25,7 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-from repro.learn.network import Forward, TanhMLP, probabilities
+from repro.learn.network import Forward, TanhMLP, libm_exp, probabilities
 
 
 @dataclass(frozen=True)
@@ -79,37 +79,39 @@ def conjugate_gradient(matvec: Callable[[np.ndarray], np.ndarray], b: np.ndarray
 
 def mean_kl(logp_old: np.ndarray, logp_new: np.ndarray) -> float:
     """Mean over decisions of KL(old || new), both (N, n_actions) log-probabilities."""
-    return _mean_kl(logp_old, logp_new)
+    return _mean_kl(libm_exp(np.ascontiguousarray(logp_old, np.float64)), logp_old, logp_new)
 
 
 @njit(cache=True)
-def _mean_kl(logp_old, logp_new):
+def _mean_kl(p_old, logp_old, logp_new):
+    """The mean KL with the old policy's probabilities ``p_old`` = exp(``logp_old``) given (the
+    step computes them once, :meth:`~repro.learn.network.Forward.probs`)."""
     total = 0.0
     for n in range(logp_old.shape[0]):
         row = 0.0
         for a in range(logp_old.shape[1]):
-            row += math.exp(logp_old[n, a]) * (logp_old[n, a] - logp_new[n, a])
+            row += p_old[n, a] * (logp_old[n, a] - logp_new[n, a])
         total += row
     return total / logp_old.shape[0]
 
 
-def surrogate_gradient(net: TanhMLP, fwd: Forward, logp: np.ndarray, actions: np.ndarray,
+def surrogate_gradient(net: TanhMLP, fwd: Forward, actions: np.ndarray,
                        adv: np.ndarray) -> np.ndarray:
-    """grad L at theta_old = mean_k A_k grad log pi(a_k|o_k), ``logp`` the batch's (N, n_actions)
-    log-probabilities. The derivative of log pi(a|o) with respect to the logits is onehot(a) -
-    pi(.|o), so this is one backward pass of those rows."""
-    return net.vjp(fwd, _score_rows(logp, actions, adv))
+    """grad L at theta_old = mean_k A_k grad log pi(a_k|o_k), at the parameters of the pass
+    ``fwd``. The derivative of log pi(a|o) with respect to the logits is onehot(a) - pi(.|o), so
+    this is one backward pass of those rows."""
+    return net.vjp(fwd, _score_rows(fwd.probs(), actions, adv))
 
 
 @njit(cache=True)
-def _score_rows(logp, actions, adv):
+def _score_rows(probs, actions, adv):
     """(onehot(a_k) - pi(.|o_k)) A_k / N, row by row."""
     n = actions.shape[0]
-    out = np.empty(logp.shape)
+    out = np.empty(probs.shape)
     for k in range(n):
         w = adv[k] / n
-        for a in range(logp.shape[1]):
-            out[k, a] = -math.exp(logp[k, a]) * w
+        for a in range(probs.shape[1]):
+            out[k, a] = -probs[k, a] * w
         out[k, actions[k]] += w
     return out
 
@@ -123,7 +125,7 @@ def fisher_vector_product(net: TanhMLP, fwd: Forward,
     product is a forward-mode pass (J v), a weighting, and a backward pass (J' u), no second
     derivatives of the network: :meth:`TanhMLP.fisher_product`, one pass over the batch.
     """
-    probs = probabilities(fwd.log_probs())
+    probs = probabilities(fwd)
 
     def fvp(v: np.ndarray) -> np.ndarray:
         return net.fisher_product(fwd, probs, v) + damping * v
@@ -131,13 +133,13 @@ def fisher_vector_product(net: TanhMLP, fwd: Forward,
     return fvp
 
 
-def surrogate_and_kl(net: TanhMLP, obs: np.ndarray | Forward, actions: np.ndarray,
-                     adv: np.ndarray, logp_old: np.ndarray) -> tuple[float, float]:
-    """(L, mean KL(old || current)) at the network's current parameters: one forward pass over
-    the batch (``obs``, or the inputs of the pass ``obs``), which is what each line-search trial
-    costs."""
-    logp = net.forward(obs).log_probs()
-    return _surrogate(logp, logp_old, actions, adv), _mean_kl(logp_old, logp)
+def surrogate_and_kl(net: TanhMLP, old: Forward, actions: np.ndarray,
+                     adv: np.ndarray) -> tuple[float, float]:
+    """(L, mean KL(old || current)) at the network's current parameters against the pass ``old``
+    (the parameters before the step): one forward pass over its inputs, which is what each
+    line-search trial costs."""
+    logp, logp_old = net.forward(old).log_probs(), old.log_probs()
+    return _surrogate(logp, logp_old, actions, adv), _mean_kl(old.probs(), logp_old, logp)
 
 
 @njit(cache=True)
@@ -177,10 +179,10 @@ def trpo_step(net: TanhMLP, obs: np.ndarray, actions: np.ndarray, adv: np.ndarra
     adv = np.ascontiguousarray(adv, dtype=np.float64)
     fwd = net.forward(obs)
     logp_old = fwd.log_probs()
-    entropy = -_mean_kl(logp_old, np.zeros_like(logp_old))  # mean of sum_a p log p, negated
+    entropy = -_mean_kl(fwd.probs(), logp_old, np.zeros_like(logp_old))  # mean of p log p, negated
     surr0 = float(adv.mean())  # the surrogate at theta_old: every ratio is 1
 
-    grad = surrogate_gradient(net, fwd, logp_old, actions, adv)
+    grad = surrogate_gradient(net, fwd, actions, adv)
     fvp = fisher_vector_product(net, fwd if fvp_rows is None else fwd.rows(fvp_rows), cg_damping)
     direction = conjugate_gradient(fvp, grad, cg_iters)
     shs = dot(direction, fvp(direction))
@@ -189,6 +191,6 @@ def trpo_step(net: TanhMLP, obs: np.ndarray, actions: np.ndarray, adv: np.ndarra
     full_step = np.sqrt(2.0 * max_kl / shs) * direction
 
     accepted, backtracks, surr1, kl = line_search(
-        net, lambda: surrogate_and_kl(net, fwd, actions, adv, logp_old), full_step, surr0,
+        net, lambda: surrogate_and_kl(net, fwd, actions, adv), full_step, surr0,
         max_kl, backtrack_ratio, max_backtracks)
     return TRPOStats(kl, entropy, surr0, surr1, backtracks, accepted)

@@ -100,8 +100,7 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
     obs, actions, adv_n = z, ro.actions, normalize(adv)
     rows = tr.fvp_rows(ro.n_decisions)
     fwd = net.forward(obs)
-    logp_old = fwd.log_probs()
-    grad = surrogate_gradient(net, fwd, logp_old, actions, adv_n)
+    grad = surrogate_gradient(net, fwd, actions, adv_n)
     fvp = fisher_vector_product(net, fwd if rows is None else fwd.rows(rows), cfg.cg_damping)
 
     def step():
@@ -125,12 +124,12 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
         ("trpo", "forward pass and log-probabilities", 1,
          lambda: net.forward(obs).log_probs()),
         ("trpo", "surrogate gradient", 1,
-         lambda: surrogate_gradient(net, fwd, logp_old, actions, adv_n)),
+         lambda: surrogate_gradient(net, fwd, actions, adv_n)),
         ("trpo", f"conjugate gradient ({cfg.cg_iters} Fisher-vector products)", 1,
          lambda: conjugate_gradient(fvp, grad, cfg.cg_iters)),
         ("trpo", "Fisher-vector product (for the step size)", 1, lambda: fvp(grad)),
         ("trpo", "line-search trial", trials,
-         lambda: surrogate_and_kl(net, obs, actions, adv_n, logp_old)),
+         lambda: surrogate_and_kl(net, fwd, actions, adv_n)),
     ]
     return timed(pieces, repeats, ro.n_decisions)
 
