@@ -83,3 +83,29 @@ def test_engines_cached_by_separate_processes_load_together(tmp_path):
     together = _cells(tmp_path, 3, 6, 12)
     assert together.returncode == 0, together.stderr[-2000:]
     assert together.stdout == "".join(p.stdout for p in alone)
+
+
+def test_a_source_change_anywhere_in_the_package_makes_cached_kernels_stale(tmp_path,
+                                                                            monkeypatch):
+    """numba stamps a cache with its function's own file only; the suite's stamp also holds the
+    package's source digest, so a kernel cached before a callee in another file changed is not
+    loaded after the change."""
+    package = tmp_path / "pkg"
+    (package / "sub").mkdir(parents=True)
+    (package / "a.py").write_text("x = 1\n")
+    (package / "sub" / "b.py").write_text("y = 2\n")
+    before = numba_cache.source_digest(package)
+    assert numba_cache.source_digest(package) == before
+    (package / "sub" / "b.py").write_text("y = 3\n")
+    numba_cache.source_digest.cache_clear()
+    after = numba_cache.source_digest(package)
+    assert after != before
+
+    def cache_file():
+        return IndexDataCacheFile(str(tmp_path), "kernel-1.py311", b"stamp")
+
+    monkeypatch.setattr(numba_cache, "source_digest", lambda: before)
+    cache_file().save("signature", "old code")
+    assert cache_file().load("signature") == "old code"
+    monkeypatch.setattr(numba_cache, "source_digest", lambda: after)
+    assert cache_file().load("signature") is None  # stale: compiled anew

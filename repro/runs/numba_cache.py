@@ -18,15 +18,24 @@ one definition of a symbol): the engine of one shape ran on the other's states a
 ``_setup`` (SIGSEGV). The cache keys (signature and bytecode) were right; the symbols were not
 unique. :func:`install` also makes numba's compilation ids random (:class:`RandomIds`), so that no
 two compilations of any processes share a symbol.
+
+numba keys a cached function on its own file only (its modification time and size): a kernel
+that calls a kernel of another module keeps the callee's old code compiled into it after the
+callee's source changes, until the cache is cleared. :func:`install` adds a digest of the whole
+package's source (:func:`source_digest`) to every cache file's stamp, so that any change of the
+suite's source makes every cached kernel recompile once rather than run stale code.
 """
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import functools
+import hashlib
 import os
 import secrets
 from collections.abc import Iterator
+from pathlib import Path
 
 from numba.core.bytecode import FunctionIdentity
 from numba.core.caching import IndexDataCacheFile
@@ -34,7 +43,19 @@ from numba.core.caching import IndexDataCacheFile
 LOCK_NAME = ".repro-numba-cache.lock"
 """The lock file, one per cache folder."""
 NUMBA_SAVE, NUMBA_LOAD = IndexDataCacheFile.save, IndexDataCacheFile.load
-"""numba's own save and load, which :func:`install` wraps."""
+NUMBA_INIT = IndexDataCacheFile.__init__
+"""numba's own save, load and cache-file set-up, which :func:`install` wraps."""
+PACKAGE = Path(__file__).resolve().parents[1]
+"""The suite's package folder, whose source :func:`source_digest` hashes."""
+
+
+@functools.cache
+def source_digest(root: Path = PACKAGE) -> str:
+    """SHA-256 of every ``.py`` file under ``root`` (relative names and contents, sorted)."""
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
 
 
 @contextlib.contextmanager
@@ -65,8 +86,9 @@ class RandomIds:
 
 
 def install() -> None:
-    """Wrap numba's cache-file save (exclusive) and load (shared) in the lock, and draw numba's
-    compilation ids at random (:class:`RandomIds`); idempotent."""
+    """Wrap numba's cache-file save (exclusive) and load (shared) in the lock, stamp every cache
+    file with the package's :func:`source_digest` too, and draw numba's compilation ids at random
+    (:class:`RandomIds`); idempotent."""
     if getattr(IndexDataCacheFile.save, "_repro_locked", False):
         return
     FunctionIdentity._unique_ids = RandomIds()
@@ -79,5 +101,9 @@ def install() -> None:
         with locked(self, fcntl.LOCK_SH):
             return NUMBA_LOAD(self, key)
 
+    def stamped_init(self, cache_path, filename_base, source_stamp):
+        NUMBA_INIT(self, cache_path, filename_base, (source_stamp, source_digest()))
+
     locked_save._repro_locked = True
     IndexDataCacheFile.save, IndexDataCacheFile.load = locked_save, locked_load
+    IndexDataCacheFile.__init__ = stamped_init
