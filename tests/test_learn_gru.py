@@ -16,7 +16,8 @@ from repro.learn import gru
 from repro.learn.config import train_config
 from repro.learn.policy import ObsNormalizer
 from repro.learn.trained_policy import policy_from_checkpoint
-from repro.learn.trainer import TIMING_COLUMNS, Trainer
+from repro.learn.trainer import Trainer
+from repro.runs.run_folder import TIMING_COLUMNS
 from repro.runs.run_folder import CHECKPOINT, load_checkpoint
 from tests.conftest import tree_snapshot
 from tests.test_learn_train import run_cli, tensors_equal

@@ -24,7 +24,6 @@ from torch import nn
 
 from repro.learn.policy import DTYPE, mlp
 
-BASELINES = ("linear", "mlp")
 _EPS = float(np.finfo(np.float64).eps)
 
 
