@@ -25,6 +25,7 @@ import pandas as pd
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields, to_dict
 from repro.envs import BUILT_IN, env_package
 from repro.learn.config import DEFAULT_LEARNER, LEARNERS, learner_stem, train_config
+from repro.learn.m_gae import m_gae_paths
 from repro.learn.process import configure_process
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
@@ -81,38 +82,32 @@ def epoch_pieces(tr: Trainer, repeats: int) -> pd.DataFrame:
     Columns: ``part`` (simulation; update, whose rows add up to the epoch's update; or trpo, the
     TRPO step's parts), ``piece``, ``calls`` per epoch, ``seconds`` per call, ``seconds_per_epoch``,
     ``us_per_decision`` and ``vs_simulation`` (seconds per epoch over the simulation's)."""
-    # the learner's torch modules: imported here, so that a command's options are checked first
-    from repro.learn.m_gae import m_gae_paths
-    from repro.learn.network import TanhMLP
-    from repro.learn.policy import Sampler
-    from repro.learn.trainer import epoch_seed
-    from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, normalize,
-                                  surrogate_and_kl, surrogate_gradient, trpo_step)
+    from repro.learn import network, policy, trainer, trpo  # torch: once the options are checked
 
     cfg, env = tr.cfg, tr.env
 
     def sample():
         # a fresh generator with the same seed each time: every call samples the same batch
-        sampler = Sampler(tr.policy, tr.normalizer, np.random.default_rng(cfg.seed))
-        return env.rollout(sampler, cfg.batch_episodes, epoch_seed(cfg.seed, tr.epoch))
+        sampler = policy.Sampler(tr.policy, tr.normalizer, np.random.default_rng(cfg.seed))
+        return env.rollout(sampler, cfg.batch_episodes, trainer.epoch_seed(cfg.seed, tr.epoch))
 
     ro = sample()
     z, index = tr.normalizer(ro.obs), ro.step_index()
     values = tr.baseline.predict(z, index)
     adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
-    net = TanhMLP(tr.policy.net)
+    net = network.TanhMLP(tr.policy.net)
     theta = net.get_flat()
-    obs, actions, adv_n = z, ro.actions, normalize(adv)
+    obs, actions, adv_n = z, ro.actions, trpo.normalize(adv)
     rows = tr.fvp_rows(ro.n_decisions)
     fwd = net.forward(obs)
     logp_old = fwd.log_probs()
-    grad = surrogate_gradient(net, fwd, logp_old, actions, adv_n)
-    fvp = fisher_vector_product(net, fwd if rows is None else fwd.rows(rows), cfg.cg_damping)
+    grad = trpo.surrogate_gradient(net, fwd, logp_old, actions, adv_n)
+    fvp = trpo.fisher_vector_product(net, fwd if rows is None else fwd.rows(rows), cfg.cg_damping)
 
     def step():
-        stats = trpo_step(net, obs, actions, adv_n, max_kl=cfg.max_kl, cg_iters=cfg.cg_iters,
-                          cg_damping=cfg.cg_damping, backtrack_ratio=cfg.backtrack_ratio,
-                          max_backtracks=cfg.max_backtracks, fvp_rows=rows)
+        stats = trpo.trpo_step(net, obs, actions, adv_n, max_kl=cfg.max_kl, cg_iters=cfg.cg_iters,
+                               cg_damping=cfg.cg_damping, backtrack_ratio=cfg.backtrack_ratio,
+                               max_backtracks=cfg.max_backtracks, fvp_rows=rows)
         net.set_flat(theta)
         return stats
 
@@ -130,12 +125,12 @@ def epoch_pieces(tr: Trainer, repeats: int) -> pd.DataFrame:
         ("trpo", "forward pass and log-probabilities", 1,
          lambda: net.forward(obs).log_probs()),
         ("trpo", "surrogate gradient", 1,
-         lambda: surrogate_gradient(net, fwd, logp_old, actions, adv_n)),
+         lambda: trpo.surrogate_gradient(net, fwd, logp_old, actions, adv_n)),
         ("trpo", f"conjugate gradient ({cfg.cg_iters} Fisher-vector products)", 1,
-         lambda: conjugate_gradient(fvp, grad, cfg.cg_iters)),
+         lambda: trpo.conjugate_gradient(fvp, grad, cfg.cg_iters)),
         ("trpo", "Fisher-vector product (for the step size)", 1, lambda: fvp(grad)),
         ("trpo", "line-search trial", trials,
-         lambda: surrogate_and_kl(net, obs, actions, adv_n, logp_old)),
+         lambda: trpo.surrogate_and_kl(net, obs, actions, adv_n, logp_old)),
     ]
     return timed(pieces, repeats, ro.n_decisions)
 
