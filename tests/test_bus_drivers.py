@@ -101,7 +101,10 @@ def test_eval_json(smoke, capsys):
     (["bus-eval", "--policy", "thresholds", "--mlp-run", "runs/x"], "--mlp-run"),
 ])
 def test_bad_input(args, param, tmp_path):
-    proc = _repro(*args, "--results-dir", str(tmp_path / "r"))
+    # the figures write into --results-dir; bus-eval writes nothing, and refuses a --results-dir
+    # its policy does not read
+    folders = [] if args[0] == "bus-eval" else ["--results-dir", str(tmp_path / "r")]
+    proc = _repro(*args, *folders)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and f"error: {param}:" in lines[0], proc.stderr
@@ -113,10 +116,11 @@ def test_mlp_run_of_another_environment_is_refused(tmp_path):
     toy run (the default figures folder, figures/quick, is relative to it)."""
     run = tmp_path / "toy"
     assert main(["train", "--env", "toy", "--scale", "smoke", "--out", str(run)]) == 0
-    for cmd in (["bus-eval", "--policy", "mlp"], ["fig-bus-load", "--policies", "mlp"],
-                ["fig-bus-load", "--policies", "mlp", "--figures-dir", str(tmp_path / "f")]):
-        proc = _repro(*cmd, "--mlp-run", str(run), "--results-dir", str(tmp_path / "r"),
-                      cwd=tmp_path)
+    results = ["--results-dir", str(tmp_path / "r")]
+    for cmd in (["bus-eval", "--policy", "mlp"], ["fig-bus-load", "--policies", "mlp", *results],
+                ["fig-bus-load", "--policies", "mlp", *results, "--figures-dir",
+                 str(tmp_path / "f")]):
+        proc = _repro(*cmd, "--mlp-run", str(run), cwd=tmp_path)
         assert proc.returncode == 2 and "error: --mlp-run: must be the checkpoint.pt of a bus" \
             in proc.stderr, proc.stderr
         assert list(tmp_path.iterdir()) == [run], cmd

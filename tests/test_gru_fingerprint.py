@@ -17,7 +17,8 @@ import pytest
 from repro.envs import env_package
 from repro.learn.config import train_config
 from repro.learn.process import configure_process
-from repro.learn.trainer import TIMING_COLUMNS, Trainer
+from repro.learn.trainer import Trainer
+from repro.runs.run_folder import TIMING_COLUMNS
 from tests.test_learner_fingerprint import not_pinned
 
 RUN = dict(epochs=2, seed=7, batch_decisions=300, batch_workers=2, lam=2.0, policy="gru")

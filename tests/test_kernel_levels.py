@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from repro.learn.trainer import TIMING_COLUMNS
+from repro.runs.run_folder import TIMING_COLUMNS
 from repro.runs import kernels
 from tests.conftest import ROOT, env_without_pins
 

@@ -19,7 +19,8 @@ from repro.envs import toy
 from repro.learn.config import train_config
 from repro.learn.policy import Sampler
 from repro.learn.trained_policy import policy_from_checkpoint
-from repro.learn.trainer import PROGRESS_COLUMNS, TIMING_COLUMNS, Trainer
+from repro.learn.trainer import Trainer
+from repro.runs.run_folder import PROGRESS_COLUMNS, TIMING_COLUMNS
 from repro.runs.results import read_provenance
 from repro.runs.run_folder import CHECKPOINT, load_checkpoint
 from tests.conftest import tree_snapshot

@@ -20,7 +20,8 @@ from repro.runs import kernels
 from repro.envs import env_package
 from repro.learn.config import train_config
 from repro.learn.process import configure_process
-from repro.learn.trainer import TIMING_COLUMNS, Trainer
+from repro.learn.trainer import Trainer
+from repro.runs.run_folder import TIMING_COLUMNS
 
 RUNS = {  # name: (env, train overrides, env config fields)
     "wildfire ED": ("wildfire", dict(epochs=3, seed=5), dict()),

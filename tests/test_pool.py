@@ -17,7 +17,8 @@ from repro.learn.config import train_config
 from repro.learn.policy import Sampler
 from repro.learn.pool import ReleasedPool, collect
 from repro.runs.run_folder import CHECKPOINT, load_checkpoint
-from repro.learn.trainer import TIMING_COLUMNS, Trainer
+from repro.learn.trainer import Trainer
+from repro.runs.run_folder import TIMING_COLUMNS
 
 
 def test_identical_workers_move_in_lockstep_below_one_episode():

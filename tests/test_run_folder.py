@@ -23,7 +23,7 @@ from repro.core.errors import UsageError
 from repro.envs import toy
 from repro.learn.config import train_config
 from repro.learn.trained_policy import load_trained_run
-from repro.learn.trainer import TIMING_COLUMNS
+from repro.runs.run_folder import TIMING_COLUMNS
 from repro.runs import kernels
 from repro.runs.files import atomic_path
 from repro.runs.run_folder import CHECKPOINT, LOCK, PROGRESS, writer_lock

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from repro.cli import main
-from repro.learn.trainer import PROGRESS_COLUMNS
+from repro.runs.run_folder import PROGRESS_COLUMNS
 from tests.conftest import tree_snapshot
 
 TRAIN = ["train", "--env", "toy", "--scale", "smoke", "--batch-episodes", "4", "--seed", "2",

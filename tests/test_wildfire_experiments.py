@@ -16,7 +16,7 @@ from repro.claims import at_most_partial, wildfire as claims
 from repro.envs.wildfire import QUIRKS, WildfireConfig, make_env
 from repro.envs.wildfire.policies import (FLOWCHART_HOLD_ALONE, FLOWCHART_HOLD_SHARED,
                                           FLOWCHART_TARGET, FlowchartPolicy)
-from repro.learn.trainer import TIMING_COLUMNS
+from repro.runs.run_folder import TIMING_COLUMNS
 from repro.paper import TRANSFER_ADR
 from repro.studies.kit.sweep import run_sweep
 from repro.studies.transfer.study import TransferConfig, evaluate_policies, make_jobs

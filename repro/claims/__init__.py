@@ -37,7 +37,6 @@ from repro.core.errors import require
 from repro.runs.files import check_names, check_writable_dir, write_text
 from repro.runs.results import read_provenance, read_result
 from repro.runs.stats import interval, t_limits
-from repro.studies.verdicts.interval_coverage import NAME as COVERAGE
 
 INTERVALS = ("t", "percentile")
 """The intervals a claim that compares intervals is decided with (``claims --interval``, default
@@ -428,6 +427,9 @@ def _render(results: Path, interval: str, evaluated: list[tuple[Claim, Verdict]]
 def _interval_note(results: Path, interval: str) -> str:
     """Which intervals decide the claims that compare intervals, with the coverage the
     interval-coverage study measured for each at 5 runs, when it has run."""
+    # here, not above: that study's module imports scipy.stats, which checking options does not need
+    from repro.studies.verdicts.interval_coverage import NAME as COVERAGE
+
     other = next(k for k in INTERVALS if k != interval)
     text = (f"Claims that compare 95% intervals over runs are decided with the **{interval}** "
             f"intervals (`claims --interval`, {' or '.join(INTERVALS)}); beside the verdict, "

@@ -28,6 +28,14 @@ def require(condition: bool, param: str, allowed: str, got: object = None) -> No
         raise UsageError(param, allowed, got)
 
 
+def refuse_unused(*options: tuple[str, object, bool, str]) -> None:
+    """Refuse (UsageError naming it) each option given that the command's other choices leave
+    unused, so that a command line never says more than what runs: each of ``options`` is
+    (option, value (None where not given), whether it is used, when it is: "with --policy mlp")."""
+    for option, value, used, when in options:
+        require(value is None or used, option, f"given only {when}", value)
+
+
 class WorkerDied(RuntimeError):
     """A worker process (joblib's, or a Dask cluster's) died while it ran a task: the system killed
     it (for want of memory, or a signal) or it crashed. ``str(err)`` is the whole one-line

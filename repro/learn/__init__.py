@@ -1,19 +1,34 @@
 """PS-TRPO with M-GAE (docs/semantics.md section 5): a categorical MLP shared by all agents,
-trained by TRPO on advantages that discount by each macro-action's duration."""
+trained by TRPO on advantages that discount by each macro-action's duration.
 
-from repro.learn.baseline import LinearFeatureBaseline, MLPBaseline
-from repro.learn.m_gae import m_gae, m_gae_paths, macro_gae
-from repro.learn.network import TanhMLP
-from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
-from repro.learn.config import TrainConfig, train_config
-from repro.learn.process import configure_process
-from repro.learn.trained_policy import policy_from_checkpoint
-from repro.learn.trainer import Trainer
-from repro.learn.trpo import (TRPOStats, conjugate_gradient, fisher_vector_product, line_search,
-                              trpo_step)
+The names below are imported from their modules when first used (``from repro.learn import
+Trainer`` works as ever): a module that needs only the learner's settings
+(:mod:`repro.learn.config`) does not import torch, so a command's options are read and checked
+before the heavy imports."""
 
-__all__ = ["m_gae", "m_gae_paths", "macro_gae", "TanhMLP", "CategoricalPolicy", "ObsNormalizer",
-           "Sampler",
-           "LinearFeatureBaseline", "MLPBaseline", "TrainConfig", "Trainer", "train_config",
-           "configure_process", "policy_from_checkpoint", "TRPOStats", "conjugate_gradient",
-           "fisher_vector_product", "line_search", "trpo_step"]
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_HOME = {
+    "LinearFeatureBaseline": "baseline", "MLPBaseline": "baseline",
+    "m_gae": "m_gae", "m_gae_paths": "m_gae", "macro_gae": "m_gae",
+    "TanhMLP": "network",
+    "CategoricalPolicy": "policy", "ObsNormalizer": "policy", "Sampler": "policy",
+    "TrainConfig": "config", "train_config": "config",
+    "configure_process": "process",
+    "policy_from_checkpoint": "trained_policy",
+    "Trainer": "trainer",
+    "TRPOStats": "trpo", "conjugate_gradient": "trpo", "fisher_vector_product": "trpo",
+    "line_search": "trpo", "trpo_step": "trpo",
+}
+"""Each name this package exports -> its module."""
+
+__all__ = list(_HOME)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{_HOME[name]}"), name)

@@ -24,7 +24,6 @@ from torch import nn
 
 from repro.learn.policy import DTYPE, mlp
 
-BASELINES = ("linear", "mlp")
 ROWS = 16
 """Rows of features the normal equations add per pass over the Gram matrix."""
 PANEL = 64

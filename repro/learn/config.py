@@ -16,7 +16,6 @@ from repro.core.config import (SCALES, Validated, add_config_arguments, flag, gi
                                settings)
 from repro.core.errors import require
 from repro.envs import env_package, train_defaults
-from repro.learn.baseline import BASELINES
 from repro.learn.m_gae import ESTIMATORS
 
 
@@ -171,6 +170,8 @@ class TrainConfig(Validated):
 
 
 INITS = ("xavier", "orthogonal")
+BASELINES = ("linear", "mlp")
+"""The value baselines (``TrainConfig.baseline``; :func:`repro.learn.baseline.make_baseline`)."""
 POLICIES = ("mlp", "gru")
 """The policy networks (``TrainConfig.policy``)."""
 GRU_FVPS = ("finite-difference", "exact")

@@ -15,13 +15,13 @@ the runs the command line gets.
 
 from __future__ import annotations
 
-import torch
-
 from repro.runs.memory import keep_freed_memory
 
 
 def configure_process() -> None:
     """Make the process-wide settings training runs with (the module docstring says which and
     why). Idempotent."""
+    import torch
+
     torch.set_num_threads(1)
     keep_freed_memory()

@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from repro.core.config import saved_defaults
 from repro.core.errors import UsageError, require
-from repro.learn.gru import GRUSampler, gru_policy
-from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.runs.provenance import note_trained_under
 from repro.runs.run_folder import (CHECKPOINT, CONFIG, KEPT, PROGRESS, load_checkpoint,
                                    progress_rows, recorded_kernels, state_problem)
+
+if TYPE_CHECKING:
+    from repro.learn.gru import GRUSampler
+    from repro.learn.policy import Sampler
 
 C = TypeVar("C")
 
@@ -50,6 +52,10 @@ def policy_from_state(state: dict[str, Any], rng: np.random.Generator) -> Sample
     """The trained policy of a loaded checkpoint (:func:`load_checkpoint`): an MLP's
     :class:`Sampler` or a gru's :class:`GRUSampler` (which keeps each agent's state: one per
     rollout at a time). Both sample with ``rng`` when called and have ``greedy``."""
+    # torch: imported where a policy is made, so that a command's options are checked without it
+    from repro.learn.gru import GRUSampler, gru_policy
+    from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+
     cfg = state["run_config"]["train"]
     obs_dim = len(state["normalizer"]["mean"])
     n_actions = state["policy"][next(reversed(state["policy"]))].shape[0]

@@ -48,6 +48,7 @@ from repro.learn.run_identity import run_config, saved_run_aliases, saved_run_de
 from repro.learn.sizes import check_training_size
 from repro.learn.trpo import TRPOStats, normalize, trpo_step
 from repro.runs import run_folder
+from repro.runs.run_folder import PROGRESS_COLUMNS
 from repro.runs.kernels import check as check_kernels
 from repro.runs.progress import progress
 
@@ -232,21 +233,3 @@ class Trainer:
             self.pool.offsets = state["pool_offsets"].numpy().astype(np.int64)
 
 
-PROGRESS_COLUMNS = [
-    "epoch", "average_return", "average_discounted_return", "kl", "entropy", "surrogate_before",
-    "surrogate_after", "backtracks", "accepted", "explained_variance", "baseline_loss",
-    "batch_episodes", "distinct_episodes", "decisions", "truncated_episodes", "seconds_sim",
-    "seconds_trpo", "seconds_baseline", "seconds_update", "seconds",
-]
-"""The columns of progress.csv, one row per epoch. ``distinct_episodes``: how many of the batch's
-episodes are distinct, drawn from distinct random stream positions (every one with the independent
-sampler; the released pool's batch holds copies: :mod:`repro.learn.pool`). ``truncated_episodes``:
-the batch's episodes
-cut at the environment's bound on their length (``Rollout.truncated``; the wildfire's decision
-limit), so that a policy that drifts into it is seen. Timing (wall seconds): ``seconds_sim`` the
-rollout; ``seconds_trpo`` everything from the batch to the TRPO step's end (standardisation,
-baseline prediction, M-GAE, the step); ``seconds_baseline`` the normaliser's update, the
-standardisation in its new moments and the baseline's fit; ``seconds_update`` the last two
-together; ``seconds`` the epoch (without writing its row and checkpoint). ``bench-learn`` times
-the pieces one by one."""
-TIMING_COLUMNS = [c for c in PROGRESS_COLUMNS if c.startswith("seconds")]

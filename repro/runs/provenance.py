@@ -59,12 +59,16 @@ def versions() -> dict[str, str]:
 
 
 def machine() -> dict[str, Any]:
-    """What the numbers may depend on beyond the code: the CPU, and where torch is loaded the
-    kernels torch, its MKL and numpy compute with (``kernels``: pinned to AVX2 on x86-64 CPUs with
-    AVX2, so that training is byte-identical across them; see :mod:`repro.runs.kernels`)."""
+    """What the numbers may depend on beyond the code: the CPU, and where torch is loaded or the
+    results rest on trained runs (:func:`note_trained_under`; a sweep's parent process may leave
+    torch to its workers) the kernels torch, its MKL and numpy compute with (``kernels``: pinned
+    to AVX2 on x86-64 CPUs with AVX2, so that training is byte-identical across them; see
+    :mod:`repro.runs.kernels`)."""
     out: dict[str, Any] = {"platform": platform.platform(), "cpus": os.cpu_count(),
                            "cpu": cpu_model()}
-    torch = sys.modules.get("torch")  # not imported here: drivers without torch stay light
+    torch = sys.modules.get("torch")  # not imported for drivers without it: they stay light
+    if torch is None and _trained_under:
+        import torch
     if torch is not None:
         from repro.runs.kernels import state
 

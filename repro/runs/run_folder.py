@@ -31,6 +31,9 @@ with :func:`finish`; it writes nothing itself.
 - **Damage is one line.** An unreadable ``config.json`` or checkpoint, a checkpoint of another run,
   or a progress table missing checkpointed rows is refused (exit status 2) naming the file and what
   to do, before anything in the folder is changed.
+
+torch is imported by the functions that read and write checkpoints, not by this module: a command
+that only names a run folder's files checks its options without importing torch.
 """
 
 from __future__ import annotations
@@ -45,7 +48,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import torch
 
 from repro.core.config import to_dict
 from repro.core.errors import UsageError, require
@@ -64,6 +66,24 @@ KEPT = "policies"
 KEPT_POLICIES = 40
 """The policies after each of a run's last this-many epochs are kept in ``policies/`` (a few kB
 each): the released runner's evaluation scores the snapshots of iterations 260-299 of 300."""
+PROGRESS_COLUMNS = [
+    "epoch", "average_return", "average_discounted_return", "kl", "entropy", "surrogate_before",
+    "surrogate_after", "backtracks", "accepted", "explained_variance", "baseline_loss",
+    "batch_episodes", "distinct_episodes", "decisions", "truncated_episodes", "seconds_sim",
+    "seconds_trpo", "seconds_baseline", "seconds_update", "seconds",
+]
+"""The columns of progress.csv, one row per epoch. ``distinct_episodes``: how many of the batch's
+episodes are distinct, drawn from distinct random stream positions (every one with the independent
+sampler; the released pool's batch holds copies: :mod:`repro.learn.pool`). ``truncated_episodes``:
+the batch's episodes
+cut at the environment's bound on their length (``Rollout.truncated``; the wildfire's decision
+limit), so that a policy that drifts into it is seen. Timing (wall seconds): ``seconds_sim`` the
+rollout; ``seconds_trpo`` everything from the batch to the TRPO step's end (standardisation,
+baseline prediction, M-GAE, the step); ``seconds_baseline`` the normaliser's update, the
+standardisation in its new moments and the baseline's fit; ``seconds_update`` the last two
+together; ``seconds`` the epoch (without writing its row and checkpoint). ``bench-learn`` times
+the pieces one by one."""
+TIMING_COLUMNS = [c for c in PROGRESS_COLUMNS if c.startswith("seconds")]
 CHECKPOINT_FORMAT = 2
 """Version of the checkpoint's layout; 1 (before it was safe to load) held numpy objects."""
 _JSON_FIELDS = ("run_config", "sampler_rng")
@@ -78,6 +98,8 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> None:
     atomically, the same bytes for the same state."""
     encoded = {**state, "format": CHECKPOINT_FORMAT,
                **{k: json.dumps(state[k], sort_keys=True) for k in _JSON_FIELDS if k in state}}
+    import torch
+
     buffer = io.BytesIO()
     torch.save(encoded, buffer)
     write_bytes(path, buffer.getvalue())
@@ -91,6 +113,8 @@ def load_checkpoint(path: str | Path, param: str = "--out", allowed: str | None 
     what training on needs, not only a kept policy's acting state); anything else (a crafted
     pickle, a truncated, empty or random file, a folder, an older format, a loadable file with
     damaged contents) is a :class:`UsageError` naming ``param``."""
+    import torch
+
     allowed = allowed or f"a readable {CHECKPOINT} of this suite (delete it to start the run again)"
     try:
         state = torch.load(path, weights_only=True)
@@ -210,9 +234,11 @@ def _normaliser_problem(norm: Any, d: int) -> str | None:
 def _training_problem(state: dict[str, Any], train: dict[str, Any], d: int) -> str | None:
     """What is wrong with what a checkpoint holds to train on: the baseline (of ``d`` inputs), the
     generator states and the released pool's worker positions."""
+    import torch
+
     if train.get("baseline", "linear") == "mlp":
         expect = {**_mlp_shapes([d, *train.get("baseline_hidden", (32, 32)), 1]),
-                  "target_mean": ((), F64), "target_std": ((), F64), "fitted": ((), torch.bool)}
+                  "target_mean": ((), F64), "target_std": ((), F64), "fitted": ((), "bool")}
     else:
         expect = {"coeffs": ((2 * d + 4,), F64)}
     problem = _tensors_problem("baseline", state["baseline"], expect)
@@ -236,17 +262,19 @@ def _training_problem(state: dict[str, Any], train: dict[str, Any], d: int) -> s
 
 
 def _is_tensor(x: Any, ndim: int) -> bool:
+    import torch
+
     return isinstance(x, torch.Tensor) and x.dim() == ndim
 
 
-F64 = torch.float64
-"""The dtype of the normaliser's and the baselines' statistics."""
-DTYPE = torch.float32
+F64 = "float64"
+"""The dtype (its name in torch) of the normaliser's and the baselines' statistics."""
+DTYPE = "float32"
 """The networks' dtype (:data:`repro.learn.policy.DTYPE`, which this layer cannot import)."""
 
 
 def _mlp_shapes(sizes: list[int], prefix: str = "net",
-                dtype: torch.dtype = DTYPE) -> dict[str, tuple[tuple[int, ...], torch.dtype]]:
+                dtype: str = DTYPE) -> dict[str, tuple[tuple[int, ...], str]]:
     """The entries of an MLP of layer ``sizes`` (inputs first) named ``prefix``: each layer's
     weight and bias, in ``dtype`` (the networks' by default; the gru's are float64)."""
     return {**{f"{prefix}.{2 * i}.weight": ((b, a), dtype) for i, (a, b) in
@@ -255,14 +283,16 @@ def _mlp_shapes(sizes: list[int], prefix: str = "net",
 
 
 def _tensors_problem(what: str, tensors: Any,
-                     shapes: dict[str, tuple[tuple[int, ...], torch.dtype]]) -> str | None:
-    """What is wrong with ``tensors`` (a dict of tensors with exactly the keys, shapes and dtypes
-    of ``shapes``, all finite), or None: a network saved in another dtype would act with other
-    arithmetic than it was trained with."""
+                     shapes: dict[str, tuple[tuple[int, ...], str]]) -> str | None:
+    """What is wrong with ``tensors`` (a dict of tensors with exactly the keys, shapes and dtypes,
+    named as in torch, of ``shapes``, all finite), or None: a network saved in another dtype
+    would act with other arithmetic than it was trained with."""
+    import torch
+
     if not isinstance(tensors, dict) or set(tensors) != set(shapes):
         return f"its {what} does not have the entries {', '.join(sorted(shapes))}"
-    for key, (shape, dtype) in shapes.items():
-        t = tensors[key]
+    for key, (shape, name) in shapes.items():
+        t, dtype = tensors[key], getattr(torch, name)
         if not isinstance(t, torch.Tensor) or tuple(t.shape) != shape:
             got = tuple(t.shape) if isinstance(t, torch.Tensor) else type(t).__name__
             return f"its {what}'s {key} is {got}, not of shape {shape}"

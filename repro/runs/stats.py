@@ -17,12 +17,13 @@ from __future__ import annotations
 from typing import Any, Callable, Sequence
 
 import numpy as np
-from scipy import stats as sps
 
 
 def iqm(x: np.ndarray, axis: int = -1) -> np.ndarray:
     """Interquartile mean: the 25%-trimmed mean, as rliable computes it (scipy's ``trim_mean``
     drops int(n / 4) whole scores at each end, so with fewer than 4 runs it is the plain mean)."""
+    from scipy import stats as sps  # imported where used: the CLI checks options without it
+
     return sps.trim_mean(np.asarray(x, dtype=float), 0.25, axis=axis)
 
 
@@ -123,6 +124,8 @@ def standard_error(groups: tuple[np.ndarray, ...],
 
 def expanded_level(n: int, confidence: float = 0.95) -> float:
     """The level at which ``expanded`` reads the bootstrap distribution for ``n`` scores."""
+    from scipy import stats as sps
+
     alpha = 1 - confidence
     return float(1 - 2 * sps.norm.cdf(-np.sqrt(n / (n - 1)) * sps.t.ppf(1 - alpha / 2, n - 1)))
 
@@ -130,6 +133,8 @@ def expanded_level(n: int, confidence: float = 0.95) -> float:
 def t_limits(point: Any, se: Any, df: Any, confidence: float = 0.95) -> tuple[Any, Any]:
     """Limits of the t interval point +- t_{df, (1 + confidence) / 2} se; without degrees of
     freedom (one score) the interval is the whole line."""
+    from scipy import stats as sps
+
     df = np.asarray(df, dtype=float)
     half = np.where(df >= 1, sps.t.ppf((1 + confidence) / 2, np.maximum(df, 1)) * se, np.inf)
     return point - half, point + half

@@ -48,13 +48,11 @@ from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
-import torch
 
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy, rollout_bytes
 from repro.envs import env_package, make_vector_env, train_defaults
 from repro.learn.config import TrainConfig
-from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
 from repro.learn.trained_policy import check_fits, load_trained_run, policy_from_state
 from repro.runs.memory import require_memory
 from repro.runs.provenance import provenance
@@ -156,6 +154,10 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
     """One row per engine and policy (see the module docstring); ``trained``: a loaded
     checkpoint (:func:`load_trained_run`) whose policy is timed instead of a fresh network.
     Batches that cannot fit in memory are refused first."""
+    import torch  # here, not above: a command's options are checked without torch
+
+    from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+
     for env, episodes, param in ((fast, cfg.fast_episodes, "--fast-episodes"),
                                  (reference, cfg.reference_episodes, "--reference-episodes")):
         require_memory(rollout_bytes(env, episodes), param, episodes, "a batch of episodes")

@@ -17,26 +17,24 @@ import copy
 import tempfile
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar
+from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 import numpy as np
 import pandas as pd
 
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields, to_dict
 from repro.envs import BUILT_IN, env_package
-from repro.learn import trainer
 from repro.learn.config import DEFAULT_LEARNER, LEARNERS, learner_stem, train_config
 from repro.learn.m_gae import m_gae_paths
-from repro.learn.network import TanhMLP
-from repro.learn.policy import Sampler
 from repro.learn.process import configure_process
-from repro.learn.trpo import (conjugate_gradient, fisher_vector_product, normalize,
-                              surrogate_and_kl, surrogate_gradient, trpo_step)
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.runs.run_folder import config_dict
+from repro.runs.run_folder import TIMING_COLUMNS, config_dict
 from repro.studies.kit.environments import add_chosen_env_arguments
 from repro.studies.kit.options import add_common, results_folder
+
+if TYPE_CHECKING:
+    from repro.learn.trainer import Trainer
 
 
 @dataclass(frozen=True)
@@ -75,7 +73,7 @@ def median_cpu_seconds(fns: list[Callable[[], Any]], repeats: int) -> list[float
     return np.median(times, axis=0).tolist()
 
 
-def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
+def epoch_pieces(tr: Trainer, repeats: int) -> pd.DataFrame:
     """What each piece of the run's next epoch costs (the run itself is left as it was).
 
     A learner that does not normalise observations standardises them all the same (with mean 0
@@ -84,29 +82,31 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
     Columns: ``part`` (simulation; update, whose rows add up to the epoch's update; or trpo, the
     TRPO step's parts), ``piece``, ``calls`` per epoch, ``seconds`` per call, ``seconds_per_epoch``,
     ``us_per_decision`` and ``vs_simulation`` (seconds per epoch over the simulation's)."""
+    from repro.learn import network, policy, trainer, trpo  # torch: once the options are checked
+
     cfg, env = tr.cfg, tr.env
 
     def sample():
         # a fresh generator with the same seed each time: every call samples the same batch
-        sampler = Sampler(tr.policy, tr.normalizer, np.random.default_rng(cfg.seed))
+        sampler = policy.Sampler(tr.policy, tr.normalizer, np.random.default_rng(cfg.seed))
         return env.rollout(sampler, cfg.batch_episodes, trainer.epoch_seed(cfg.seed, tr.epoch))
 
     ro = sample()
     z, index = tr.normalizer(ro.obs), ro.step_index()
     values = tr.baseline.predict(z, index)
     adv, ret = m_gae_paths(ro.rewards, ro.durations, values, ro.path_start, env.gamma, cfg.lam)
-    net = TanhMLP(tr.policy.net)
+    net = network.TanhMLP(tr.policy.net)
     theta = net.get_flat()
-    obs, actions, adv_n = z, ro.actions, normalize(adv)
+    obs, actions, adv_n = z, ro.actions, trpo.normalize(adv)
     rows = tr.fvp_rows(ro.n_decisions)
     fwd = net.forward(obs)
-    grad = surrogate_gradient(net, fwd, actions, adv_n)
-    fvp = fisher_vector_product(net, fwd if rows is None else fwd.rows(rows), cfg.cg_damping)
+    grad = trpo.surrogate_gradient(net, fwd, actions, adv_n)
+    fvp = trpo.fisher_vector_product(net, fwd if rows is None else fwd.rows(rows), cfg.cg_damping)
 
     def step():
-        stats = trpo_step(net, obs, actions, adv_n, max_kl=cfg.max_kl, cg_iters=cfg.cg_iters,
-                          cg_damping=cfg.cg_damping, backtrack_ratio=cfg.backtrack_ratio,
-                          max_backtracks=cfg.max_backtracks, fvp_rows=rows)
+        stats = trpo.trpo_step(net, obs, actions, adv_n, max_kl=cfg.max_kl, cg_iters=cfg.cg_iters,
+                               cg_damping=cfg.cg_damping, backtrack_ratio=cfg.backtrack_ratio,
+                               max_backtracks=cfg.max_backtracks, fvp_rows=rows)
         net.set_flat(theta)
         return stats
 
@@ -124,12 +124,12 @@ def epoch_pieces(tr: trainer.Trainer, repeats: int) -> pd.DataFrame:
         ("trpo", "forward pass and log-probabilities", 1,
          lambda: net.forward(obs).log_probs()),
         ("trpo", "surrogate gradient", 1,
-         lambda: surrogate_gradient(net, fwd, actions, adv_n)),
+         lambda: trpo.surrogate_gradient(net, fwd, actions, adv_n)),
         ("trpo", f"conjugate gradient ({cfg.cg_iters} Fisher-vector products)", 1,
-         lambda: conjugate_gradient(fvp, grad, cfg.cg_iters)),
+         lambda: trpo.conjugate_gradient(fvp, grad, cfg.cg_iters)),
         ("trpo", "Fisher-vector product (for the step size)", 1, lambda: fvp(grad)),
         ("trpo", "line-search trial", trials,
-         lambda: surrogate_and_kl(net, fwd, actions, adv_n)),
+         lambda: trpo.surrogate_and_kl(net, fwd, actions, adv_n)),
     ]
     return timed(pieces, repeats, ro.n_decisions)
 
@@ -168,20 +168,22 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    configure_process()  # as in training
     cfg = for_scale(BenchConfig, args.scale, **given_fields(args, BenchConfig))
     pkg = env_package(args.env)
     train_cfg = train_config("quick", args.env, args.learner, seed=args.seed, epochs=cfg.epochs,
                              batch_episodes=cfg.episodes)
     env_cfg = pkg.config_from_args(args)
     results = results_folder(args)
+    configure_process()  # as in training
+    from repro.learn.trainer import Trainer  # torch: imported once the options are checked
+
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as out:  # checkpoints are written, as in a real run
-        run = trainer.Trainer(train_cfg, pkg.make_env(env_cfg), out, env_cfg)
+        run = Trainer(train_cfg, pkg.make_env(env_cfg), out, env_cfg)
         frame = run.train()
     pieces = epoch_pieces(run, cfg.repeats)
     wall = time.perf_counter() - t0
-    table = frame[["epoch", "batch_episodes", "decisions", *trainer.TIMING_COLUMNS]].copy()
+    table = frame[["epoch", "batch_episodes", "decisions", *TIMING_COLUMNS]].copy()
     table.insert(0, "env", args.env)
     table["update_share"] = table.seconds_update / (table.seconds_sim + table.seconds_update)
     pieces.insert(0, "env", args.env)

@@ -17,7 +17,7 @@ import json
 import numpy as np
 import pandas as pd
 
-from repro.core.errors import require
+from repro.core.errors import refuse_unused, require
 from repro.core.rollout import Policy
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, record_loads, time_to_regularity,
@@ -51,6 +51,10 @@ def evaluate(policy: Policy, cfg: BusConfig, n_episodes: int = 1) -> tuple[dict,
     return summary, arrivals
 
 
+RESULTS_DIR = "results/paper"
+"""Where the thresholds and mlp policies are read from without --results-dir."""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", required=True, help="one of " + ", ".join(POLICIES))
     p.add_argument("--thresholds", type=float, nargs=3, metavar=("T1", "T2", "T3"),
@@ -62,18 +66,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--learner", choices=tuple(LEARNERS),
                    help="the mlp policy is the best run of this learner's lambda "
                    "sweep: " + ", ".join(LEARNERS) + " (default authors)")
-    p.add_argument("--results-dir", default="results/paper",
-                   help="where bus_thresholds.csv and bus_lambda_summary.csv are read")
+    p.add_argument("--results-dir", help="where bus_thresholds.csv and bus_lambda_summary.csv "
+                   f"are read (default: {RESULTS_DIR})")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_switch_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:
-    for option, value, used_by in (("--thresholds", args.thresholds, ("thresholds",)),
-                                   ("--mlp-run", args.mlp_run, ("mlp",)),
-                                   ("--gru-run", args.gru_run, GRU_PANELS)):
-        require(value is None or args.policy in used_by, option,
-                f"used with --policy {' or '.join(used_by)}")
+    require(args.policy in POLICIES, "--policy", "one of " + ", ".join(POLICIES), args.policy)
+    own_thresholds = args.policy == "thresholds" and args.thresholds is None
+    best_mlp = args.policy == "mlp" and args.mlp_run is None
+    refuse_unused(
+        ("--thresholds", args.thresholds, args.policy == "thresholds",
+         "with --policy thresholds"),
+        ("--mlp-run", args.mlp_run, args.policy == "mlp", "with --policy mlp"),
+        ("--gru-run", args.gru_run, args.policy in GRU_PANELS,
+         "with --policy " + " or ".join(GRU_PANELS)),
+        ("--learner", args.learner, best_mlp,
+         "with --policy mlp without --mlp-run (it picks the learner's best run)"),
+        ("--results-dir", args.results_dir, own_thresholds or best_mlp,
+         "with --policy thresholds without --thresholds, or mlp without --mlp-run (they read "
+         "it)"))
+    args.results_dir = args.results_dir or RESULTS_DIR
     cfg = config_from_args(args)
     policy = policy_from_args(args.policy, args, cfg)
     summary, _ = evaluate(policy, cfg)

@@ -10,7 +10,7 @@ from typing import Callable
 
 import pandas as pd
 
-from repro.core.errors import require
+from repro.core.errors import refuse_unused, require
 from repro.envs.bus import add_switch_arguments, config_from_args
 from repro.envs.bus.policies import check_thresholds
 from repro.learn.config import DEFAULT_LEARNER, add_learner_option, learner_stem
@@ -120,6 +120,22 @@ def policy_grid(names: list[str], what: str, all_buses: bool):
     return fig, flat[:len(names)]
 
 
+def check_panel_options(args: argparse.Namespace) -> None:
+    """Refuse the options of a panel that ``--policies`` does not draw, and the sweep's options
+    where no gru run is trained (a gru panel without --gru-run trains them)."""
+    gru = bool(set(GRU_PANELS) & set(args.policies))
+    trains = gru and args.gru_run is None
+    training = "where the gru panels' runs are trained (a gru panel without --gru-run)"
+    refuse_unused(
+        ("--thresholds", args.thresholds, "thresholds" in args.policies,
+         "with a thresholds panel (--policies ... thresholds)"),
+        ("--mlp-run", args.mlp_run, "mlp" in args.policies,
+         "with an mlp panel (--policies ... mlp)"),
+        ("--gru-run", args.gru_run, gru, "with a gru panel (--policies gru or gru-greedy)"),
+        ("--n-jobs", args.n_jobs, trains, training),
+        ("--scheduler", args.scheduler, trains, training))
+
+
 def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
                       table_of: Callable[[pd.DataFrame], pd.DataFrame],
                       plot_table: Callable[[pd.DataFrame, Path, bool, list[Path]], None]) -> int:
@@ -128,10 +144,9 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
     ``--replot``, draw the table written before (the panels of ``--policies``)."""
     for name in args.policies:
         require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
-    require(args.gru_run is None or bool(set(GRU_PANELS) & set(args.policies)), "--gru-run",
-            "given with a gru panel (--policies gru or gru-greedy)", args.gru_run)
+    check_panel_options(args)
     check_sweep_arguments(args)
-    if args.thresholds is not None:  # checked even where no panel uses them
+    if args.thresholds is not None:
         check_thresholds(args.thresholds)
     csv_name = learner_csv(csv_name, args.learner)
     stem = Path(args.figures_dir) / Path(csv_name).stem

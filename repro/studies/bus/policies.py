@@ -119,18 +119,18 @@ def make_policy(name: str, cfg: BusConfig, *, thresholds: np.ndarray | None = No
                 results_dir: str | Path = "results/paper",
                 mlp_run: str | Path | None = None, results_param: str | None = None,
                 mlp_param: str = "--mlp-run", learner: str | None = None,
-                gru_run: str | Path | None = None) -> Policy:
+                gru_run: str | Path | None = None, gru_param: str = "--gru-run") -> Policy:
     """The policy called ``name`` on corridor ``cfg``; our thresholds default to the optimised
     ones in ``results_dir``, the trained MLP to the best run of ``learner``'s lambda sweep
     recorded there; the GRU is the run ``gru_run`` (sampled: from the stream of its name).
-    Refusals name the options the caller has: ``mlp_param`` for the run, ``results_param`` (if
-    given) for the results folder, else --thresholds and --mlp-run."""
+    Refusals name the options the caller has: ``mlp_param`` and ``gru_param`` for the runs,
+    ``results_param`` (if given) for the results folder, else --thresholds and --mlp-run."""
     require(name in POLICIES, "--policy", "one of " + ", ".join(POLICIES), name)
     if name in GRU_PANELS:
-        require(gru_run is not None, "--gru-run", f"given with --policy {name}", gru_run)
+        require(gru_run is not None, gru_param, f"given with --policy {name}", gru_run)
         rng = (np.random.default_rng(policy_stream(0, PICTURE_STREAM, Path(gru_run).name))
                if name == "gru" else None)
-        return TrainedPolicy(gru_run, cfg, "--gru-run", rng)
+        return TrainedPolicy(gru_run, cfg, gru_param, rng)
     if name == "nohold":
         return no_holding
     if name == "mlp":

@@ -42,7 +42,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
-from scipy import stats as sps
 
 from repro.core.config import Validated, for_scale, from_recorded, given_fields
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
@@ -247,6 +246,7 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from scipy import stats as sps
 
     fig, axes = plt.subplots(2 if cfg.pool else 1, 1, sharex=True, squeeze=False,
                              figsize=(6.4, 6.6 if cfg.pool else 4.2),

@@ -48,7 +48,6 @@ from repro.envs import env_package
 from repro.learn.process import configure_process
 from repro.learn.run_identity import check_run_folder
 from repro.learn.sizes import check_training_size, training_bytes
-from repro.learn.trainer import Trainer
 from repro.runs.files import write_bytes
 from repro.runs.kernels import KernelWarning, record as kernel_record
 from repro.runs.locks import folder_lock
@@ -96,14 +95,19 @@ def _env(job: TrainJob) -> Any:
     return env_package(job.train.env).make_env(job.env_config)
 
 
+def _train_job(job: TrainJob, folder: Path) -> None:
+    """Train (or resume) one job in ``folder``."""
+    from repro.learn.trainer import Trainer  # torch: imported where a run trains, not to parse
+
+    Trainer(job.train, _env(job), folder, env_config=job.env_config, param="--runs-dir").train()
+
+
 def run_job(job: TrainJob, root: Path) -> str:
     """Train (or resume) one job in its folder under ``root``; runs in a joblib worker process."""
     os.environ.setdefault("REPRO_QUIET", "1")  # one progress bar per worker would be noise
     die_with_parent()
     configure_process()
-    env = env_package(job.train.env).make_env(job.env_config)
-    Trainer(job.train, env, run_dir(root, job), env_config=job.env_config,
-            param="--runs-dir").train()
+    _train_job(job, run_dir(root, job))
     return job.name
 
 
@@ -116,8 +120,7 @@ def run_shipped_job(job: TrainJob, files: dict[str, bytes]) -> dict[str, bytes]:
         folder = Path(tmp) / job.name
         folder.mkdir()
         _write_files(folder, files)
-        env = env_package(job.train.env).make_env(job.env_config)
-        Trainer(job.train, env, folder, env_config=job.env_config, param="--runs-dir").train()
+        _train_job(job, folder)
         return folder_files(folder)
 
 

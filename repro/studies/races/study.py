@@ -6,7 +6,6 @@ dT ~ N^-beta; and the names of the result files they share."""
 from __future__ import annotations
 
 import numpy as np
-from scipy import optimize
 
 from repro.envs.renewal.distributions import Distribution
 from repro.runs.progress import progress
@@ -46,6 +45,8 @@ def safe_dt_exact(race_prob, delta: float, lo: float, hi: float) -> float:
     The exact probability is smooth in dT, so a root finder needs a handful of evaluations where
     bisection would need dozens; each evaluation sums over up to millions of bins.
     """
+    from scipy import optimize  # here, not above: the CLI checks options without it
+
     root = optimize.brentq(lambda x: race_prob(np.exp(x)) - delta, np.log(lo), np.log(hi),
                            xtol=1e-9, rtol=1e-10)
     return float(np.exp(root))

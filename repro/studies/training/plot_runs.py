@@ -20,13 +20,12 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import scipy.stats as sps
 
 from repro.core.errors import UsageError, require
-from repro.learn.trainer import PROGRESS_COLUMNS
+
 from repro.runs.files import check_writable_dir
 from repro.runs.results import FIGURE_FORMATS, save_figure
-from repro.runs.run_folder import CONFIG, PROGRESS, read_config
+from repro.runs.run_folder import CONFIG, PROGRESS, PROGRESS_COLUMNS, read_config
 
 METRICS = [c for c in PROGRESS_COLUMNS if c != "epoch"]
 """The progress.csv columns that can be drawn."""
@@ -99,6 +98,8 @@ def groups(runs: list[tuple[dict[str, Any], pd.DataFrame]]) -> list[tuple[str, l
 def curve(tables: list[pd.DataFrame], metric: str) -> pd.DataFrame:
     """Mean of ``metric`` per epoch over the runs, and the 95% t-interval's half width (NaN with
     one run), over the epochs every run reached."""
+    from scipy import stats as sps  # here, not above: a command's options are checked without it
+
     last = min(int(t["epoch"].max()) for t in tables)
     values = np.stack([t.set_index("epoch")[metric].loc[:last].to_numpy(float) for t in tables])
     n = len(tables)

@@ -18,7 +18,6 @@ from repro.envs import BUILT_IN, env_package
 from repro.learn.config import TrainConfig, add_learner_arguments, learner_overrides, train_config
 from repro.learn.process import configure_process
 from repro.learn.run_identity import saved_run_defaults
-from repro.learn.trainer import Trainer
 from repro.runs.files import check_writable_dir
 from repro.studies.kit.environments import add_chosen_env_arguments
 
@@ -78,8 +77,10 @@ def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainCon
 
 
 def run(args: argparse.Namespace) -> int:
-    configure_process()
     cfg, env, env_cfg = make_from_args(args)
+    configure_process()
+    from repro.learn.trainer import Trainer  # torch: imported once the options are checked
+
     out = check_writable_dir(f"runs/{cfg.env}/seed{cfg.seed}" if args.out is None else args.out,
                              "--out")
     board = None if args.tensorboard is None else TensorBoard(args.tensorboard)

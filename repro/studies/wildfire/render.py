@@ -6,7 +6,8 @@ spaced in simulated time (the last one the episode's end). Wildfire policies: ``
 ``nearest``, ``flowchart`` (``repro.envs.wildfire.policies``), ``checkpoint PATH`` (a training
 run's ``checkpoint.pt``, on that run's environment settings); bus policies: ``nohold``,
 ``authors``, ``thresholds``, ``mlp [RUN]`` (``repro.studies.bus.policies``, reading
-``--results-dir`` as ``bus-eval`` does) and ``checkpoint PATH``. The GIF's sidecar
+``--results-dir`` as ``bus-eval`` does), ``gru RUN``, ``gru-greedy RUN`` and ``checkpoint PATH``.
+``--results-dir`` is refused where the chosen policy reads nothing there. The GIF's sidecar
 (``episode.provenance.json`` beside ``episode.gif``) records the command, the policy, the hash of
 the policy's file where one is named, the commit and the versions. Bad input is one line, exit
 status 2, and nothing is written.
@@ -22,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from repro.core.errors import require
+from repro.core.errors import refuse_unused, require
 from repro.learn.trained_policy import (check_fits, load_trained_run, policy_from_state,
                                         trained_env_config)
 from repro.runs.files import check_names, check_writable_dir
@@ -32,8 +33,10 @@ from repro.studies.bus import policies as bus_policies
 POLICIES = {"wildfire": ("random", "nearest", "flowchart", "checkpoint"),
             "bus": (*bus_policies.POLICIES, "checkpoint")}
 """Environment -> the policies it pictures."""
-WITH_PATH = {"checkpoint": "required", "mlp": "optional"}
-"""Policies that take a path after their name."""
+WITH_PATH = {"checkpoint": "PATH", "mlp": "[RUN]", "gru": "RUN", "gru-greedy": "RUN"}
+"""Policies that take a path after their name: what it is (in brackets where it is optional)."""
+RESULTS_DIR = "results/paper"
+"""Where the bus policies thresholds and mlp find their results without --results-dir."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -43,14 +46,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "flowchart, or checkpoint PATH (a training run's checkpoint.pt, on that "
                         "run's environment settings); bus: nohold (default), authors, "
                         "thresholds, mlp [RUN] (thresholds and mlp read --results-dir, as "
-                        "bus-eval does), or checkpoint PATH")
+                        "bus-eval does), gru RUN, gru-greedy RUN, or checkpoint PATH")
     p.add_argument("--out", required=True, help="the GIF to write (.gif)")
     p.add_argument("--seed", type=int, default=0, help="the episode (wildfire) and the policy's "
                                                        "random source")
     p.add_argument("--frames", type=int, default=120, help="pictures in the animation, at most")
     p.add_argument("--fps", type=int, default=8, help="pictures per second of the animation")
-    p.add_argument("--results-dir", default="results/paper",
-                   help="where the bus policies thresholds and mlp find their results")
+    p.add_argument("--results-dir", help="where the bus policies thresholds and mlp find their "
+                   f"results (default: {RESULTS_DIR})")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,11 +62,14 @@ def run(args: argparse.Namespace) -> int:
     require(name in POLICIES[args.env], "--policy", f"one of {', '.join(POLICIES[args.env])} "
             f"for --env {args.env}", name)
     need = WITH_PATH.get(name)
-    require(len(path) <= (need is not None) and (need != "required" or path), "--policy",
-            f"{name} {'PATH' if need == 'required' else '[RUN]' if need else 'with no path'}",
-            " ".join([name, *path]))
+    optional = need is None or need.startswith("[")
+    require(len(path) <= (need is not None) and (optional or path), "--policy",
+            f"{name} {need or 'with no path'}", " ".join([name, *path]))
     if path:
         check_names(path[0], "--policy")
+    reads_results = args.env == "bus" and (name == "thresholds" or (name == "mlp" and not path))
+    refuse_unused(("--results-dir", args.results_dir, reads_results,
+                   "with the bus policies thresholds, or mlp without a RUN (they read it)"))
     out = Path(args.out)
     require(out.suffix == ".gif", "--out", "a .gif file", args.out)
     require(out.parent.is_dir(), "--out", "in an existing folder", args.out)
@@ -131,9 +137,9 @@ def _bus(name: str, path: str | None, args: argparse.Namespace, rng: np.random.G
         cfg, policy = _trained(path, "bus", BusConfig, rng)
     else:
         cfg = BusConfig()
-        policy = bus_policies.make_policy(name, cfg, results_dir=args.results_dir,
+        policy = bus_policies.make_policy(name, cfg, results_dir=args.results_dir or RESULTS_DIR,
                                           mlp_run=path, results_param="--results-dir",
-                                          mlp_param="--policy")
+                                          mlp_param="--policy", gru_run=path, gru_param="--policy")
     batch = BusBatch(cfg, 1)
     pending = [batch.advance(np.zeros(0, np.int64))]
 
