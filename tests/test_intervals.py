@@ -138,13 +138,16 @@ def test_the_claims_switch_refuses_an_unknown_interval(tmp_path, monkeypatch, ca
     assert tree_snapshot(tmp_path) == before
 
 
-def bus_lambda_results(folder, finals: list[float], thresholds: float, stored: tuple) -> None:
+def bus_lambda_results(folder, finals: list[float], thresholds: float, stored: tuple,
+                       suffix: str = "_pool") -> None:
     """The lambda sweep's per-epoch table (two epochs, the last one final) and its summary, with
-    the percentile CI ``stored`` for the MLP at lambda 2."""
+    the percentile CI ``stored`` for the MLP at lambda 2; ``suffix``: the set-up's (C1 is decided
+    on the released pool's)."""
     curve = pd.DataFrame([dict(**{"lambda": 2.0}, batch=12000, seed=s, epoch=e,
                                average_return=v if e else 10 * v)
                           for s, v in enumerate(finals) for e in (0, 1)])
-    write_result_csv(curve, folder / "bus_lambda.csv", config=dict(epochs=2, final_epochs=1))
+    write_result_csv(curve, folder / f"bus_lambda{suffix}.csv",
+                     config=dict(epochs=2, final_epochs=1))
     rows = [dict(policy="nohold", runs=1, final_iqm=-1e6), dict(policy="thresholds", runs=1,
                                                                 final_iqm=thresholds),
             dict(policy="mlp", **{"lambda": 2.0}, batch=12000, runs=len(finals),
@@ -152,7 +155,7 @@ def bus_lambda_results(folder, finals: list[float], thresholds: float, stored: t
                  ci_high=stored[1])]
     rows += [dict(policy="mlp-run", **{"lambda": 2.0}, batch=12000, runs=1, final_iqm=v)
              for v in finals]
-    write_result_csv(pd.DataFrame(rows), folder / "bus_lambda_summary.csv")
+    write_result_csv(pd.DataFrame(rows), folder / f"bus_lambda{suffix}_summary.csv")
 
 
 def test_c1_reads_the_trimmed_t_interval_of_the_final_returns(tmp_path):
@@ -165,7 +168,7 @@ def test_c1_reads_the_trimmed_t_interval_of_the_final_returns(tmp_path):
     assert (t.verdict, pct.verdict) == ("PARTIAL", "PASS")
     low = interval([np.array([-100.0, -101.0, -99.0, -100.0, -300.0])], "iqm")[1]
     with intervals_of("t"):
-        assert f"[{low:.0f}, " in check_c1(tmp_path).ours
+        assert f"[{low:.0f}, " in check_c1(tmp_path, "_pool").ours
 
 
 def test_c2_bounds_the_spread_by_bonferroni_over_the_lambdas():

@@ -492,8 +492,7 @@ def test_a_result_of_the_earlier_semantics_reads_not_yet_run(tmp_path, finished,
     write_result_csv(pd.DataFrame(dict(adr_learned=learned, adr_flowchart=2.1,
                                        flowchart_worse=1.0 - 2.1 / learned)),
                      tmp_path / "wildfire_behaviour.csv", finished_utc=finished)
-    c7 = next(c for c in claims.CLAIMS if c.id == "C7")
-    v = c7.evaluate(tmp_path)
+    v = claims.on_current_semantics(claims.check_c7, claims.BEHAVIOUR)(tmp_path)
     assert v.verdict == ("not yet run" if stale else "PASS")
     assert ("it read PASS" in v.detail) == stale == v.outdated
 
