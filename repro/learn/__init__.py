@@ -11,9 +11,12 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+# M-GAE needs only numpy and numba; imported now, so that the function ``m_gae`` and not its
+# submodule of the same name is what ``from repro.learn import m_gae`` gives
+from repro.learn.m_gae import m_gae, m_gae_paths, macro_gae
+
 _HOME = {
     "LinearFeatureBaseline": "baseline", "MLPBaseline": "baseline",
-    "m_gae": "m_gae", "m_gae_paths": "m_gae", "macro_gae": "m_gae",
     "TanhMLP": "network",
     "CategoricalPolicy": "policy", "ObsNormalizer": "policy", "Sampler": "policy",
     "TrainConfig": "config", "train_config": "config",
@@ -25,7 +28,7 @@ _HOME = {
 }
 """Each name this package exports -> its module."""
 
-__all__ = list(_HOME)
+__all__ = ["m_gae", "m_gae_paths", "macro_gae", *_HOME]
 
 
 def __getattr__(name: str) -> Any:
