@@ -125,6 +125,13 @@ def check_c6_penalty(results: Path) -> Verdict:
                                              for k in BEHAVIOUR_FREQUENCIES)
     fits = "; ".join(f"{r.penalty:g}: {r.rms_distance:.3f} (largest {r.max_distance:.2f})"
                      for r in fit.itertuples())
+    paper = np.array(list(BEHAVIOUR_FREQUENCIES.values()))
+    each = np.sqrt(((table[[f"authors_{k}" for k in BEHAVIOUR_FREQUENCIES]].to_numpy() - paper)
+                    ** 2).mean(axis=1))
+    one = table.iloc[int(np.argmin(each))]
+    closest = (f" The single policy closest to the paper's (the paper measured one): penalty "
+               f"{one.penalty:g}, seed {int(one.train_seed)}, RMS distance {each.min():.3f}: "
+               + ", ".join(_pct(one["authors_" + k]) for k in BEHAVIOUR_FREQUENCIES) + ".")
     detail = (f"Crowding penalty fitted: of {', '.join(f'{p:g}' for p in fit.penalty)}, the one "
               f"whose policies' six numbers lie closest to the paper's (RMS distance; one "
               f"parameter fitted on six numbers). RMS distance per penalty: {fits}. At penalty "
@@ -133,7 +140,8 @@ def check_c6_penalty(results: Path) -> Verdict:
               f"above 1; closest cluster = fly ranks 1-3) on {t.authors_episodes.iloc[0]} "
               f"sampled episodes; mean over policies [95% bootstrap CI]: " + "; ".join(parts)
               + f". Outside tolerance: "
-              f"{[k for k, good in zip(BEHAVIOUR_FREQUENCIES, ok) if not good] or 'none'}.")
+              f"{[k for k, good in zip(BEHAVIOUR_FREQUENCIES, ok) if not good] or 'none'}."
+              + closest)
     return Verdict(ours, verdict, detail, scale_of(path))
 
 
