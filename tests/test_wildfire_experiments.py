@@ -20,7 +20,7 @@ from repro.runs.run_folder import TIMING_COLUMNS
 from repro.paper import TRANSFER_ADR
 from repro.studies.kit.sweep import run_sweep
 from repro.studies.transfer.study import TransferConfig, evaluate_policies, make_jobs
-from repro.studies.wildfire.study import frequencies
+from repro.studies.wildfire.study import BehaviourConfig, behaviour_config, frequencies
 from repro.studies.wildfire.study import evaluate
 from tests.conftest import tree_snapshot, write_result_csv
 
@@ -380,7 +380,7 @@ def test_max_decisions_0_lifts_the_decision_limit():
     wildfire_behaviour.add_arguments(parser)
 
     def limit(*argv: str) -> int | None:
-        return wildfire_behaviour.config_from_args(parser.parse_args(argv)).max_decisions
+        return behaviour_config(BehaviourConfig, parser.parse_args(argv)).max_decisions
 
     assert limit("--scale", "paper") == 1000 and limit("--scale", "quick") == 1000
     assert limit("--scale", "paper", "--max-decisions", "0") is None

@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from repro.core.config import add_config_arguments, for_scale, given_fields
+from repro.core.config import add_config_arguments
 from repro.envs.wildfire import make_env
 from repro.envs.wildfire.policies import FlowchartPolicy
 from repro.learn.config import add_study_learner_arguments
@@ -58,7 +58,8 @@ from repro.runs.results import write_result
 from repro.studies.kit.options import add_common, results_folder
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      policy_stream, run_sweep)
-from repro.studies.wildfire.study import (BehaviourConfig, adr, evaluate, frequency_counts,
+from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, evaluate,
+                                          frequency_counts,
                                           shares)
 
 PAPER = dict(**BEHAVIOUR_FREQUENCIES, flowchart_worse=FLOWCHART_WORSE)
@@ -140,19 +141,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_learner_arguments(p, "wildfire_behaviour_suite*")
 
 
-def config_from_args(args: argparse.Namespace) -> BehaviourConfig:
-    """The validated config of the command line at its scale (UsageError if bad);
-    ``--max-decisions 0`` (or none): no limit."""
-    given = given_fields(args, BehaviourConfig)
-    no_limit = "max_decisions" in given and not given["max_decisions"]
-    if no_limit:
-        del given["max_decisions"]  # for_scale takes None as "not given"
-    cfg = for_scale(BehaviourConfig, args.scale, **given)
-    return dataclasses.replace(cfg, max_decisions=None) if no_limit else cfg
-
-
 def run(args: argparse.Namespace) -> int:
-    cfg = config_from_args(args)
+    cfg = behaviour_config(BehaviourConfig, args)
     check_sweep_arguments(args)
     results = results_folder(args)
     runs = check_writable_dir(Path(args.runs_dir) / cfg.name.replace("_", "-") / args.scale,

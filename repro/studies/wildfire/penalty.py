@@ -42,7 +42,7 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.core.config import add_config_arguments, for_scale, given_fields
+from repro.core.config import add_config_arguments
 from repro.core.rollout import Rollout
 from repro.envs.wildfire import RELEASED_VERSION, WildfireConfig, make_env
 from repro.envs.wildfire.params import DIST, INTEREST, STATUS, fire_blocks
@@ -56,8 +56,8 @@ from repro.runs.results import write_result
 from repro.studies.kit.options import add_common, results_folder
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      policy_stream, run_sweep)
-from repro.studies.wildfire.study import BehaviourConfig, frequency_counts, shares
-from repro.studies.wildfire.study import adr, evaluate
+from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, evaluate,
+                                          frequency_counts, shares)
 
 AUTHORS_AT_FIRE = 1e-7
 """The authors' script's distance below which a UAV is at its closest fire."""
@@ -213,19 +213,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_learner_arguments(p, "wildfire_penalty_suite*")
 
 
-def config_from_args(args: argparse.Namespace) -> PenaltyConfig:
-    """The validated config of the command line at its scale (UsageError if bad);
-    ``--max-decisions 0``: no limit."""
-    given = given_fields(args, PenaltyConfig)
-    no_limit = "max_decisions" in given and not given["max_decisions"]
-    if no_limit:
-        del given["max_decisions"]  # for_scale takes None as "not given"
-    cfg = for_scale(PenaltyConfig, args.scale, **given)
-    return dataclasses.replace(cfg, max_decisions=None) if no_limit else cfg
-
-
 def run(args: argparse.Namespace) -> int:
-    cfg = config_from_args(args)
+    cfg = behaviour_config(PenaltyConfig, args)
     check_sweep_arguments(args)
     results = results_folder(args)
     stem = "_".join(("wildfire_penalty", *learner_suffix(cfg.learner)))

@@ -10,7 +10,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from repro.core.config import Validated
+from repro.core.config import Validated, for_scale, given_fields
 from repro.core.rollout import Policy, Rollout, concat, rollout_bytes
 from repro.envs.wildfire import (RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, fire_positions,
                                  version_suffix)
@@ -164,3 +164,14 @@ def shares(counts: dict[str, int]) -> dict[str, float]:
 def frequencies(rollout: Rollout, env: WildfireConfig) -> dict[str, float]:
     """The C6 frequencies of one rollout (see :func:`shares`)."""
     return shares(frequency_counts(rollout, env))
+
+
+def behaviour_config(cls: type, args) -> BehaviourConfig:
+    """The validated ``cls`` (:class:`BehaviourConfig` or a study extending it) of a command line
+    at its scale (UsageError if bad); ``--max-decisions 0``: no limit."""
+    given = given_fields(args, cls)
+    no_limit = "max_decisions" in given and not given["max_decisions"]
+    if no_limit:
+        del given["max_decisions"]  # for_scale takes None as "not given"
+    cfg = for_scale(cls, args.scale, **given)
+    return replace(cfg, max_decisions=None) if no_limit else cfg
