@@ -306,12 +306,20 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
     ``train`` in it), before any worker starts. The kernels every run was trained under go into
     the command's sidecars (:func:`_note_kernels`)."""
     check_jobs(jobs, root)
-    pending = [j for j in jobs if not is_done(root, j)]
+    pending = longest_first([j for j in jobs if not is_done(root, j)])
     if pending:
         _train(pending, Path(root), n_jobs, scheduler)
     folders = [run_dir(root, j) for j in jobs]
     _note_kernels(folders)
     return folders
+
+
+def longest_first(jobs: list[TrainJob]) -> list[TrainJob]:
+    """``jobs`` in the order the workers take them: by their expected cost, epochs times the
+    batch's size (:func:`repro.learn.sizes.training_bytes`), largest first (ties in the order
+    given), so that no worker is left with one long run while the others idle at the end. Each
+    run's result does not depend on when it trains."""
+    return sorted(jobs, key=lambda j: -j.train.epochs * training_bytes(j.train, _env(j))[0])
 
 
 def _note_kernels(folders: list[Path]) -> None:
