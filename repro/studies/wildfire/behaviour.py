@@ -58,9 +58,8 @@ from repro.runs.results import write_result
 from repro.studies.kit.options import add_common, results_folder
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      policy_stream, run_sweep)
-from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, evaluate,
-                                          frequency_counts,
-                                          shares)
+from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, counted,
+                                          frequency_counts, shares)
 
 PAPER = dict(**BEHAVIOUR_FREQUENCIES, flowchart_worse=FLOWCHART_WORSE)
 """The paper's numbers (section "Wildfire, Results", :mod:`repro.paper`) as the sidecar records
@@ -94,10 +93,8 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
     def observe(policy) -> tuple[dict[str, float], float, float, int]:
         """The policy's frequencies (counted per test batch, so that observations need not be
         kept), ADR with its standard error, and the episodes cut at the decision limit."""
-        counts: list[dict[str, int]] = []
-        rollout = evaluate(env, policy, cfg.test_episodes, env_seed, keep_obs=False,
-                           on_batch=lambda batch: counts.append(frequency_counts(batch, env_cfg)))
-        total = {key: sum(c[key] for c in counts) for key in counts[0]}
+        total, rollout = counted(env, policy, cfg.test_episodes, env_seed,
+                                 lambda batch: frequency_counts(batch, env_cfg))
         return shares(total), *adr(rollout, env.gamma), rollout.n_truncated
 
     flowchart = FlowchartPolicy(

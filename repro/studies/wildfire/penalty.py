@@ -56,8 +56,8 @@ from repro.runs.results import write_result
 from repro.studies.kit.options import add_common, results_folder
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      policy_stream, run_sweep)
-from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, evaluate,
-                                          frequency_counts, shares)
+from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, counted,
+                                          evaluate, frequency_counts, shares)
 
 AUTHORS_AT_FIRE = 1e-7
 """The authors' script's distance below which a UAV is at its closest fire."""
@@ -118,15 +118,6 @@ def authors_shares(counts: dict[str, int]) -> dict[str, float]:
     out = shares(counts)
     out["closest_cluster"] = sum(out[f"fly_rank_{r}"] for r in (1, 2, 3))
     return {f"authors_{key}": out[key] for key in SIX}
-
-
-def counted(env, policy, n_episodes: int, seed: int, count) -> tuple[dict[str, int], Rollout]:
-    """``count``'s counts summed over ``n_episodes`` test episodes of ``policy`` (observations not
-    kept), and the rollout."""
-    parts: list[dict[str, int]] = []
-    rollout = evaluate(env, policy, n_episodes, seed, keep_obs=False,
-                       on_batch=lambda batch: parts.append(count(batch)))
-    return {key: sum(p[key] for p in parts) for key in parts[0]}, rollout
 
 
 def make_jobs(cfg: PenaltyConfig, scale: str, seed: int) -> list[TrainJob]:

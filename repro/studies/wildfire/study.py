@@ -55,6 +55,16 @@ def evaluate(env, policy: Policy, n_episodes: int, seed: int, keep_obs: bool = T
     return concat(batches)
 
 
+def counted(env, policy: Policy, n_episodes: int, seed: int,
+            count: Callable[[Rollout], dict[str, int]]) -> tuple[dict[str, int], Rollout]:
+    """``count``'s counts summed over ``n_episodes`` test episodes of ``policy`` (observations not
+    kept), and the rollout."""
+    parts: list[dict[str, int]] = []
+    rollout = evaluate(env, policy, n_episodes, seed, keep_obs=False,
+                       on_batch=lambda batch: parts.append(count(batch)))
+    return {key: sum(p[key] for p in parts) for key in parts[0]}, rollout
+
+
 FIRES_PER_CLUSTER = 3
 
 
