@@ -32,8 +32,8 @@ def test_the_authors_learner_is_the_default_and_the_suite_one_switch():
     assert (suite.batch_decisions, suite.batch_episodes) == (None, 600)
     assert train_config("paper", "bus", "suite").batch_episodes == 540
     assert learner_name(authors) == "authors" and learner_name(suite) == "suite"
-    for field in LEARNER_FIELDS:
-        assert getattr(TrainConfig(), field) == LEARNERS["authors"][field]
+    assert LEARNERS["authors"] == TrainConfig()
+    assert LEARNER_FIELDS == ("hidden", "init", "fvp_subsample", "normalize_obs")
 
 
 def test_a_batch_size_in_the_other_unit_switches_the_unit():

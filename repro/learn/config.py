@@ -9,7 +9,7 @@ docs/semantics.md section 5.7 tables every setting with the released code's line
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 from repro.core.config import (SCALES, Validated, add_config_arguments, flag, given_fields,
@@ -185,22 +185,32 @@ than their defaults, are refused with --policy mlp)."""
 SAMPLERS = ("independent", "released-pool")
 """The batch samplers (``TrainConfig.sampler``)."""
 
-LEARNERS: dict[str, dict[str, Any]] = {
-    "authors": dict(hidden=(32,), init="xavier", normalize_obs=False, fvp_subsample=1.0,
-                    batch_unit="batch_decisions"),
-    "suite": dict(hidden=(32, 32), init="orthogonal", normalize_obs=True, fvp_subsample=0.2,
-                  batch_unit="batch_episodes"),
-}
-"""The named learners: their settings, and the unit their batch is counted in (``batch_unit``).
-"authors" is the released rllab runner that trained the paper's policies (FirestormProject/runners/
-rurllab.py, runner.sh); "suite" this suite's set-up before the authors' was derived: observation
-normalisation, two hidden layers, orthogonal initialisation, a fifth of the decisions for the
-Fisher products and batches of the paper's episode counts (the environment's ``batch_episodes``).
-Both use the linear feature baseline, centred advantages and rllab's conjugate-gradient
-constants."""
-LEARNER_FIELDS = ("hidden", "init", "normalize_obs", "fvp_subsample")
-"""The TrainConfig fields a learner name sets."""
+AUTHORS = TrainConfig()
+"""The released rllab runner that trained the paper's policies (FirestormProject/runners/
+rurllab.py, runner.sh): TrainConfig's defaults, one hidden layer of 32, Glorot-uniform weights, no
+observation normalisation, every decision in the Fisher products, the batch counted in
+decisions."""
+SUITE = replace(AUTHORS, hidden=(32, 32), init="orthogonal", normalize_obs=True,
+                fvp_subsample=0.2, batch_decisions=None,
+                batch_episodes=train_defaults(env_package(AUTHORS.env))["batch_episodes"])
+"""This suite's set-up before the authors' was derived: observation normalisation, two hidden
+layers, orthogonal initialisation, a fifth of the decisions for the Fisher products and the batch
+counted in episodes, the environment's (the paper's episode counts)."""
+LEARNERS: dict[str, TrainConfig] = {"authors": AUTHORS, "suite": SUITE}
+"""The named learners. A run's config is its learner's, then the environment's training defaults
+(``TRAIN_DEFAULTS``), the scale's sizes and the user's settings (:func:`train_config`). Both use
+the linear feature baseline, centred advantages and rllab's conjugate-gradient constants."""
+BATCH_UNITS = ("batch_decisions", "batch_episodes")
+"""The two units a batch is counted in: exactly one of these fields is set."""
+LEARNER_FIELDS = tuple(f for f in settings(TrainConfig) if f not in BATCH_UNITS
+                       and getattr(SUITE, f) != getattr(AUTHORS, f))
+"""The TrainConfig fields, besides the batch's unit, in which the named learners differ."""
 DEFAULT_LEARNER = "authors"
+
+
+def batch_unit(cfg: TrainConfig) -> str:
+    """The field ``cfg``'s batch is counted in: "batch_decisions" or "batch_episodes"."""
+    return BATCH_UNITS[cfg.batch_decisions is None]
 
 
 def learner_suffix(learner: str) -> tuple[str, ...]:
@@ -223,36 +233,35 @@ def learner_stem(stem: str, learner: str) -> str:
 def learner_name(cfg: TrainConfig) -> str:
     """The named learner whose settings ``cfg`` has (its batch's unit included), else "custom"."""
     for name, preset in LEARNERS.items():
-        unit = preset["batch_unit"]
-        if (all(getattr(cfg, f) == preset[f] for f in LEARNER_FIELDS)
-                and getattr(cfg, unit) is not None):
+        if (all(getattr(cfg, f) == getattr(preset, f) for f in LEARNER_FIELDS)
+                and getattr(cfg, batch_unit(preset)) is not None):
             return name
     return "custom"
 
 
 def train_config(scale: str, env: str, learner: str = DEFAULT_LEARNER,
                  **overrides: Any) -> TrainConfig:
-    """The config at ``scale`` for ``env``: the learner's settings, the environment's defaults
-    (the paper's settings), then the scale, then explicit overrides (``None`` means not given).
+    """The config at ``scale`` for ``env``: the learner's (:data:`LEARNERS`), then the
+    environment's training defaults (the paper's settings), the scale's sizes and the explicit
+    overrides (``None`` means not given).
 
     The batch is counted in the learner's unit unless the overrides give a size in the other one
     (``batch_episodes`` for the authors' learner: counted in episodes)."""
     require(scale in SCALES, "--scale", "one of " + ", ".join(SCALES), scale)
     require(learner in LEARNERS, "--learner", "one of " + ", ".join(LEARNERS), learner)
-    preset = {k: v for k, v in LEARNERS[learner].items() if k != "batch_unit"}
+    preset = LEARNERS[learner]
     given = {k: v for k, v in overrides.items() if v is not None}
-    base = {**train_defaults(env_package(env)), **TrainConfig.SCALES[scale], **preset}
+    base = {**{f: getattr(preset, f) for f in settings(TrainConfig)},
+            **train_defaults(env_package(env)), **TrainConfig.SCALES[scale]}
     if given.get("policy") == "gru":  # the mlp's settings as set without flags (a run's
         for name in MLP_FIELDS:       # config.json gives them) or refused
             require(given.get(name, base[name]) == base[name], flag(name), "left out with "
                     "--policy gru (a setting of the mlp policy)", given.get(name))
     fields = {**base, "env": env, **given}
-    units = ("batch_decisions", "batch_episodes")
-    require(not all(u in given for u in units), "--batch-decisions",
+    require(not all(u in given for u in BATCH_UNITS), "--batch-decisions",
             "given instead of --batch-episodes, not with it", given.get("batch_decisions"))
-    unit = next((u for u in units if u in given), LEARNERS[learner]["batch_unit"])
-    fields.setdefault("batch_decisions", TrainConfig.batch_decisions)
-    fields[next(u for u in units if u != unit)] = None
+    unit = next((u for u in BATCH_UNITS if u in given), batch_unit(preset))
+    fields[next(u for u in BATCH_UNITS if u != unit)] = None
     return TrainConfig(**fields)
 
 
@@ -260,9 +269,9 @@ def study_train_config(scale: str, env: str, learner: str, batch_decisions: int,
                        batch_episodes: int, settings: tuple[tuple[str, Any], ...] = (),
                        **fields: Any) -> TrainConfig:
     """A study's TrainConfig: the study sizes its batch in both units, the learner counts it in
-    its own (``LEARNERS[learner]["batch_unit"]``); ``settings``, (field, value) pairs, override
+    its own (:func:`batch_unit`); ``settings``, (field, value) pairs, override
     the learner's (a batch size among them also sets the unit)."""
-    unit = LEARNERS[learner]["batch_unit"]
+    unit = batch_unit(LEARNERS[learner])
     size = batch_decisions if unit == "batch_decisions" else batch_episodes
     sized = {"batch_decisions", "batch_episodes"} & {k for k, _ in settings}
     batch = {} if sized else {unit: size}

@@ -46,8 +46,8 @@ import pandas as pd
 from repro.core.config import Validated, for_scale, from_recorded, given_fields
 from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, make_env
 from repro.envs.bus.policies import ThresholdPolicy, no_holding
-from repro.learn.config import (LEARNERS, SAMPLERS, add_learner_option, learner_label,
-                                learner_stem, train_config)
+from repro.learn.config import (LEARNERS, SAMPLERS, add_learner_option, batch_unit,
+                                learner_label, learner_stem, train_config)
 from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
@@ -134,7 +134,7 @@ class BusSweepConfig(Validated):
     @property
     def unit(self) -> str:
         """The TrainConfig field the batch sizes fill: batch_decisions or batch_episodes."""
-        return LEARNERS[self.learner]["batch_unit"]
+        return batch_unit(LEARNERS[self.learner])
 
     def stem(self, sweep: str) -> str:
         """File stem of a sweep's results: bus_<sweep>, then _suite for the suite's learner and

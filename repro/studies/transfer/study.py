@@ -21,8 +21,9 @@ from repro.core.errors import require
 from repro.core.rollout import children
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
-from repro.learn.config import (LEARNERS, SETTING_FIELDS, add_study_learner_arguments,
-                                check_policy_study, learner_suffix, setting_tag)
+from repro.learn.config import (BATCH_UNITS, LEARNERS, SETTING_FIELDS,
+                                add_study_learner_arguments, batch_unit, check_policy_study,
+                                learner_suffix, setting_tag)
 from repro.paper import TRANSFER_ADR
 from repro.runs.files import check_writable_dir
 from repro.runs.stats import bootstrap_ci, iqm, sem
@@ -156,8 +157,8 @@ def study_suffixes(cfg: TransferConfig) -> tuple[str, ...]:
 def batch_label(cfg: TransferConfig) -> str:
     """The batch as a figure title says it: "12000 decisions" or "600 episodes"."""
     given = dict(cfg.settings)
-    unit = next((u for u in ("batch_decisions", "batch_episodes") if u in given),
-                LEARNERS[cfg.learner]["batch_unit"])
+    unit = next((u for u in BATCH_UNITS if u in given),
+                batch_unit(LEARNERS[cfg.learner]))
     return f"{given.get(unit, getattr(cfg, unit))} {unit.split('_')[1]}"
 
 
