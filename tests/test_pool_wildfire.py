@@ -6,6 +6,8 @@ draws and cannot run given draws)."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -119,3 +121,36 @@ def test_identical_workers_give_copies_and_runs_repeat(tmp_path):
     c = train(tmp_path, "c", "--epochs", "2", "--seed", "1")
     assert not c.equals(train(tmp_path, "d", "--epochs", "2"))
 
+
+
+def test_the_transfer_study_on_the_pool_writes_files_of_its_own(tmp_path, monkeypatch):
+    monkeypatch.setenv("REPRO_QUIET", "1")
+    dirs = {d: tmp_path / d for d in ("results", "figures", "runs")}
+    assert main(["transfer", "--sampler", "released-pool", "--sim-version", "2017-04-22",
+                 "--scale", "smoke", "--simulator", "ED", "--simulator", "FS-1",
+                 "--test-episodes", "5", "--n-jobs", "1",
+                 *(x for d, p in dirs.items() for x in (f"--{d}-dir", str(p)))]) == 0
+    stem = "transfer_20170422_pool"
+    assert sorted(p.name for p in dirs["results"].glob("*.csv")) == [f"{stem}.csv",
+                                                                      f"{stem}_summary.csv"]
+    assert (dirs["figures"] / f"{stem}.png").exists()
+    runs = dirs["runs"] / "transfer-20170422-pool" / "smoke"
+    assert sorted(p.name for p in runs.iterdir()) == ["ed-th3-seed0", "fs1-th3-seed0"]
+    config = json.loads((runs / "ed-th3-seed0" / "config.json").read_text())
+    assert config["train"]["sampler"] == "released-pool" and config["env"]["r_pen"] == -1.0
+    progress = pd.read_csv(runs / "ed-th3-seed0" / "progress.csv")
+    assert (progress.distinct_episodes < progress.batch_episodes).all()  # copies
+
+
+@pytest.mark.parametrize("bad", [["--sampler", "pooled"],
+                                 ["--sampler", "released-pool", "--learner", "suite"]])
+def test_a_bad_sampler_of_the_transfer_study_exits_2(tmp_path, monkeypatch, capsys, bad):
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(["transfer", "--scale", "smoke", *bad])
+    except SystemExit as exit_:  # argparse's errors
+        code = exit_.code
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--sampler" in err
+    assert list(tmp_path.iterdir()) == []
