@@ -123,6 +123,13 @@ def test_identical_workers_give_copies_and_runs_repeat(tmp_path):
 
 
 
+def test_a_resumed_run_equals_an_uninterrupted_one(tmp_path):
+    whole = train(tmp_path, "whole", "--epochs", "3")
+    train(tmp_path, "resumed", "--epochs", "1")
+    assert train(tmp_path, "resumed", "--epochs", "3").to_csv(index=False) == whole.to_csv(
+        index=False)
+
+
 def test_the_transfer_study_on_the_pool_writes_files_of_its_own(tmp_path, monkeypatch):
     monkeypatch.setenv("REPRO_QUIET", "1")
     dirs = {d: tmp_path / d for d in ("results", "figures", "runs")}
