@@ -16,7 +16,7 @@ STAMP  := $(VENV)/.installed
 # alias target (tests/test_make.py checks both).
 .PHONY: help setup reproduce test test-fast lint claims transfer transfer-heuristics transfer-dt \
 	transfer-order transfer-ablation transfer-inputs bus-thresholds bus-lambda bus-batch \
-	bus-lambda-pool bus-batch-pool \
+	bus-lambda-pool bus-batch-pool transfer-pool \
 	bus-arrivals bus-loads bus-eval race wildfire-races scaling wildfire-behaviour wildfire-penalty wildfire-eval \
 	render advantage-estimators train plot-runs bench-bus bench-wildfire bench-learn clean \
 	table-race table-thresholds fig-scaling fig-transfer wildfire-heuristics beyond-transfer-dt \
@@ -65,6 +65,7 @@ reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke che
 	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED) ARGS="--sim-version 2017-04-22"
 	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
+	$(MAKE) transfer-pool SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) transfer-heuristics SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
 	$(MAKE) wildfire-penalty SCALE=$(SCALE) SEED=$(SEED)
@@ -134,6 +135,9 @@ scaling: $(STAMP) ## event-driven vs time-stepped compute against N, table and f
 
 transfer: $(STAMP) ## train on ED and FS simulators, test on ED (C8, C9; ARGS="--sim-version 2017-04-22", "--learner suite", "--corrected")
 	$(REPRO) transfer --scale $(SCALE) --seed $(SEED) $(ARGS)
+
+transfer-pool: $(STAMP) ## transfer --sim-version 2017-04-22 on the released runner's shared-stream pool, as the paper's runs were trained (C8, C9)
+	$(REPRO) transfer --sim-version 2017-04-22 --sampler released-pool --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 transfer-heuristics: $(STAMP) ## heuristic policies on the transfer study's ED test episodes (C8, C9)
 	$(REPRO) transfer-heuristics --scale $(SCALE) --seed $(SEED) $(ARGS)

@@ -111,7 +111,7 @@ def test_a_run_never_resumes_as_another_sampler(tmp_path, capsys):
 @pytest.mark.parametrize("env, bad, param", [
     ("bus", ["--sampler", "pool"], "--sampler"),
     ("bus", ["--sampler", "released-pool", "--batch-episodes", "4"], "--sampler"),
-    ("wildfire", ["--sampler", "released-pool"], "--sampler"),
+    ("toy", ["--sampler", "released-pool"], "--sampler"),  # it draws and cannot take draws
 ])
 def test_bad_sampler_exits_2_with_one_line(tmp_path, capsys, env, bad, param):
     out = tmp_path / "run"

@@ -308,6 +308,7 @@ def test_the_settings_of_a_run_are_compared_with_its_scales():
     assert _departures("race", "--scale", "paper", "--n-sets", "10") == ["--n-sets"]
     assert _departures("fig-transfer", "--scale", "paper", "--sim-version", "2017-04-22",
                        "--learner", "suite", "--n-jobs", "2", "--seed", "0") == []
+    assert _departures("fig-transfer", "--scale", "paper", "--sampler", "released-pool") == []
     assert _departures("fig-transfer", "--scale", "paper", "--simulator", "ED") == [
         "--simulator"]
 

@@ -14,7 +14,7 @@ to the end of the episode for the last one).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Callable, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -226,6 +226,26 @@ class BatchEnv(Protocol):
     def rollout(self, policy: Policy, n_episodes: int,
                 seed: int | np.random.SeedSequence) -> Rollout:
         """Simulate ``n_episodes`` whole episodes, asking ``policy`` for every decision."""
+        ...
+
+
+@runtime_checkable
+class RunsOnDraws(Protocol):
+    """A :class:`BatchEnv` whose episodes' own randomness is a fixed number of uniforms each, and
+    which runs episodes on given draws: what the released pool needs of an environment that draws
+    random numbers itself (:mod:`repro.learn.pool`; one that draws none is a :class:`RunsToEnd`).
+    The wildfire's engines are both."""
+
+    draws_per_episode: int
+    """Uniforms on [0, 1) every episode takes, whatever happens in it."""
+
+    def episode_draws(self, uniforms: np.ndarray) -> Any:
+        """The draws of the episodes whose uniforms are the rows of the (E, draws_per_episode)
+        ``uniforms``, as :meth:`simulate` takes them."""
+        ...
+
+    def simulate(self, policy: Policy, draws: Any) -> Rollout:
+        """Run the episodes of ``draws``, asking ``policy`` for every decision."""
         ...
 
 

@@ -30,6 +30,23 @@ enter: however many there are, the common rate changes every finish's time but n
 What the model leaves out is the host's jitter, which can reorder the finishes of two episodes of
 nearly the same length; within a group of identical workers the order does not matter (they are
 interchangeable), and the counter alone decides how many of the group start another.
+
+Environments that draw random numbers themselves (the wildfire): the released wildfire runner was
+unseeded too, and its simulator drew start positions and hold times from the same global stream
+as the policy's actions. The model takes an environment whose randomness per episode is a fixed
+number K of uniforms and which runs episodes on given draws (:class:`repro.core.rollout.
+RunsOnDraws`): the episode that starts at position p takes the stream's uniforms p .. p + K - 1
+for its own draws (the wildfire: its UAVs' starts, then their hold tables, the normal holds by the
+inverse normal CDF, one uniform each, so that the stretch is fixed), then one uniform per decision
+from p + K on, and moves its worker to p + K + its decisions. The episode stays a function of p
+alone, so copies recur as on the bus; the counter still counts decisions, and finishes are still
+ordered by decisions (the environment's draws cost no time worth counting). What this leaves out:
+the released simulator drew each hold when it happened, between the policy's draws, and only as
+many as the episode held, and drew normals by numpy's polar method (two uniforms a pair, some
+rejected), so its episodes took stretches of varying length, interleaved; here the stretch is
+fixed and the environment's part comes first. The released stream was unseeded, so no stretch of
+it is reproduced either way: what the model keeps is that an episode is a function of where its
+worker stands in one shared stream, and that workers move on by what their episodes took.
 """
 
 from __future__ import annotations
@@ -40,20 +57,24 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-from repro.core.rollout import BatchEnv, DecisionBatch, Rollout, concat
+from repro.core.rollout import BatchEnv, DecisionBatch, Rollout, RunsOnDraws, RunsToEnd, concat
 
 Acting = Callable[[DecisionBatch, np.ndarray], np.ndarray]
 """A policy's action for every row of a batch given one uniform per row
 (:meth:`repro.learn.policy.Sampler.act`)."""
 
 
-def collect(offsets: np.ndarray, lengths: dict[int, int],
-            target: int) -> tuple[list[tuple[int, int]], np.ndarray] | set[int]:
+def collect(offsets: np.ndarray, lengths: dict[int, int], target: int,
+            consumed: dict[int, int] | None = None
+            ) -> tuple[list[tuple[int, int]], np.ndarray] | set[int]:
     """One epoch of the pool: the episodes (worker, start position), in the order of the released
     batch (by worker, each worker's in the order it ran them), and the workers' positions after
     the epoch. ``lengths`` holds the decisions of the episode that starts at each position known
-    so far; if the epoch needs one it lacks, the result is instead the positions whose episodes
-    the workers would start next and are not known (simulate them all, then call again)."""
+    so far (they order the finishes and fill the counter), ``consumed`` the stream values it takes
+    (they move its worker on; None: its decisions, an environment that draws nothing itself); if
+    the epoch needs an episode it lacks, the result is instead the positions whose episodes the
+    workers would start next and are not known (simulate them all, then call again)."""
+    steps = lengths if consumed is None else consumed
     pos = offsets.astype(np.int64).copy()
     unknown = {int(o) for o in pos if int(o) not in lengths}
     if unknown:
@@ -65,16 +86,28 @@ def collect(offsets: np.ndarray, lengths: dict[int, int],
         finish, w = heapq.heappop(running)
         start = int(pos[w])
         runs.append((w, start))
-        pos[w] = start + lengths[start]
+        pos[w] = start + steps[start]
         count += lengths[start]
         if count < target:  # this worker starts another episode
             nxt = int(pos[w])
             if nxt not in lengths:
-                return {nxt, *(int(pos[v]) + lengths[int(pos[v])] for _, v in running
-                               if int(pos[v]) + lengths[int(pos[v])] not in lengths)}
+                return {nxt, *(int(pos[v]) + steps[int(pos[v])] for _, v in running
+                               if int(pos[v]) + steps[int(pos[v])] not in lengths)}
             heapq.heappush(running, (finish + lengths[nxt], w))
     runs.sort(key=lambda run: run[0])  # stable: each worker's episodes stay in order
     return runs, pos
+
+
+def stream_uniforms(seed: np.random.SeedSequence, positions: list[int], k: int) -> np.ndarray:
+    """(len(positions), k): row e the pool stream's ``k`` uniforms from ``positions[e]`` on."""
+    return np.stack([np.random.Generator(np.random.PCG64(seed).advance(p)).random(k)
+                     for p in positions]).reshape(len(positions), k)
+
+
+def runs_on_pool(env: BatchEnv) -> bool:
+    """Whether the pool can sample ``env``: it draws nothing itself (:class:`RunsToEnd`), or runs
+    its episodes on given draws (:class:`RunsOnDraws`)."""
+    return isinstance(env, (RunsOnDraws, RunsToEnd))
 
 
 class EpisodeStreams:
@@ -149,16 +182,17 @@ class ReleasedPool:
         """The epoch's batch of at least ``target`` decisions, as the released pool collects it
         (identical episodes as copies), and how many distinct episodes (stream positions) it
         holds. Moves the workers on."""
+        draws = env.draws_per_episode if isinstance(env, RunsOnDraws) else 0
         known: dict[int, int] = {}  # position -> episode index in ``chunks``
-        lengths: dict[int, int] = {}
+        lengths: dict[int, int] = {}  # position -> decisions
+        consumed: dict[int, int] = {}  # position -> stream values
         chunks: list[Rollout] = []
         while True:
-            result = collect(self.offsets, lengths, target)
+            result = collect(self.offsets, lengths, target, consumed)
             if not isinstance(result, set):
                 break
             positions = sorted(result)
-            chunk = env.rollout(EpisodeStreams(act, self.seed, positions), len(positions),
-                                self.seed)
+            chunk = self.simulate(env, act, positions)
             per_episode = np.bincount(chunk.path_episode, np.diff(chunk.path_start),
                                       minlength=len(positions)).astype(np.int64)
             if not per_episode.all():  # the counter would never reach the batch
@@ -166,8 +200,18 @@ class ReleasedPool:
             for i, p in enumerate(positions):
                 known[p] = sum(len(c.episode_return) for c in chunks) + i
                 lengths[p] = int(per_episode[i])
+                consumed[p] = draws + lengths[p]
             chunks.append(chunk)
         runs, self.offsets = result
         simulated = chunks[0] if len(chunks) == 1 else concat(chunks)
         starts = [start for _, start in runs]
         return take_episodes(simulated, np.array([known[s] for s in starts])), len(set(starts))
+
+    def simulate(self, env: BatchEnv, act: Acting, positions: list[int]) -> Rollout:
+        """The episodes that start at the pool stream's ``positions``: each takes the
+        environment's draws from there on, then one uniform per decision."""
+        if isinstance(env, RunsOnDraws):
+            k = env.draws_per_episode
+            return env.simulate(EpisodeStreams(act, self.seed, [p + k for p in positions]),
+                                env.episode_draws(stream_uniforms(self.seed, positions, k)))
+        return env.rollout(EpisodeStreams(act, self.seed, positions), len(positions), self.seed)

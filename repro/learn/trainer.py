@@ -36,14 +36,14 @@ import torch
 
 from repro.core.errors import require
 from repro.core.config import to_dict
-from repro.core.rollout import BatchEnv, Rollout, RunsToEnd
+from repro.core.rollout import BatchEnv, Rollout
 from repro.learn import batch, gru
 from repro.learn.baseline import make_baseline
 from repro.learn.config import TrainConfig
 from repro.learn.m_gae import advantage_paths
 from repro.learn.network import TanhMLP
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
-from repro.learn.pool import ReleasedPool
+from repro.learn.pool import ReleasedPool, runs_on_pool
 from repro.learn.run_identity import run_config, saved_run_aliases, saved_run_defaults
 from repro.learn.sizes import check_training_size
 from repro.learn.trpo import TRPOStats, normalize, trpo_step
@@ -80,9 +80,10 @@ class Trainer:
         """The option that named ``out`` (a sweep's is --runs-dir): refusals name it."""
         self.env_config = env_config
         self.run_config = run_config(cfg, env_config, env.name)
-        require(cfg.sampler != "released-pool" or isinstance(env, RunsToEnd), "--sampler",
-                "independent for an environment that draws random numbers itself (the released "
-                "pool is modelled where only the policy draws: bus)", cfg.sampler)
+        require(cfg.sampler != "released-pool" or runs_on_pool(env), "--sampler",
+                "independent for an environment that draws random numbers itself and cannot run "
+                "given draws (the released pool is modelled where only the policy draws, the bus, "
+                "or where episodes run on given draws, the wildfire)", cfg.sampler)
         check_training_size(cfg, env)  # before the networks are built
         check_kernels()
         torch.manual_seed(int(_stream(cfg.seed, _TORCH_STREAM).generate_state(1)[0]))

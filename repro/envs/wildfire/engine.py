@@ -86,7 +86,8 @@ from repro.core.paths import path_layout, path_order
 from repro.core.rollout import BadActions, DecisionBatch, Policy, Rollout, check_actions
 from repro.envs.wildfire.params import (DIST, FIRES, HEALTH, INTEREST, LEVEL, OBS_PER_FIRE, OWN_X,
                                         OWN_Y, RACE_TOLERANCE, STATUS, EpisodeDraws,
-                                        WildfireConfig, draw_episodes, fire_positions, rank_key)
+                                        RunsOnStream, WildfireConfig, draw_episodes,
+                                        fire_positions, rank_key)
 
 (LATENCY, ACT_START, ACTION, INT_ACT, ACT_END, ANY_OF, INT_UAV,
  EXTINGUISH, INT_FIRE, BURN_FAIL, BURN_START, BURN_END, OUT_WAIT1, OUT_WAIT2,
@@ -984,8 +985,9 @@ class WildfireBatch:
             truncated=self.states["truncated"].copy(), info=info)
 
 
-class WildfireEnv:
-    """docs/semantics.md section 3, fast: implements :class:`repro.core.rollout.BatchEnv`.
+class WildfireEnv(RunsOnStream):
+    """docs/semantics.md section 3, fast: implements :class:`repro.core.rollout.BatchEnv`, and
+    :class:`repro.core.rollout.RunsOnDraws` (the released pool).
     ``count_races``: each episode's races (docs/semantics.md section 3.12) in ``info["races"]``
     (an instrumentation the kernels skip otherwise)."""
 

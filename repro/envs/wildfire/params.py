@@ -363,3 +363,49 @@ class EpisodeStream:
         holds = self._holds.normal(cfg.hold_mean, cfg.hold_std,
                                    size=(n_episodes, cfg.n_agents, cfg.hold_table))
         return EpisodeDraws(starts, holds)
+
+
+def stream_draws(cfg: WildfireConfig) -> int:
+    """Uniforms an episode takes from a shared random stream (:func:`draws_from_uniforms`): two
+    per UAV for its start, one per hold of its table."""
+    return cfg.n_agents * (2 + cfg.hold_table)
+
+
+LOWEST_UNIFORM = 2.0 ** -54
+"""What a uniform of 0 (a generator's ``random()`` gives it with probability 2^-53) counts as in
+the inverse normal CDF, which is -inf at 0: half the generator's step, a hold 8.3 standard
+deviations short (the largest uniform, 1 - 2^-53, gives 8.2 long)."""
+
+
+def draws_from_uniforms(cfg: WildfireConfig, uniforms: np.ndarray) -> EpisodeDraws:
+    """The draws of episodes taken from a shared random stream (the released pool,
+    :mod:`repro.learn.pool`): row e of the (E, :func:`stream_draws`) ``uniforms`` on [0, 1) is
+    episode e's, in this order: every UAV's start (x, y; UAV 0 first) as ``-1 + 2 u``, then every
+    UAV's hold table (UAV 0's first) by the inverse normal CDF, ``hold_mean + hold_std
+    ndtri(u)``. One uniform per value, whatever the values, so that an episode takes a fixed
+    stretch of the stream."""
+    from scipy.special import ndtri
+
+    u = np.asarray(uniforms, np.float64)
+    n, table = cfg.n_agents, cfg.hold_table
+    if u.ndim != 2 or u.shape[1] != stream_draws(cfg):
+        raise ValueError(f"uniforms must have shape (episodes, {stream_draws(cfg)}), "
+                         f"got {u.shape}")
+    starts = -1.0 + 2.0 * u[:, :2 * n].reshape(len(u), n, 2)
+    normal = ndtri(np.maximum(u[:, 2 * n:], LOWEST_UNIFORM)).reshape(len(u), n, table)
+    return EpisodeDraws(starts, cfg.hold_mean + cfg.hold_std * normal)
+
+
+class RunsOnStream:
+    """Mixin of both wildfire engines: the environment's side of the released pool
+    (:class:`repro.core.rollout.RunsOnDraws`), episodes run on draws taken from a shared
+    stream."""
+
+    cfg: WildfireConfig
+
+    @property
+    def draws_per_episode(self) -> int:
+        return stream_draws(self.cfg)
+
+    def episode_draws(self, uniforms: np.ndarray) -> EpisodeDraws:
+        return draws_from_uniforms(self.cfg, uniforms)

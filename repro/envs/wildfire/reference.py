@@ -60,8 +60,8 @@ import simpy
 from repro.core.fixed_step import fs_delay
 from repro.core.paths import path_layout, path_order
 from repro.core.rollout import DecisionBatch, Policy, Rollout, check_actions
-from repro.envs.wildfire.params import (RACE_TOLERANCE, EpisodeDraws, WildfireConfig,
-                                        draw_episodes, fire_positions, rank_key)
+from repro.envs.wildfire.params import (RACE_TOLERANCE, EpisodeDraws, RunsOnStream,
+                                        WildfireConfig, draw_episodes, fire_positions, rank_key)
 
 @dataclass
 class _Uav:
@@ -438,9 +438,10 @@ class WildfireModel:
             rec["duration"] = self.t_end - rec["time"]
 
 
-class ReferenceEnv:
-    """The SimPy model behind the BatchEnv interface: episodes one after another, the policy asked
-    once per decision (a one-row DecisionBatch). ``count_races``: each episode's races (docs/
+class ReferenceEnv(RunsOnStream):
+    """The SimPy model behind the BatchEnv interface (and :class:`repro.core.rollout.RunsOnDraws`,
+    the released pool's): episodes one after another, the policy asked once per decision (a one-row
+    DecisionBatch). ``count_races``: each episode's races (docs/
     semantics.md section 3.12) in ``info["races"]``, counted apart from the fast engine's count
     (a set of exact due times per instant), to check it."""
 

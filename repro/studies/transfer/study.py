@@ -21,7 +21,7 @@ from repro.core.errors import require
 from repro.core.rollout import children
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
-from repro.learn.config import (BATCH_UNITS, LEARNERS, SETTING_FIELDS,
+from repro.learn.config import (BATCH_UNITS, LEARNERS, SAMPLERS, SETTING_FIELDS,
                                 add_study_learner_arguments, batch_unit, check_policy_study,
                                 learner_suffix, setting_tag)
 from repro.paper import TRANSFER_ADR
@@ -56,6 +56,11 @@ class TransferConfig(Validated):
     settings: tuple[tuple[str, Any], ...] = ()
     """Learner settings changed from the learner's, as (TrainConfig field, value) pairs (an
     ablation, ``learner-ablation``); each adds a tag to the file stem."""
+    sampler: str = "independent"
+    """The runs' batch sampler (``repro.learn.config.SAMPLERS``): "independent", every episode its
+    own seeded stream; "released-pool", the released runner's unseeded workers sharing one stream,
+    as the paper's transfer runs were trained (:mod:`repro.learn.pool`; needs a batch counted in
+    decisions). The pool writes ``*_pool``."""
     sim_version: str = RELEASED_VERSION
     """The released simulator's version every simulator of the study follows
     (``repro.envs.wildfire.SIM_VERSIONS``): the released HEAD, or "2017-04-22", the one the
@@ -96,6 +101,11 @@ class TransferConfig(Validated):
                    "one of " + ", ".join(SIM_VERSIONS))
         self.check(all(k in SETTING_FIELDS for k, _ in self.settings), "settings",
                    "fields among " + ", ".join(SETTING_FIELDS))
+        self.check(self.sampler in SAMPLERS, "sampler", "one of " + ", ".join(SAMPLERS))
+        self.check(not self.pool or "sampler" not in dict(self.settings), "sampler",
+                   "given once, not also among the settings")
+        self.check(not self.pool or self.unit == "batch_decisions", "sampler",
+                   "independent for a learner that counts its batch in episodes")
         self.check(all(-8 <= x <= 2 for x in self.log10_dts), "log10_dts",
                    "exponents in [-8, 2] (dT from 10 ns to 100 s)")
         self.check(-8 <= self.variant_log10_dt <= 2, "variant_log10_dt",
@@ -108,6 +118,18 @@ class TransferConfig(Validated):
         labels = list(self.simulators(every=True))
         require(set(self.only) <= set(labels), "--simulator", "one of " + ", ".join(labels),
                 list(self.only))
+
+    @property
+    def pool(self) -> bool:
+        """Whether the runs sample with the released pool."""
+        return self.sampler == "released-pool"
+
+    @property
+    def unit(self) -> str:
+        """The TrainConfig field the runs' batch fills: the settings' batch size, else the
+        learner's unit."""
+        given = dict(self.settings)
+        return next((u for u in BATCH_UNITS if u in given), batch_unit(LEARNERS[self.learner]))
 
     def quirks(self) -> dict[str, bool]:
         """The quirk switches of every simulator of the study (train and test alike)."""
@@ -140,26 +162,25 @@ class TransferConfig(Validated):
     @property
     def name(self) -> str:
         """File stem of the results: transfer, transfer_corrected, or transfer_no_q3 (say), then
-        _no_fire_out_first for the reversed order, _suite for the suite's learner, and _20170422
-        for the simulator of 2017-04-22."""
+        _no_fire_out_first for the reversed order, _suite for the suite's learner, _20170422
+        for the simulator of 2017-04-22, and _pool for the released pool."""
         return "_".join(("transfer", *study_suffixes(self)))
 
 
 def study_suffixes(cfg: TransferConfig) -> tuple[str, ...]:
-    """The parts of a transfer study's file stem that name its semantics, learner and version."""
+    """The parts of a transfer study's file stem that name its semantics, learner, version and
+    sampler."""
     parts = ("corrected",) if cfg.corrected else tuple(f"no_{q}" for q in sorted(cfg.quirks_off))
     order = () if cfg.fire_out_first else ("no_fire_out_first",)
     settings = tuple(setting_tag(k, v) for k, v in cfg.settings)
     return (*parts, *order, *learner_suffix(cfg.learner), *settings,
-            *version_suffix(cfg.sim_version))
+            *version_suffix(cfg.sim_version), *(("pool",) if cfg.pool else ()))
 
 
 def batch_label(cfg: TransferConfig) -> str:
     """The batch as a figure title says it: "12000 decisions" or "600 episodes"."""
-    given = dict(cfg.settings)
-    unit = next((u for u in BATCH_UNITS if u in given),
-                batch_unit(LEARNERS[cfg.learner]))
-    return f"{given.get(unit, getattr(cfg, unit))} {unit.split('_')[1]}"
+    unit = cfg.unit
+    return f"{dict(cfg.settings).get(unit, getattr(cfg, unit))} {unit.split('_')[1]}"
 
 
 def fs_label(dt: float) -> str:
@@ -179,11 +200,12 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     Replicate r uses the same training seed on every simulator (common initial policies)."""
     from repro.learn.config import study_train_config
 
+    settings = (*cfg.settings, *((("sampler", cfg.sampler),) if cfg.pool else ()))
     jobs = []
     for label, env in cfg.simulators().items():
         for s in range(seed, seed + cfg.seeds):
             train = study_train_config(scale, "wildfire", cfg.learner, cfg.batch_decisions,
-                                       cfg.batch_episodes, cfg.settings, seed=s,
+                                       cfg.batch_episodes, settings, seed=s,
                                        epochs=cfg.epochs)
             jobs.append((label, TrainJob(job_name(env, s), train, env)))
     return jobs

@@ -15,6 +15,9 @@ reached its asymptote (the per-run ``train_adr_last`` column shows the training-
 Per simulator the summary gives the mean over the trained policies with its standard error (the
 paper's error bars), the IQM, and a bootstrap CI of the mean (``repro.runs.stats``).
 
+``--sampler released-pool`` trains on the released runner's unseeded pool, as the paper's transfer
+runs were (:mod:`repro.learn.pool`; files ``*_pool*``, run folders under ``transfer-*-pool``).
+
 ``--corrected`` trains and tests with quirks Q1-Q6 switched off (the paper's prose) and writes
 ``transfer_corrected*.csv`` and ``figures/transfer_corrected.*`` instead; a quirk's flag, as
 ``train`` spells it (``--no-quirk-q3-unclamped-health``; the old ``--no-quirk q3`` too), switches
@@ -37,7 +40,7 @@ import pandas as pd
 
 from repro.core.config import add_config_arguments, given_fields
 from repro.envs.wildfire import QUIRKS, SIM_VERSIONS, WildfireConfig
-from repro.learn.config import learner_label
+from repro.learn.config import SAMPLERS, learner_label
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
 from repro.studies.kit.options import add_replot, replot_pair
@@ -87,9 +90,9 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem, sources)
 
 
-VARIANTS = ("corrected", "no_quirk", *QUIRKS, "sim_version", "no_fire_out_first")
+VARIANTS = ("corrected", "no_quirk", *QUIRKS, "sim_version", "no_fire_out_first", "sampler")
 """Options that choose the study, each writing result files of its own (``transfer_corrected*``,
-``*_no_q3*``, ``*_20170422``, ``*_no_fire_out_first``), not its settings
+``*_no_q3*``, ``*_20170422``, ``*_no_fire_out_first``, ``*_pool``), not its settings
 (:func:`repro.studies.kit.options.scale_departures`)."""
 
 
@@ -109,6 +112,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the released simulator's version (default 2017-05-16, the released "
                         "HEAD; 2017-04-22: the one the paper's runs were trained on); "
                         "2017-04-22 writes *_20170422")
+    p.add_argument("--sampler", choices=SAMPLERS,
+                   help="the runs' batch sampler (default independent: every episode its own "
+                        "seeded stream; released-pool: the released runner's unseeded workers "
+                        "sharing one stream, as the paper's runs were trained); released-pool "
+                        "writes *_pool")
     p.add_argument("--no-fire-out-first", action="store_true",
                    help="a UAV whose macro-action ends as a fire goes out observes first (the "
                         "released order reversed, X4); writes *_no_fire_out_first")
@@ -123,7 +131,7 @@ def config_from_args(args: argparse.Namespace) -> TransferConfig:
                         or None,
                         only=tuple(args.simulator) or None,
                         fire_out_first=False if args.no_fire_out_first else None,
-                        sim_version=args.sim_version)
+                        sim_version=args.sim_version, sampler=args.sampler)
 
 
 def figure_title(cfg: TransferConfig, scale: str) -> str:
@@ -132,6 +140,7 @@ def figure_title(cfg: TransferConfig, scale: str) -> str:
                  f"released semantics, {', '.join(cfg.quirks_off).upper()} off" if cfg.quirks_off
                  else "released semantics (Q1-Q6 on)")
     semantics += "" if cfg.fire_out_first else ", UAV before fire at one instant"
+    semantics += ", released pool" if cfg.pool else ""
     return (f"Transfer to ED, {semantics}; {scale} scale: {cfg.seeds} policies x {cfg.epochs} "
             f"epochs x {batch_label(cfg)}, {learner_label(cfg.learner)}, simulator of "
             f"{cfg.sim_version}")
