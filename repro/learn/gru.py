@@ -376,7 +376,8 @@ class GRUNet:
         cols, n_h = paths.x.shape[1], self.policy.hidden
         xs = np.empty((3 * n_h, cols))
         linear_columns(feats.logits, self.wx, self.b, xs)
-        r, u, c, hsc, h, hprev = (np.zeros((n_h, cols)) for _ in range(6))
+        r, u, c, hsc, h, hprev = (_unset((n_h, cols), paths.n) for _ in range(6))
+        hprev[:, :paths.offsets[min(1, len(paths.offsets) - 1)]] = 0.0  # before a first step
         gru_forward(paths.offsets, xs, self.wh, r, u, c, hsc, h, hprev)
         logits = np.empty((len(self.bo), cols))
         linear_columns(h, self.wo, self.bo, logits)
@@ -390,7 +391,7 @@ class GRUNet:
         dh_out = np.empty((n_h, cols))
         products_columns(g, self.wo_t, dh_out)
         accumulate_columns(fwd.h, g, gw[3], gw[4])
-        dxs, dhs = np.zeros((3 * n_h, cols)), np.zeros((3 * n_h, cols))
+        dxs, dhs = _unset((3 * n_h, cols), fwd.paths.n), _unset((3 * n_h, cols), fwd.paths.n)
         gru_backward(fwd.paths.offsets, dh_out, self.wh_t, fwd.r, fwd.u, fwd.c, fwd.hsc,
                      fwd.hprev, dxs, dhs)
         accumulate_columns(fwd.features.logits, dxs, gw[0], gw[2])
@@ -414,7 +415,7 @@ class GRUNet:
         df = self.features.jvp_columns(fwd.features, vf)
         dxs = np.empty((3 * n_h, cols))
         tangent_columns(fwd.features.logits, df, self.wx, vwx, vb, dxs)
-        dh = np.zeros((n_h, cols))
+        dh = _unset((n_h, cols), fwd.paths.n)
         gru_tangent(fwd.paths.offsets, dxs, self.wh, vwh, fwd.r, fwd.u, fwd.c, fwd.hsc, fwd.h,
                     fwd.hprev, dh)
         out = np.empty_like(fwd.logits)
@@ -428,6 +429,14 @@ class GRUNet:
         g = np.empty_like(fwd.logits)
         kl_weighting_columns(probs, self.jvp(fwd, v), 1.0 / fwd.paths.n, g)
         return self.gradient(fwd, g)
+
+
+def _unset(shape: tuple[int, int], n: int) -> np.ndarray:
+    """A float64 array for the compiled loops to fill in its first ``n`` columns, zero beyond
+    them (the padding's terms weigh 0 in every sum, and must not be NaN)."""
+    out = np.empty(shape)
+    out[:, n:] = 0.0
+    return out
 
 
 def columns(rows: np.ndarray, width: int) -> np.ndarray:
