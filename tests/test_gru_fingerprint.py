@@ -1,9 +1,9 @@
 """The gru policy pinned bit for bit: a short bus run of the authors' learner with ``--policy
 gru`` (each Fisher-vector product), in the style of tests/test_learner_fingerprint.py and under
-its skip rules. Its arithmetic is torch in float64 (repro.learn.gru): matrix products in MKL at
-``MKL_CBWR=COMPATIBLE``, MKL's documented cross-vendor branch, elementwise kernels at AVX2. The
-digests were computed by this module (``python -m tests.test_gru_fingerprint``) on an AMD EPYC
-(Zen 5, AVX-512); they hold for the installed torch, numpy and numba."""
+its skip rules. Its arithmetic is compiled float64 loops whose sums run in a fixed order
+(repro.learn.gru_kernel), which give the same bits on every x86-64 CPU with AVX2 and FMA. The
+digests were computed by this module (``python -m tests.test_gru_fingerprint``) on an Intel Xeon
+(Emerald Rapids, AVX-512); they hold for the installed torch, numpy and numba."""
 
 from __future__ import annotations
 
@@ -23,8 +23,8 @@ from tests.test_learner_fingerprint import not_pinned
 
 RUN = dict(epochs=2, seed=7, batch_decisions=300, batch_workers=2, lam=2.0, policy="gru")
 DIGESTS = {
-    "finite-difference": "45d838ee12dd7b3295636713693ba8ffb6a6962a4b51bc370195ff4a6b0504a3",
-    "exact": "39347c0e9cf772398dd8366e0e90cc026f1d262591292eba29982c0f22f81d4b",
+    "finite-difference": "61a670ec3a7c30a2c75d9d1e8296be1f6050fad7d7d039068aa2bc7f4fd90732",
+    "exact": "0122c9427d74d8ee202a8ac419857e84ba6bc6db6df54a24912cd87d2985658f",
 }
 """Computed by the ``__main__`` block below (see the module docstring)."""
 

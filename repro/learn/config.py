@@ -84,7 +84,7 @@ class TrainConfig(Validated):
     gru_fvp: str = "finite-difference"
     """How the gru's TRPO step computes Fisher-vector products (:data:`GRU_FVPS`):
     "finite-difference", the released ``FiniteDifferenceHvp``: the KL's gradient at theta +- eps v,
-    eps = gru_fvp_eps / (|theta| + 1e-8); "exact", the second derivative by double backward."""
+    eps = gru_fvp_eps / (|theta| + 1e-8); "exact", the exact product J' M J v."""
     gru_fvp_eps: float = 1e-5
     """Base step of the finite-difference products (the released ``base_eps``, 1e-5)."""
     baseline: str = "linear"

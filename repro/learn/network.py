@@ -39,7 +39,7 @@ from numba import njit, types
 from numba.extending import overload
 from torch import nn
 
-from repro.learn.policy_kernel import tanh32
+from repro.learn.policy_kernel import tanh32, tanh64
 
 LANES = 64
 """The partial sums that a sum over decisions keeps: with :data:`CHUNK`, this, not the CPU, fixes
@@ -51,7 +51,8 @@ decision the sums are the decision's own, so the chunk fixes only how sums over 
 
 def activation(v):
     """tanh in the dtype of ``v``: the sampler's :func:`~repro.learn.policy_kernel.tanh32` for a
-    float32, libm's tanh for a float64 (the tests' networks). Compiled code only."""
+    float32, :func:`~repro.learn.policy_kernel.tanh64` for a float64 (the recurrent policy's
+    feature network, :mod:`repro.learn.gru`, and the tests' networks). Compiled code only."""
     raise NotImplementedError("activation is compiled in; call it from njit code")
 
 
@@ -59,7 +60,7 @@ def activation(v):
 def _activation(v):
     if isinstance(v, types.Float) and v.bitwidth == 32:
         return lambda v: tanh32(v)
-    return lambda v: math.tanh(v)
+    return lambda v: tanh64(v)
 
 
 def padded(n: int) -> int:
@@ -163,7 +164,13 @@ class TanhMLP:
     def forward(self, x: np.ndarray | Forward) -> Forward:
         """The pass over inputs ``x`` (N, in_dim), or over the inputs of an earlier pass ``x``
         (a line search's trials)."""
-        n, xt = (x.n, x.x) if isinstance(x, Forward) else (len(x), _padded_rows(x, self.dtype))
+        if isinstance(x, Forward):
+            return self.forward_columns(x.x, x.n)
+        return self.forward_columns(_padded_rows(x, self.dtype), len(x))
+
+    def forward_columns(self, xt: np.ndarray, n: int) -> Forward:
+        """The pass over ``n`` inputs given feature-major, ``xt`` (in_dim, padded n) in the
+        network's dtype, zero beyond column n (kept by the pass, not copied)."""
         cols = xt.shape[1]
         hidden = tuple(np.empty((o, cols), self.dtype) for o, _ in self.shapes[:-1])
         slopes = tuple(np.empty((o, cols), self.dtype) for o, _ in self.shapes[:-1])
@@ -184,15 +191,25 @@ class TanhMLP:
 
     def jvp(self, fwd: Forward, v: np.ndarray) -> np.ndarray:
         """J v: the change of the logits (N, n_actions) along the direction ``v``."""
+        return self.jvp_columns(fwd, v)[:, :fwd.n].T
+
+    def jvp_columns(self, fwd: Forward, v: np.ndarray) -> np.ndarray:
+        """J v feature-major: (n_actions, padded N), its padding columns the outputs' change at
+        zero inputs."""
         vw, vb = self.split(np.asarray(v, dtype=self.dtype))
         out = np.empty((len(self.biases[-1]), fwd.x.shape[1]), self.dtype)
         _jvp(fwd.x, fwd.hidden, fwd.slopes, self.weights, vw, vb, out)
-        return out[:, :fwd.n].T
+        return out
 
     def vjp(self, fwd: Forward, g: np.ndarray) -> np.ndarray:
         """J' g: the gradient of sum(g * logits), g (N, n_actions), as a flat float64 vector."""
+        return self.vjp_columns(fwd, _padded_rows(g, self.dtype))
+
+    def vjp_columns(self, fwd: Forward, g: np.ndarray) -> np.ndarray:
+        """:meth:`vjp` of ``g`` given feature-major, (n_actions, padded N) in the network's
+        dtype, zero beyond column N."""
         gw, gb = self._accumulators()
-        _vjp(fwd.x, fwd.hidden, fwd.slopes, _padded_rows(g, self.dtype), self.weights, gw, gb)
+        _vjp(fwd.x, fwd.hidden, fwd.slopes, g, self.weights, gw, gb)
         return self._flat(gw, gb)
 
     def fisher_product(self, fwd: Forward, probs: np.ndarray, v: np.ndarray) -> np.ndarray:
