@@ -310,6 +310,24 @@ def test_a_run_of_the_earlier_arithmetic_is_not_resumed(tmp_path, whole, capsys)
     assert tree_snapshot(run) == before
 
 
+@pytest.mark.parametrize("policy, refused", [("mlp", False), ("gru", True)])
+def test_an_earlier_arithmetic_of_the_same_bits_resumes(tmp_path, whole, policy, refused):
+    """A run recorded under arithmetic 1 resumes where that arithmetic trains its policy to
+    today's bits (the mlp), and is refused where it does not (the gru, then in torch)."""
+    run = tmp_path / "run"
+    shutil.copytree(whole, run)
+    (earlier,) = (a for a, policies in kernels.SAME_BITS.items() if "mlp" in policies)
+    (run / run_folder.KERNELS).write_text(json.dumps({**kernels.record(), "arithmetic": earlier}))
+    config = json.loads((run / "config.json").read_text())
+    config["train"]["policy"] = policy  # read by the kernel check only, before any training
+    (run / "config.json").write_text(json.dumps(config))
+    if refused:
+        with pytest.raises(UsageError, match=f"arithmetic {earlier} -> {kernels.ARITHMETIC}"):
+            run_folder.check_kernels(run)
+    else:
+        run_folder.check_kernels(run)
+
+
 def test_a_run_from_before_the_record_is_taken_at_its_provenance(tmp_path, whole, monkeypatch):
     """A finished run without kernels.json is checked against its sidecar's kernels (and refused
     where they differ); one whose sidecar has none resumes with a warning."""

@@ -51,9 +51,14 @@ from typing import Any
 
 OPT_OUT = "REPRO_NATIVE_KERNELS"
 """Set to 1 to run every library's own choice of kernels for this CPU."""
-ARITHMETIC = "compiled-fixed-order-1"
+ARITHMETIC = "compiled-fixed-order-2"
 """The learner's arithmetic: its version changes whenever a change to the code changes the bits
-of training (the earlier one, torch and MKL's AVX2 branch, is recorded as runs without it)."""
+of training (the earliest, torch and MKL's AVX2 branch, is recorded as runs without it). 1: the
+mlp policy in compiled loops, the gru in torch and MKL's COMPATIBLE branch; 2: the gru in
+compiled loops too."""
+SAME_BITS = {"compiled-fixed-order-1": ("mlp",)}
+"""Earlier arithmetics that train the policies named (``TrainConfig.policy``) to the same bits as
+:data:`ARITHMETIC`: a run of such a policy recorded under one resumes under today's."""
 TORCH_PINS = {"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "COMPATIBLE"}
 """torch's kernel level and its MKL's code branch."""
 MKL_OVERRIDES = ("MKL_ENABLE_INSTRUCTIONS",)

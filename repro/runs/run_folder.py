@@ -52,7 +52,8 @@ import pandas as pd
 from repro.core.config import to_dict
 from repro.core.errors import UsageError, require
 from repro.runs.files import append_csv, write_bytes, write_csv, write_json, write_text
-from repro.runs.kernels import KernelWarning, describe as describe_kernels, record as kernel_record
+from repro.runs.kernels import (SAME_BITS, KernelWarning, describe as describe_kernels,
+                                record as kernel_record)
 from repro.runs.locks import folder_lock, is_locked
 from repro.runs.provenance import provenance
 
@@ -446,6 +447,9 @@ def check_kernels(folder: Path, param: str = "--out") -> None:
     """Refuse (UsageError naming ``param``) resuming the run in ``folder`` under other kernels than
     its epochs were trained with; warn where they are not recorded."""
     earlier, now = recorded_kernels(folder, param), kernel_record()
+    policy = ((_read_object(folder / CONFIG, param) or {}).get("train") or {}).get("policy", "mlp")
+    if earlier is not None and policy in SAME_BITS.get(earlier.get("arithmetic"), ()):
+        earlier = {**earlier, "arithmetic": now["arithmetic"]}
     if earlier is None:
         warnings.warn(f"{folder}: the kernels its epochs were trained with are not recorded (a run "
                       "from before the pin); resuming it may mix kernels", KernelWarning,
