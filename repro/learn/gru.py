@@ -65,11 +65,11 @@ from repro.core.rollout import DecisionBatch
 from repro.learn.gru_kernel import (accumulate_columns, gru_backward, gru_forward, gru_tangent,
                                     kl_gradient_columns, kl_weighting_columns, lane_totals,
                                     linear_columns, products_columns, step_rows, tangent_columns)
-from repro.learn.network import LANES, Forward, TanhMLP, _log_softmax, libm_exp, padded
+from repro.learn.network import LANES, Forward, TanhMLP, log_softmax_into, libm_exp, padded
 from repro.learn.policy import ObsNormalizer, orthogonal_
 from repro.learn.policy_kernel import sample_row
-from repro.learn.trpo import (TRPOStats, _mean_kl, _score_rows, _surrogate, conjugate_gradient,
-                              dot, line_search)
+from repro.learn.trpo import (TRPOStats, conjugate_gradient, dot, line_search, mean_kl_given,
+                              score_rows, surrogate_of)
 
 DTYPE = torch.float64
 RECURRENT_GAIN = 1.1
@@ -315,7 +315,7 @@ class Pass:
         """log pi(. | decision), (D, n_actions), in column order (computed once)."""
         if self._logp is None:
             self._logp = np.empty((self.paths.n, len(self.logits)))
-            _log_softmax(self.logits, self._logp)
+            log_softmax_into(self.logits, self._logp)
         return self._logp
 
     def probs(self) -> np.ndarray:
@@ -493,9 +493,9 @@ def trpo_step(policy: GRUPolicy, paths: Paths, actions: np.ndarray, adv: np.ndar
     adv_c = np.ascontiguousarray(np.asarray(adv, np.float64)[paths.order])
     fwd = net.forward(paths)
     logp_old, probs_old = fwd.log_probs(), fwd.probs()
-    entropy = -_mean_kl(probs_old, logp_old, np.zeros_like(logp_old))
+    entropy = -mean_kl_given(probs_old, logp_old, np.zeros_like(logp_old))
     surr0 = float(adv.mean())  # every ratio is 1 at theta_old
-    grad = net.gradient(fwd, columns(_score_rows(probs_old, a, adv_c), fwd.logits.shape[1]))
+    grad = net.gradient(fwd, columns(score_rows(probs_old, a, adv_c), fwd.logits.shape[1]))
     fvp_of = fisher_product(net, fwd, fvp, fvp_eps, cg_damping)
     direction = conjugate_gradient(fvp_of, grad, cg_iters)
     shs = dot(direction, fvp_of(direction))
@@ -505,7 +505,7 @@ def trpo_step(policy: GRUPolicy, paths: Paths, actions: np.ndarray, adv: np.ndar
 
     def evaluate() -> tuple[float, float]:
         logp = net.forward(paths).log_probs()
-        return _surrogate(logp, logp_old, a, adv_c), _mean_kl(probs_old, logp_old, logp)
+        return surrogate_of(logp, logp_old, a, adv_c), mean_kl_given(probs_old, logp_old, logp)
 
     accepted, backtracks, surr1, kl = line_search(net, evaluate, full_step, surr0, max_kl,
                                                   backtrack_ratio, max_backtracks)

@@ -3,8 +3,8 @@ sum runs in a fixed order: the GRU stepped over a batch's paths, its output laye
 through time, the tangent pass of an exact Fisher-vector product, and the sampler's step of one
 decision at a time. The feature MLP in front of the GRU is :mod:`repro.learn.network`'s (its
 :class:`~repro.learn.network.TanhMLP` in float64), and so are the building blocks here: the
-products over a chunk of columns (``_add_products``), the per-lane sums over decisions
-(``_accumulate_layer``) and the KL weighting (``_kl_weighting``).
+products over a chunk of columns (``add_products``), the per-lane sums over decisions
+(``accumulate_layer``) and the KL weighting (``kl_weighting``).
 
 Layout. A batch's D decisions are columns, feature-major as in :mod:`repro.learn.network`
 ((units, D rounded up to a whole CHUNK), zero beyond D), in step-major order: the paths are ranked
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from repro.learn.network import CHUNK, LANES, _accumulate_layer, _add_products, _kl_weighting
+from repro.learn.network import CHUNK, LANES, accumulate_layer, add_products, kl_weighting
 from repro.learn.policy_kernel import sigmoid64, tanh64
 
 
@@ -41,7 +41,7 @@ def linear_columns(src, w, b, out):
     """out = W src + b over every column: per unit, the sum in input order, then the bias."""
     for n0 in range(0, src.shape[1], CHUNK):
         out[:, n0:n0 + CHUNK] = 0.0
-        _add_products(out, n0, src, n0, w)
+        add_products(out, n0, src, n0, w)
         for j in range(w.shape[0]):
             row = out[j, n0:n0 + CHUNK]
             for q in range(row.shape[0]):
@@ -53,7 +53,7 @@ def products_columns(src, w, out):
     """out = W src over every column (a cotangent carried back: ``w`` a transposed weight)."""
     for n0 in range(0, src.shape[1], CHUNK):
         out[:, n0:n0 + CHUNK] = 0.0
-        _add_products(out, n0, src, n0, w)
+        add_products(out, n0, src, n0, w)
 
 
 @njit(cache=True, error_model="numpy")
@@ -63,30 +63,30 @@ def tangent_columns(src, dsrc, w, dw, db, out):
     for n0 in range(0, src.shape[1], CHUNK):
         for j in range(w.shape[0]):
             out[j, n0:n0 + CHUNK] = db[j]
-        _add_products(out, n0, src, n0, dw)
-        _add_products(out, n0, dsrc, n0, w)
+        add_products(out, n0, src, n0, dw)
+        add_products(out, n0, dsrc, n0, w)
 
 
 @njit(cache=True, error_model="numpy")
 def accumulate_columns(src, d, g, gb):
     """Add sum over columns of d src' to the per-lane sums ``g`` (outputs, inputs, LANES) and of
     d to ``gb`` (outputs, LANES), a chunk at a time
-    (:func:`repro.learn.network._accumulate_layer`)."""
+    (:func:`repro.learn.network.accumulate_layer`)."""
     buf = np.empty((d.shape[0], CHUNK))
     for n0 in range(0, src.shape[1], CHUNK):
         buf[:, :] = d[:, n0:n0 + CHUNK]
-        _accumulate_layer(n0, src, buf, g, gb)
+        accumulate_layer(n0, src, buf, g, gb)
 
 
 @njit(cache=True, error_model="numpy")
 def kl_weighting_columns(probs, jv, scale, out):
     """out = p (jv - p . jv) scale per column (M J v / N), probabilities ``probs`` feature-major
-    and zero beyond the batch (:func:`repro.learn.network._kl_weighting`)."""
+    and zero beyond the batch (:func:`repro.learn.network.kl_weighting`)."""
     mean = np.empty(CHUNK)
     buf, res = np.empty((jv.shape[0], CHUNK)), np.empty((jv.shape[0], CHUNK))
     for n0 in range(0, jv.shape[1], CHUNK):
         buf[:, :] = jv[:, n0:n0 + CHUNK]
-        _kl_weighting(n0, probs, buf, scale, mean, res)
+        kl_weighting(n0, probs, buf, scale, mean, res)
         out[:, n0:n0 + CHUNK] = res
 
 
@@ -116,7 +116,7 @@ def lane_totals(g, out):
 def _step_products(dst, src, s0, w):
     """dst[j, q] += sum_i src[i, s0 + q] w[j, i] for q < dst's width (any width)."""
     for b0 in range(0, dst.shape[1], CHUNK):
-        _add_products(dst, b0, src, s0 + b0, w)
+        add_products(dst, b0, src, s0 + b0, w)
 
 
 @njit(cache=True, error_model="numpy")

@@ -90,7 +90,7 @@ class Forward:
         both need them; not to be written to)."""
         if self._logp is None:
             self._logp = np.empty((self.n, len(self.logits)))
-            _log_softmax(self.logits, self._logp)
+            log_softmax_into(self.logits, self._logp)
         return self._logp
 
     def probs(self) -> np.ndarray:
@@ -242,7 +242,7 @@ def _forward(x, weights, biases, hidden, slopes, logits):
             src = x if k == 0 else hidden[k - 1]
             dst = logits if k == last else hidden[k]
             dst[:, n0:n0 + CHUNK] = 0.0
-            _add_products(dst, n0, src, n0, w)
+            add_products(dst, n0, src, n0, w)
             for j in range(w.shape[0]):
                 out = dst[j, n0:n0 + CHUNK]
                 for u in range(out.shape[0]):
@@ -255,7 +255,7 @@ def _forward(x, weights, biases, hidden, slopes, logits):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _add_products(dst, d0, src, s0, coef):
+def add_products(dst, d0, src, s0, coef):
     """dst[j, d0 + u] += src[i, s0 + u] coef[j, i] for every input i in turn, for every row j of
     ``coef`` and u < CHUNK: each element's terms are added one at a time in input order. Four rows
     j and four inputs i are done in one pass over the chunk, their sums held in registers (the
@@ -311,9 +311,9 @@ def _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy):
         src = x if k == 0 else hidden[k - 1]
         for j in range(w.shape[0]):
             dy[j, :] = db[j]
-        _add_products(dy, 0, src, n0, dw)
+        add_products(dy, 0, src, n0, dw)
         if k > 0:
-            _add_products(dy, 0, da, 0, w)
+            add_products(dy, 0, da, 0, w)
         if k < last:
             for j in range(w.shape[0]):
                 s, out, a = slopes[k][j, n0:n0 + CHUNK], dy[j], da[j]
@@ -329,7 +329,7 @@ def _backward_chunk(n0, slopes, weights, deltas):
     for k in range(len(weights) - 1, 0, -1):
         prev = deltas[k - 1]
         prev[:, :] = 0.0
-        _add_products(prev, 0, deltas[k], 0, weights[k].T)
+        add_products(prev, 0, deltas[k], 0, weights[k].T)
         for i in range(prev.shape[0]):
             p, s = prev[i], slopes[k - 1][i, n0:n0 + CHUNK]
             for u in range(p.shape[0]):
@@ -343,16 +343,16 @@ def _accumulate(n0, x, hidden, deltas, gw, gb):
     delta_j x_i of the chunk's decisions u, u + LANES, u + 2 LANES, ... in that order, summed in the
     network's dtype, then added in float64."""
     for k in range(len(gw)):
-        _accumulate_layer(n0, x if k == 0 else hidden[k - 1], deltas[k], gw[k], gb[k])
+        accumulate_layer(n0, x if k == 0 else hidden[k - 1], deltas[k], gw[k], gb[k])
 
 
 @njit(cache=True, error_model="numpy")
-def _accumulate_layer(n0, src, d, g, gb):
+def accumulate_layer(n0, src, d, g, gb):
     """:func:`_accumulate` for one layer, inputs ``src`` and cotangents ``d``.
 
     The loop over a lane's CHUNK / LANES terms has a constant length, so LLVM unrolls it inside
     the loop over lanes, which it vectorises: the lanes' sums stay in registers (columns unsigned,
-    as in :func:`_add_products`). Four outputs j share each load of an input's row. Their sums
+    as in :func:`add_products`). Four outputs j share each load of an input's row. Their sums
     go to ``lanes``, scratch allocated here, before they are added in float64: LLVM vectorises the
     loop only where its stores cannot overlap its many loads, which it knows of memory allocated
     here and not of arrays passed in."""
@@ -447,13 +447,13 @@ def _fisher(x, hidden, slopes, probs, weights, vw, vb, scale, gw, gb):
     mean = np.empty(CHUNK)
     for n0 in range(0, x.shape[1], CHUNK):
         _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy)
-        _kl_weighting(n0, probs, dy, scale, mean, deltas[-1])
+        kl_weighting(n0, probs, dy, scale, mean, deltas[-1])
         _backward_chunk(n0, slopes, weights, deltas)
         _accumulate(n0, x, hidden, deltas, gw, gb)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _kl_weighting(n0, probs, jv, scale, mean, out):
+def kl_weighting(n0, probs, jv, scale, mean, out):
     """out = p (jv - p . jv) scale per decision (column) of the chunk at ``n0``: M J v / N of a
     block, in float64, p . jv summed in action order. Rows of ``probs`` are taken as contiguous
     slices (a slice across its rows would be strided, and the loops would not vectorise)."""
@@ -489,7 +489,7 @@ def _flatten(gw, gb, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _log_softmax(logits, out):
+def log_softmax_into(logits, out):
     for n in range(out.shape[0]):
         top = np.float64(logits[0, n])
         for a in range(1, out.shape[1]):

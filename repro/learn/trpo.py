@@ -79,11 +79,11 @@ def conjugate_gradient(matvec: Callable[[np.ndarray], np.ndarray], b: np.ndarray
 
 def mean_kl(logp_old: np.ndarray, logp_new: np.ndarray) -> float:
     """Mean over decisions of KL(old || new), both (N, n_actions) log-probabilities."""
-    return _mean_kl(libm_exp(np.ascontiguousarray(logp_old, np.float64)), logp_old, logp_new)
+    return mean_kl_given(libm_exp(np.ascontiguousarray(logp_old, np.float64)), logp_old, logp_new)
 
 
 @njit(cache=True)
-def _mean_kl(p_old, logp_old, logp_new):
+def mean_kl_given(p_old, logp_old, logp_new):
     """The mean KL with the old policy's probabilities ``p_old`` = exp(``logp_old``) given (the
     step computes them once, :meth:`~repro.learn.network.Forward.probs`)."""
     total = 0.0
@@ -100,11 +100,11 @@ def surrogate_gradient(net: TanhMLP, fwd: Forward, actions: np.ndarray,
     """grad L at theta_old = mean_k A_k grad log pi(a_k|o_k), at the parameters of the pass
     ``fwd``. The derivative of log pi(a|o) with respect to the logits is onehot(a) - pi(.|o), so
     this is one backward pass of those rows."""
-    return net.vjp(fwd, _score_rows(fwd.probs(), actions, adv))
+    return net.vjp(fwd, score_rows(fwd.probs(), actions, adv))
 
 
 @njit(cache=True)
-def _score_rows(probs, actions, adv):
+def score_rows(probs, actions, adv):
     """(onehot(a_k) - pi(.|o_k)) A_k / N, row by row."""
     n = actions.shape[0]
     out = np.empty(probs.shape)
@@ -139,11 +139,11 @@ def surrogate_and_kl(net: TanhMLP, old: Forward, actions: np.ndarray,
     (the parameters before the step): one forward pass over its inputs, which is what each
     line-search trial costs."""
     logp, logp_old = net.forward(old).log_probs(), old.log_probs()
-    return _surrogate(logp, logp_old, actions, adv), _mean_kl(old.probs(), logp_old, logp)
+    return surrogate_of(logp, logp_old, actions, adv), mean_kl_given(old.probs(), logp_old, logp)
 
 
 @njit(cache=True)
-def _surrogate(logp, logp_old, actions, adv):
+def surrogate_of(logp, logp_old, actions, adv):
     total = 0.0
     for n in range(actions.shape[0]):
         a = actions[n]
@@ -179,7 +179,8 @@ def trpo_step(net: TanhMLP, obs: np.ndarray, actions: np.ndarray, adv: np.ndarra
     adv = np.ascontiguousarray(adv, dtype=np.float64)
     fwd = net.forward(obs)
     logp_old = fwd.log_probs()
-    entropy = -_mean_kl(fwd.probs(), logp_old, np.zeros_like(logp_old))  # mean of p log p, negated
+    # the mean of p log p, negated
+    entropy = -mean_kl_given(fwd.probs(), logp_old, np.zeros_like(logp_old))
     surr0 = float(adv.mean())  # the surrogate at theta_old: every ratio is 1
 
     grad = surrogate_gradient(net, fwd, actions, adv)
