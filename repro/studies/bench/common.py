@@ -2,11 +2,12 @@
 
 A benchmark runs an environment's fast engine and its SimPy reference under two policies:
 
-- ``mlp``: the learner's policy exactly as training runs it: a :class:`CategoricalPolicy` with the
-  trainer's default hidden layers, evaluated by the :class:`Sampler` the trainer hands to the
-  engines (one batched numpy forward per round, inverse-CDF sampling). Its normaliser is fitted to
-  the warm-up rollout, as the trainer's is after its first epoch, so the network sees observations
-  of the scale it sees in training;
+- ``mlp``: the default learner's policy exactly as training runs it: a :class:`CategoricalPolicy`
+  with the authors' network (:data:`~repro.learn.config.AUTHORS`: one hidden layer of 32,
+  Glorot-uniform weights), evaluated by the :class:`Sampler` the trainer hands to the engines (one
+  batched numpy forward per round, inverse-CDF sampling). Where that learner normalises
+  observations, the normaliser is fitted to the warm-up rollout, as the trainer's is after its
+  first epoch;
 - a cheap policy of the environment, which shows what the engine costs nearly alone.
 
 The fast engine's step API (``make_vector_env``, engine ``fast-step-api``) runs both policies too
@@ -52,7 +53,7 @@ import pandas as pd
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy, rollout_bytes
 from repro.envs import env_package, make_vector_env, train_defaults
-from repro.learn.config import TrainConfig
+from repro.learn.config import DEFAULT_LEARNER, LEARNERS
 from repro.learn.trained_policy import check_fits, load_trained_run, policy_from_state
 from repro.runs.memory import require_memory
 from repro.runs.provenance import provenance
@@ -163,11 +164,13 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
         require_memory(rollout_bytes(env, episodes), param, episodes, "a batch of episodes")
     if trained is None:
         warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
+        learner = LEARNERS[DEFAULT_LEARNER]
         normalizer = ObsNormalizer(fast.obs_dim)
-        normalizer.update(warm_up.obs)
-        hidden = TrainConfig.hidden
+        if learner.normalize_obs:
+            normalizer.update(warm_up.obs)
+        hidden = learner.hidden
         torch.manual_seed(seed)
-        network = CategoricalPolicy(fast.obs_dim, fast.n_actions, hidden)
+        network = CategoricalPolicy(fast.obs_dim, fast.n_actions, hidden, learner.init)
         policies: dict[str, CheapPolicy] = {
             "mlp-" + "x".join(map(str, hidden)) + "-tanh":
                 lambda env, rng: Sampler(network, normalizer, rng),
