@@ -39,7 +39,8 @@ import numpy as np
 import pandas as pd
 
 from repro.core.config import add_config_arguments, given_fields
-from repro.envs.wildfire import QUIRKS, SIM_VERSIONS, WildfireConfig
+from repro.envs.wildfire import (FIGURE_VERSION, QUIRKS, RELEASED_VERSION, SIM_VERSIONS,
+                                 WildfireConfig)
 from repro.learn.config import SAMPLERS, learner_label
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
@@ -109,9 +110,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
                    help="train and test only this simulator (e.g. FS-1), repeatable")
     p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
-                   help="the released simulator's version (default 2017-05-16, the released "
-                        "HEAD; 2017-04-22: the one the paper's runs were trained on); "
-                        "2017-04-22 writes *_20170422")
+                   help=f"the released simulator's version (default {RELEASED_VERSION}, the "
+                        f"released HEAD; {FIGURE_VERSION}: the one the paper's runs were trained "
+                        f"on, which writes *_{FIGURE_VERSION.replace('-', '')})")
     p.add_argument("--sampler", choices=SAMPLERS,
                    help="the runs' batch sampler (default independent: every episode its own "
                         "seeded stream; released-pool: the released runner's unseeded workers "
