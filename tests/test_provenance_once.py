@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from repro.core.errors import UsageError
-from repro.runs.results import (correction_paths, read_provenance, shown_provenance, source_records,
-                                write_correction)
+from repro.runs.results import (correction_paths, read_provenance, shown_provenance,
+                                source_records, write_correction, write_result)
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
 
@@ -85,3 +85,5 @@ def test_a_correction_is_a_note_of_its_own_written_once(tmp_path):
     with pytest.raises(UsageError, match="field"):
         write_correction(result, "no_such_field", "ccc", "none", date="2026-01-03")
     assert tree_snapshot(tmp_path) == before
+    write_result(result, pd.DataFrame(dict(x=[2])), {"scale": "paper"})  # the result made again
+    assert correction_paths(result) == [] and "corrections" not in shown_provenance(result)

@@ -299,9 +299,9 @@ def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any], *,
     """Write a result CSV and its provenance sidecar, both atomically, the sidecar recording the
     CSV's hash. The old sidecar goes first, so that a sidecar never describes a CSV it was not
     written with: an interrupted write leaves a CSV without a sidecar, which readers take for a
-    missing result (:func:`read_result`). Refused (UsageError naming --results-dir) if ``dest``
-    holds a result of a larger scale than ``prov``'s, unless ``overwrite`` (or the folder was
-    opened with it)."""
+    missing result (:func:`read_result`); the old sidecar's correction notes go with it. Refused
+    (UsageError naming --results-dir) if ``dest`` holds a result of a larger scale than
+    ``prov``'s, unless ``overwrite`` (or the folder was opened with it)."""
     dest = Path(dest)
     data = csv_bytes(frame)
     prov = {**prov, CSV_HASH: hashlib.sha256(data).hexdigest()}
@@ -314,6 +314,8 @@ def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any], *,
         if scale_rank(theirs) > scale_rank(mine) and not (overwrite or _held.get(folder.resolve())):
             _refuse_larger([(dest.name, theirs)], mine, "--results-dir", folder)
         sidecar_path(dest).unlink(missing_ok=True)
+        for note in correction_paths(dest):  # notes of the sidecar just removed
+            note.unlink()
         write_bytes(dest, data)
         write_json(sidecar_path(dest), prov)
     return dest
