@@ -1,6 +1,8 @@
 """``python -m repro <command>``: the one entry point; Makefile targets are thin wrappers over it.
 
-Each command lives in its own module, which defines ``add_arguments(parser)`` and ``run(args)``.
+Each command lives in its own module, which defines ``add_arguments(parser)`` and ``run``: a
+driver (a command with ``--scale``) is called as ``run(args, folders)``, its folders resolved here
+once (:class:`~repro.studies.kit.options.Folders`), any other command as ``run(args)``.
 Only the module of the command being run is imported, and the command modules import torch,
 matplotlib and scipy's heavier parts inside the functions that compute with them, so a bad flag or
 value is refused in well under a second of CPU time (tests/test_cli_startup.py checks that torch
@@ -19,7 +21,7 @@ from repro.core.config import flat_settings, read_config_file
 from repro.core.errors import UsageError, WorkerDied, require
 from repro.runs.files import check_names
 from repro.runs.results import release_results
-from repro.studies.kit.options import default_folders, note_scale_departures
+from repro.studies.kit.options import Folders, note_scale_departures
 
 S = "repro.studies."
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -267,9 +269,9 @@ def main(argv: list[str] | None = None) -> int:
                 require(getattr(args, dest).strip() != "", param, "a path (not empty)",
                         getattr(args, dest))
                 check_names(getattr(args, dest), param)
-        default_folders(args)
+        folders = Folders.of(args)  # a driver's, the one place its folders are read
         note_scale_departures(module, parser, args)
-        return int(module.run(args) or 0)
+        return int((module.run(args) if folders is None else module.run(args, folders)) or 0)
     except UsageError as err:
         if err.param in keys:  # a bad value from the --config file: named by its key there
             err = UsageError(keys[err.param], err.allowed, err.got)

@@ -201,15 +201,34 @@ def _parser(name: str):
 def test_a_smaller_scale_never_writes_the_paper_folders(scale, monkeypatch):
     """Every driver's default folders are results/<scale> and figures/<scale>, so that `make
     reproduce` (quick) and the tests (smoke) leave the committed paper-scale files alone."""
-    from repro.studies.kit.options import default_folders
+    from repro.studies.kit.options import Folders
 
     commands = driver_commands()
     assert {"race", "transfer", "bus-lambda", "bench-learn"} <= set(commands)
     for name in commands:
-        args = _parser(name).parse_args(["--scale", scale])
-        default_folders(args)
-        assert args.results_dir == f"results/{scale}", name
-        assert getattr(args, "figures_dir", f"figures/{scale}") == f"figures/{scale}", name
+        folders = Folders.of(_parser(name).parse_args(["--scale", scale]))
+        assert folders.results == Path("results", scale), name
+        assert folders.figures in (None, Path("figures", scale)), name
+
+
+def test_drivers_and_only_they_are_handed_their_folders():
+    """The command line resolves a driver's folders once and hands them to its ``run``; the other
+    commands (train, bus-eval, claims, ...) are called with their options alone."""
+    import argparse
+    import importlib
+    import inspect
+
+    from repro.cli import COMMANDS
+    from repro.studies.kit.options import Folders
+
+    def folders(name: str) -> Folders | None:
+        return Folders.of(argparse.Namespace(**{a.dest: a.default
+                                                for a in _parser(name)._actions}))
+
+    assert set(driver_commands()) == {n for n in COMMANDS if folders(n) is not None}
+    for name, (module, _) in COMMANDS.items():
+        takes = len(inspect.signature(importlib.import_module(module).run).parameters)
+        assert takes == (1 if folders(name) is None else 2), name
 
 
 # --- what a hostile user tries -------------------------------------------------------------------

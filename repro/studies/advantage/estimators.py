@@ -42,12 +42,11 @@ from repro.envs.bus import BusConfig
 from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, learner_label,
                                 learner_stem)
 from repro.learn.m_gae import ESTIMATORS
-from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
 from repro.runs.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.studies.bus import sweeps as bus_sweeps
-from repro.studies.kit.options import add_replot, replot_pair
+from repro.studies.kit.options import Folders, add_replot, replot_pair
 from repro.studies.kit.sweep import (TrainJob, add_study_arguments, check_study_arguments, run_dir,
                                      run_sweep)
 from repro.studies.transfer import study as transfer
@@ -122,11 +121,11 @@ def estimator_jobs(cfg: MgaeStudyConfig, base: list[TrainJob]) -> list[tuple[str
             if e == REFERENCE or not is_m_gae(e, job.train.lam)]
 
 
-def bus_runs(cfg: MgaeStudyConfig, args: argparse.Namespace) -> pd.DataFrame:
+def bus_runs(cfg: MgaeStudyConfig, folders: Folders, args: argparse.Namespace) -> pd.DataFrame:
     """Train (or resume) the bus runs; one row per run with its final return."""
     sweep = cfg.bus(args.scale)
     bus = BusConfig()
-    root = check_writable_dir(Path(args.runs_dir) / bus_sweeps.runs_folder(bus), "--runs-dir")
+    root = folders.run_root(bus_sweeps.runs_folder(bus))
     base = [j for j in bus_sweeps.jobs(sweep, "lambda", args.seed, bus)
             if j.train.lam == sweep.batch_lambda]  # the paper's bus lambda, 2
     labelled = estimator_jobs(cfg, base)
@@ -141,12 +140,13 @@ def bus_runs(cfg: MgaeStudyConfig, args: argparse.Namespace) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def wildfire_runs(cfg: MgaeStudyConfig, args: argparse.Namespace) -> pd.DataFrame:
+def wildfire_runs(cfg: MgaeStudyConfig, folders: Folders,
+                  args: argparse.Namespace) -> pd.DataFrame:
     """Train (or resume) the wildfire runs and test them on ED; one row per run with its ADR."""
     study = cfg.wildfire(args.scale)
     base = [job for _, job in transfer.make_jobs(study, args.scale, args.seed)]
     labelled = estimator_jobs(cfg, base)
-    tested, sweep = transfer.train_and_test(study, args, labelled)
+    tested, sweep = transfer.train_and_test(study, folders, args, labelled)
     return pd.DataFrame(dict(env="wildfire", estimator=tested.simulator,
                              lam=[job.train.lam for _, job in labelled],
                              seed=tested.train_seed, epochs=tested.epochs,
@@ -220,21 +220,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def replot(cfg: MgaeStudyConfig, args: argparse.Namespace) -> int:
+def replot(cfg: MgaeStudyConfig, folders: Folders) -> int:
     """``--replot``: the figure of ``cfg``'s learner from its CSVs, titled with the settings their
     sidecar records."""
-    return replot_pair(args, cfg.stem, plot=plot, title=lambda prov: title(
+    return replot_pair(folders, cfg.stem, plot=plot, title=lambda prov: title(
         from_recorded(MgaeStudyConfig, prov["config"]["study"]), prov["scale"]))
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = for_scale(MgaeStudyConfig, args.scale, learner=args.learner,
                     **given_fields(args, MgaeStudyConfig, ("seeds",)))
     if args.replot:
-        return replot(cfg, args)
-    results, figures = check_study_arguments(args)
+        return replot(cfg, folders)
+    results, figures = check_study_arguments(args, folders)
     t0 = time.perf_counter()
-    runs = pd.concat([bus_runs(cfg, args), wildfire_runs(cfg, args)], ignore_index=True)
+    runs = pd.concat([bus_runs(cfg, folders, args), wildfire_runs(cfg, folders, args)],
+                     ignore_index=True)
     summary = summarise(runs, cfg.n_boot, args.seed)
     bus, wildfire = cfg.bus(args.scale), cfg.wildfire(args.scale)
     prov = provenance(dict(study=dataclasses.asdict(cfg), bus=dataclasses.asdict(bus),

@@ -44,11 +44,11 @@ from repro.core.errors import UsageError
 from repro.core.rollout import children
 from repro.envs import env_package, train_defaults
 from repro.learn.config import train_config
-from repro.runs.files import check_writable_dir, write_bytes, write_json
+from repro.runs.files import write_bytes, write_json
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
 from repro.runs.stats import bootstrap_ci, ci_side, iqm, sem
-from repro.studies.kit.options import add_replot, read_for_replot, replot_figures
+from repro.studies.kit.options import Folders, add_replot, read_for_replot, replot_figures
 from repro.studies.kit.sweep import (TrainJob, add_study_arguments, check_study_arguments,
                                      map_tasks, run_sweep)
 from repro.studies.wildfire.study import adr, evaluate
@@ -381,25 +381,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def replot(cfg: Sb3StudyConfig, args: argparse.Namespace) -> int:
+def replot(cfg: Sb3StudyConfig, folders: Folders) -> int:
     """``--replot``: the figure from the CSVs, titled with the settings their sidecar records."""
     names = ("beyond_sb3.csv", "beyond_sb3_summary.csv")
-    runs, summary = read_for_replot(args, *names)
-    prov = read_provenance(Path(args.results_dir) / names[0])
-    figures, sources = replot_figures(args, *names)
+    runs, summary = read_for_replot(folders, *names)
+    prov = read_provenance(folders.results / names[0])
+    figures, sources = replot_figures(folders, *names)
     plot(runs, summary, figures / "beyond_sb3", title(
         from_recorded(Sb3StudyConfig, prov["config"]), prov["scale"]), sources)
     print(f"wrote {figures / 'beyond_sb3'}.png/.pdf")
     return 0
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = for_scale(Sb3StudyConfig, args.scale, **given_fields(
         args, Sb3StudyConfig, ("seeds", "updates", "batch_decisions")))
     if args.replot:
-        return replot(cfg, args)
-    results, figures = check_study_arguments(args)
-    root = check_writable_dir(Path(args.runs_dir) / "beyond-sb3", "--runs-dir")
+        return replot(cfg, folders)
+    results, figures = check_study_arguments(args, folders)
+    root = folders.run_root("beyond-sb3")
     t0 = time.perf_counter()
     runs = pd.concat([sb3_runs(cfg, args, root), trpo_runs(cfg, args, root),
                       heuristic_rows(cfg, args.seed)], ignore_index=True)[list(COLUMNS)]

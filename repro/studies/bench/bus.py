@@ -17,6 +17,7 @@ from repro.envs.bus.policies import no_holding
 from repro.learn.trained_policy import trained_env_config
 from repro.studies.bench import common as bench_common
 from repro.studies.bench.common import VARIANTS, BenchConfig
+from repro.studies.kit.options import Folders
 
 __all__ = ["VARIANTS", "BusBenchConfig", "add_arguments", "measure", "run"]
 
@@ -40,5 +41,5 @@ def measure(cfg: BusBenchConfig, seed: int, trained: dict[str, Any] | None = Non
                                 lambda env, rng: no_holding, cfg, seed, trained)
 
 
-def run(args: argparse.Namespace) -> int:
-    return bench_common.run(args, "bench-bus", BusBenchConfig, measure)
+def run(args: argparse.Namespace, folders: Folders) -> int:
+    return bench_common.run(args, folders, "bench-bus", BusBenchConfig, measure)

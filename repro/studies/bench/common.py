@@ -58,7 +58,7 @@ from repro.learn.trained_policy import check_fits, load_trained_run, policy_from
 from repro.runs.memory import require_memory
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.kit.options import add_common, results_folder
+from repro.studies.kit.options import Folders, add_common
 
 
 CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
@@ -218,14 +218,14 @@ def add_arguments(p: argparse.ArgumentParser, config: type[BenchConfig]) -> None
                                         "instead of a fresh network, on that run's environment")
 
 
-def run(args: argparse.Namespace, command: str, config: type[BenchConfig],
+def run(args: argparse.Namespace, folders: Folders, command: str, config: type[BenchConfig],
         measure_env: Callable[[BenchConfig, int, dict[str, Any] | None], pd.DataFrame]) -> int:
     """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``
     (``<command>_checkpoint.csv`` with ``--checkpoint``)."""
     cfg = for_scale(config, args.scale, **given_fields(args, config))
     trained = (None if args.checkpoint is None
                else load_trained_run(args.checkpoint, command.removeprefix("bench-")))
-    results = results_folder(args)
+    results = folders.open_results()
     load_before = os.getloadavg()[0]
     t0 = time.perf_counter()
     frame = measure_env(cfg, args.seed, trained)

@@ -31,7 +31,7 @@ from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.runs.run_folder import TIMING_COLUMNS, config_dict
 from repro.studies.kit.environments import add_chosen_env_arguments
-from repro.studies.kit.options import add_common, results_folder
+from repro.studies.kit.options import Folders, add_common
 
 if TYPE_CHECKING:
     from repro.learn.trainer import Trainer
@@ -167,13 +167,13 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
     add_chosen_env_arguments(p, argv if "--env" in argv else [*argv, "--env", "toy"])
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = for_scale(BenchConfig, args.scale, **given_fields(args, BenchConfig))
     pkg = env_package(args.env)
     train_cfg = train_config("quick", args.env, args.learner, seed=args.seed, epochs=cfg.epochs,
                              batch_episodes=cfg.episodes)
     env_cfg = pkg.config_from_args(args)
-    results = results_folder(args)
+    results = folders.open_results()
     configure_process()  # as in training
     from repro.learn.trainer import Trainer  # torch: imported once the options are checked
 

@@ -19,6 +19,7 @@ from repro.envs.wildfire.policies import RandomPolicy
 from repro.learn.trained_policy import trained_env_config
 from repro.studies.bench import common as bench_common
 from repro.studies.bench.common import VARIANTS, BenchConfig
+from repro.studies.kit.options import Folders
 
 __all__ = ["VARIANTS", "WildfireBenchConfig", "add_arguments", "measure", "run"]
 
@@ -44,5 +45,5 @@ def measure(cfg: WildfireBenchConfig, seed: int,
         lambda env, rng: RandomPolicy(rng, n_observed=env_cfg.n_observed), cfg, seed, trained)
 
 
-def run(args: argparse.Namespace) -> int:
-    return bench_common.run(args, "bench-wildfire", WildfireBenchConfig, measure)
+def run(args: argparse.Namespace, folders: Folders) -> int:
+    return bench_common.run(args, folders, "bench-wildfire", WildfireBenchConfig, measure)

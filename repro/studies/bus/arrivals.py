@@ -21,6 +21,7 @@ import pandas as pd
 from repro.paper import BUS_BUSES_DRAWN
 from repro.runs.results import save_figure
 from repro.studies.bus.pictures import add_policy_arguments, policy_grid, run_policy_figure
+from repro.studies.kit.options import Folders
 
 
 def plot(arrivals: pd.DataFrame, stem, all_buses: bool, sources: list[Path]) -> None:
@@ -47,6 +48,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_policy_arguments(p)
 
 
-def run(args: argparse.Namespace) -> int:
-    return run_policy_figure(args, command="fig-bus-arrivals", csv_name="bus_arrivals.csv",
+def run(args: argparse.Namespace, folders: Folders) -> int:
+    return run_policy_figure(args, folders, command="fig-bus-arrivals", csv_name="bus_arrivals.csv",
                              table_of=lambda arrivals: arrivals, plot_table=plot)

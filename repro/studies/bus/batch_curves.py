@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 
+from repro.studies.kit.options import Folders
+
 from repro.studies.bus import sweeps as bus_sweeps
 
 VARIANTS = bus_sweeps.VARIANTS
@@ -14,5 +16,5 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     bus_sweeps.add_arguments(p)
 
 
-def run(args: argparse.Namespace) -> int:
-    return bus_sweeps.run_named("batch", args)
+def run(args: argparse.Namespace, folders: Folders) -> int:
+    return bus_sweeps.run_named("batch", args, folders)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -87,9 +88,8 @@ def run(args: argparse.Namespace) -> int:
         ("--results-dir", args.results_dir, own_thresholds or best_mlp,
          "with --policy thresholds without --thresholds, or mlp without --mlp-run (they read "
          "it)"))
-    args.results_dir = args.results_dir or RESULTS_DIR
     cfg = config_from_args(args)
-    policy = policy_from_args(args.policy, args, cfg)
+    policy = policy_from_args(args.policy, args, cfg, Path(args.results_dir or RESULTS_DIR))
     summary, _ = evaluate(policy, cfg)
     summary["policy"] = args.policy
     if args.json:

@@ -13,7 +13,6 @@ the last ``final_epochs`` epochs, test_return, best).
 
 from __future__ import annotations
 
-import argparse
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,11 +24,11 @@ import pandas as pd
 from repro.core.config import Validated, for_scale
 from repro.envs.bus import BusConfig, make_env
 from repro.learn.config import train_config
-from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.bus.policies import TrainedPolicy
 from repro.studies.bus.sweeps import runs_folder
+from repro.studies.kit.options import Folders
 from repro.studies.kit.sweep import TrainJob, policy_stream, run_dir, run_sweep
 
 RUNS_CSV = "bus_gru_runs.csv"
@@ -85,23 +84,25 @@ def test_return(run: Path, bus: BusConfig, episodes: int) -> float:
     return float(make_env(bus).rollout(policy, episodes).episode_return.mean())
 
 
-def best_gru_run(args: argparse.Namespace, bus: BusConfig) -> Path:
-    """Train (or resume, or find finished) the GRU runs of ``args.scale`` under ``--runs-dir``,
-    score each, write results/bus_gru_runs.csv, and return the best run's folder."""
-    cfg = for_scale(GruRunsConfig, args.scale)
-    root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")
+def best_gru_run(folders: Folders, bus: BusConfig, *, n_jobs: int | None,
+                 scheduler: str | None) -> Path:
+    """Train (or resume, or find finished) the GRU runs of the folders' scale in their runs
+    folder (``n_jobs`` worker processes, or on the Dask ``scheduler``), score each, write
+    bus_gru_runs.csv into their results folder, and return the best run's folder."""
+    cfg = for_scale(GruRunsConfig, folders.scale)
+    root = folders.run_root(runs_folder(bus))
     t0 = time.perf_counter()
     job_list = jobs(cfg, bus)
-    folders = run_sweep(job_list, root, n_jobs=args.n_jobs, scheduler=args.scheduler)
+    runs = run_sweep(job_list, root, n_jobs=n_jobs, scheduler=scheduler)
     rows = []
-    for job, folder in zip(job_list, folders):
+    for job, folder in zip(job_list, runs):
         prog = pd.read_csv(folder / "progress.csv").iloc[:cfg.epochs]
         rows.append(dict(seed=job.train.seed, run=str(run_dir(root, job)),
                          final_return=float(prog.average_return.iloc[-cfg.final_epochs:].mean()),
                          test_return=test_return(folder, bus, cfg.test_episodes)))
     table = pd.DataFrame(rows)
     table["best"] = np.arange(len(table)) == int(np.argmax(table.test_return.to_numpy()))
-    prov = provenance(cfg, command="bus-gru-runs", scale=args.scale, seed=0,
+    prov = provenance(cfg, command="bus-gru-runs", scale=folders.scale, seed=0,
                       wall_seconds=time.perf_counter() - t0, extra={"runs_dir": str(root)})
-    write_result(Path(args.results_dir) / RUNS_CSV, table, prov)
+    write_result(folders.results / RUNS_CSV, table, prov)
     return Path(table.run[table.best].iloc[0])

@@ -36,6 +36,7 @@ from repro.studies.bus.pictures import (add_policy_arguments, learner_csv, polic
                                         run_policy_figure)
 from repro.studies.bus.policies import (TrainedPolicy, lambda_summary_csv, make_policy,
                                         picture_arrivals)
+from repro.studies.kit.options import Folders
 
 LOAD_CSV = "bus_load.csv"
 SWITCHES_CSV = "bus_load_switches.csv"
@@ -107,8 +108,8 @@ def mlp_run_distances(cfg: BusConfig, results: Path, learner: str | None) -> pd.
     return pd.DataFrame(rows)
 
 
-def run(args: argparse.Namespace) -> int:
-    rc = run_policy_figure(args, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
+def run(args: argparse.Namespace, folders: Folders) -> int:
+    rc = run_policy_figure(args, folders, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
                            plot_table=plot)
     if args.replot:
         return rc
@@ -119,14 +120,14 @@ def run(args: argparse.Namespace) -> int:
         table = switch_distances(cfg, fixed)
         prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
                           wall_seconds=time.perf_counter() - t0)
-        write_result(Path(args.results_dir) / SWITCHES_CSV, table, prov)
+        write_result(folders.results / SWITCHES_CSV, table, prov)
     if "mlp" in args.policies and args.mlp_run is None:
         t0 = time.perf_counter()
         cfg = config_from_args(args)
-        table = mlp_run_distances(cfg, Path(args.results_dir), args.learner)
+        table = mlp_run_distances(cfg, folders.results, args.learner)
         prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
                           wall_seconds=time.perf_counter() - t0,
                           extra={"learner": args.learner or DEFAULT_LEARNER})
-        write_result(Path(args.results_dir) / learner_csv(MLP_RUNS_CSV, args.learner), table,
+        write_result(folders.results / learner_csv(MLP_RUNS_CSV, args.learner), table,
                      prov)
     return rc

@@ -20,8 +20,8 @@ from repro.runs.results import write_result
 from repro.studies.bus.gru_runs import best_gru_run
 from repro.studies.bus.policies import (DEFAULT_PANELS, GRU_PANELS, POLICIES, best_run,
                                         picture_arrivals, policy_from_args)
-from repro.studies.kit.options import (add_common, add_replot, figures_folder, read_for_replot,
-                                       replot_figures, results_folder)
+from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+                                       replot_figures)
 from repro.studies.kit.sweep import add_sweep_arguments, check_sweep_arguments
 
 
@@ -58,29 +58,30 @@ def learner_csv(csv_name: str, learner: str | None) -> str:
     return learner_stem(Path(csv_name).stem, learner or DEFAULT_LEARNER) + ".csv"
 
 
-def mlp_source(args: argparse.Namespace) -> str | None:
+def mlp_source(args: argparse.Namespace, folders: Folders) -> str | None:
     """The run folder the mlp panel comes from (None without an mlp panel), for the provenance."""
     if "mlp" not in args.policies:
         return None
     return str(args.mlp_run if args.mlp_run is not None
-               else best_run(args.results_dir, learner=args.learner))
+               else best_run(folders.results, learner=args.learner))
 
 
-def gru_source(args: argparse.Namespace) -> str | None:
+def gru_source(args: argparse.Namespace, folders: Folders) -> str | None:
     """The run folder the gru panels come from (None without a gru panel): --gru-run, else the
     best of the GRU runs, trained here where they are not finished
     (:func:`repro.studies.bus.gru_runs.best_gru_run`)."""
     if not set(GRU_PANELS) & set(args.policies):
         return None
     return str(args.gru_run if args.gru_run is not None
-               else best_gru_run(args, config_from_args(args)))
+               else best_gru_run(folders, config_from_args(args), n_jobs=args.n_jobs,
+                                 scheduler=args.scheduler))
 
 
-def collect(args: argparse.Namespace) -> pd.DataFrame:
+def collect(args: argparse.Namespace, results: Path) -> pd.DataFrame:
     """One episode per policy (all are deterministic): its arrival table, tagged with the policy.
     Every policy is built before any is run, so bad input fails before any work."""
     cfg = config_from_args(args)
-    policies = {name: policy_from_args(name, args, cfg) for name in args.policies}
+    policies = {name: policy_from_args(name, args, cfg, results) for name in args.policies}
     frames = []
     for name, policy in policies.items():
         arrivals = picture_arrivals(policy, cfg)
@@ -136,7 +137,7 @@ def check_panel_options(args: argparse.Namespace) -> None:
         ("--scheduler", args.scheduler, trains, training))
 
 
-def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
+def run_policy_figure(args: argparse.Namespace, folders: Folders, *, command: str, csv_name: str,
                       table_of: Callable[[pd.DataFrame], pd.DataFrame],
                       plot_table: Callable[[pd.DataFrame, Path, bool, list[Path]], None]) -> int:
     """Shared body of the per-policy bus figures: simulate each policy's episode, derive the
@@ -149,21 +150,21 @@ def run_policy_figure(args: argparse.Namespace, *, command: str, csv_name: str,
     if args.thresholds is not None:
         check_thresholds(args.thresholds)
     csv_name = learner_csv(csv_name, args.learner)
-    stem = Path(args.figures_dir) / Path(csv_name).stem
+    stem = folders.figures / Path(csv_name).stem
     if args.replot:
-        table, = read_for_replot(args, csv_name)
-        _, sources = replot_figures(args, csv_name)
+        table, = read_for_replot(folders, csv_name)
+        _, sources = replot_figures(folders, csv_name)
         plot_table(table[table.policy.isin(args.policies)], stem, args.all_buses, sources)
         print(f"wrote {stem}.png/.pdf")
         return 0
-    figures_folder(args)
-    results = results_folder(args)
+    folders.open_figures()
+    results = folders.open_results()
     t0 = time.perf_counter()
-    args.gru_run = gru_source(args)  # the panels and the provenance name the run chosen
-    table = table_of(collect(args))
+    args.gru_run = gru_source(args, folders)  # the panels and the provenance name the run chosen
+    table = table_of(collect(args, results))
     prov = provenance(config_from_args(args), command=command, scale=args.scale, seed=None,
                       wall_seconds=time.perf_counter() - t0,
-                      extra={"policies": args.policies, "mlp_run": mlp_source(args),
+                      extra={"policies": args.policies, "mlp_run": mlp_source(args, folders),
                              "gru_run": args.gru_run,
                              "learner": args.learner or DEFAULT_LEARNER})
     plot_table(table, stem, args.all_buses, [write_result(results / csv_name, table, prov)])

@@ -148,11 +148,12 @@ PICTURE_HORIZON = 6 * 3600.0
 """The episode length of the paper's bus pictures (s): the released code's PLOTTING runs."""
 
 
-def policy_from_args(name: str, args: argparse.Namespace, cfg: BusConfig) -> Policy:
+def policy_from_args(name: str, args: argparse.Namespace, cfg: BusConfig,
+                     results_dir: Path) -> Policy:
     """The named policy on corridor ``cfg``; --thresholds / --mlp-run / --gru-run, else the
-    optimised thresholds and the best trained run recorded in --results-dir."""
+    optimised thresholds and the best trained run recorded in ``results_dir``."""
     thresholds = None if args.thresholds is None else np.array(args.thresholds, float)
-    return make_policy(name, cfg, thresholds=thresholds, results_dir=args.results_dir,
+    return make_policy(name, cfg, thresholds=thresholds, results_dir=results_dir,
                        mlp_run=args.mlp_run, learner=args.learner,
                        gru_run=getattr(args, "gru_run", None))
 

@@ -48,12 +48,11 @@ from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, ma
 from repro.envs.bus.policies import ThresholdPolicy, no_holding
 from repro.learn.config import (LEARNERS, SAMPLERS, add_learner_option, batch_unit,
                                 learner_label, learner_stem, train_config)
-from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
 from repro.runs.stats import bootstrap_ci, iqm
 from repro.studies.bus.policies import read_thresholds
-from repro.studies.kit.options import add_replot, read_for_replot, replot_figures
+from repro.studies.kit.options import Folders, add_replot, read_for_replot, replot_figures
 from repro.studies.kit.sweep import (TrainJob, add_study_arguments, check_study_arguments, run_dir,
                                      run_sweep)
 
@@ -295,28 +294,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def replot(sweep: str, cfg: BusSweepConfig, args: argparse.Namespace) -> int:
-    """``--replot``: ``sweep``'s figure from its CSVs in --results-dir, the baselines from its
-    summary, titled with the sweep's settings as its sidecar records them."""
+def replot(sweep: str, cfg: BusSweepConfig, folders: Folders) -> int:
+    """``--replot``: ``sweep``'s figure from its CSVs in the results folder, the baselines from
+    its summary, titled with the sweep's settings as its sidecar records them."""
     names = [f"{cfg.stem(sweep)}.csv", f"{cfg.stem(sweep)}_summary.csv"]
-    table, summ = read_for_replot(args, *names)
-    prov = read_provenance(Path(args.results_dir) / names[0])
+    table, summ = read_for_replot(folders, *names)
+    prov = read_provenance(folders.results / names[0])
     cfg = from_recorded(BusSweepConfig, prov["config"])
     baselines = {name: float(summ[summ.policy == name].final_iqm.iloc[0])
                  for name in ("nohold", "thresholds")}
-    figures, sources = replot_figures(args, *names)
+    figures, sources = replot_figures(folders, *names)
     plot(cfg, sweep, table, baselines, figures / cfg.stem(sweep), sources)
     print(f"wrote {figures / cfg.stem(sweep)}.png/.pdf")
     return 0
 
 
-def run_named(sweep: str, args: argparse.Namespace) -> int:
-    cfg = sweep_config(args.scale, args.learner, **given_fields(args, BusSweepConfig, FLAGS))
+def run_named(sweep: str, args: argparse.Namespace, folders: Folders) -> int:
+    cfg = sweep_config(folders.scale, args.learner, **given_fields(args, BusSweepConfig, FLAGS))
     if args.replot:
-        return replot(sweep, cfg, args)
-    results, figures = check_study_arguments(args)
+        return replot(sweep, cfg, folders)
+    results, figures = check_study_arguments(args, folders)
     bus = config_from_args(args)
-    root = check_writable_dir(Path(args.runs_dir) / runs_folder(bus), "--runs-dir")
+    root = folders.run_root(runs_folder(bus))
     t0 = time.perf_counter()
     baselines = baseline_returns(results, bus)  # needs bus-thresholds: fails before training
     job_list = jobs(cfg, sweep, args.seed, bus)

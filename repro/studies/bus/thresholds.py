@@ -28,7 +28,7 @@ from repro.envs.bus.policies import AUTHORS_THRESHOLDS, ThresholdPolicy
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.bus.policies import THRESHOLDS_CSV
-from repro.studies.kit.options import add_common, results_folder
+from repro.studies.kit.options import Folders, add_common
 
 
 @dataclass(frozen=True)
@@ -90,10 +90,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_arguments(p, ThresholdsConfig)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = for_scale(ThresholdsConfig, args.scale, **given_fields(args, ThresholdsConfig))
     bus = config_from_args(args)
-    results = results_folder(args)
+    results = folders.open_results()
     t0 = time.perf_counter()
     table = optimise(cfg, bus, args.seed)
     prov = provenance(cfg, command="bus-thresholds", scale=args.scale, seed=args.seed,

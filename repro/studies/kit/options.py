@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
 from repro.core.config import DEFAULT_SCALE, SCALES, for_scale
 from repro.core.errors import require
+from repro.runs.files import check_writable_dir
 from repro.runs.provenance import note_departures
 from repro.runs.results import open_figures, open_results
 
@@ -38,11 +40,61 @@ def scale_folder(kind: str, scale: str) -> Path:
     return Path(kind) / scale
 
 
-def default_folders(args: argparse.Namespace) -> None:
-    """Drivers (the commands with a ``--scale``) write into their scale's folders by default."""
-    for kind in ("results", "figures"):
-        if hasattr(args, "scale") and getattr(args, f"{kind}_dir", "") is None:
-            setattr(args, f"{kind}_dir", str(scale_folder(kind, args.scale)))
+@dataclass(frozen=True)
+class Folders:
+    """Where a driver reads and writes, resolved once from its options by the command line
+    (:meth:`of`); nothing below the command line reads a folder from the parsed options."""
+
+    scale: str
+    """The scale of what the driver writes (``--scale``)."""
+    results: Path
+    """CSVs and their sidecars (``--results-dir``; default results/<scale>)."""
+    figures: Path | None
+    """PNG and PDF figures and their sidecars (``--figures-dir``; default figures/<scale>); None
+    for a driver that draws none."""
+    runs: Path | None
+    """The training runs' folders (``--runs-dir``); None for a driver that trains none."""
+    overwrite: bool
+    """Whether results and figures of a larger scale there may be replaced (``--overwrite``)."""
+
+    @classmethod
+    def of(cls, args: argparse.Namespace) -> Folders | None:
+        """The folders a driver's options name, each defaulting to its scale's own
+        (:func:`scale_folder`); None for a command that is no driver (without both ``--scale``
+        and ``--results-dir``)."""
+        if not (hasattr(args, "scale") and hasattr(args, "results_dir")):
+            return None
+
+        def named(kind: str) -> Path | None:
+            if not hasattr(args, f"{kind}_dir"):
+                return None
+            given = getattr(args, f"{kind}_dir")
+            return scale_folder(kind, args.scale) if given is None else Path(given)
+
+        return cls(scale=args.scale, results=named("results"), figures=named("figures"),
+                   runs=named("runs"), overwrite=bool(getattr(args, "overwrite", False)))
+
+    def open_results(self) -> Path:
+        """The results folder, checked and held until the command ends: writable, no other
+        process writing to it, and no results of a larger scale than :attr:`scale` there unless
+        :attr:`overwrite` (:func:`repro.runs.results.open_results`)."""
+        return open_results(self.results, "--results-dir", scale=self.scale,
+                            overwrite=self.overwrite)
+
+    def open_figures(self, scale: str | None = None) -> Path:
+        """The figures folder, checked before any work: writable, not the results folder, and no
+        figures of a larger scale than the run's (``scale``, default :attr:`scale`; a replot's is
+        its results') there unless :attr:`overwrite` (:func:`repro.runs.results.open_figures`)."""
+        assert self.figures is not None, "a driver that draws no figure opened its folder"
+        return open_figures(self.figures, "--figures-dir",
+                            scale=self.scale if scale is None else scale,
+                            overwrite=self.overwrite, results=self.results)
+
+    def run_root(self, *parts: str) -> Path:
+        """The folder ``parts`` under the runs folder where a study keeps its run folders,
+        created and checked writable (``--runs-dir``)."""
+        assert self.runs is not None, "a driver that trains nothing asked for its runs folder"
+        return check_writable_dir(self.runs.joinpath(*parts), "--runs-dir")
 
 
 NEUTRAL = ("help", "config", "scale", "seed", "results_dir", "figures_dir", "runs_dir",
@@ -87,35 +139,18 @@ def note_scale_departures(module: object, parser: argparse.ArgumentParser,
         note_departures(scale_departures(parser, args, getattr(module, "VARIANTS", ())))
 
 
-def results_folder(args: argparse.Namespace) -> Path:
-    """The driver's ``--results-dir``, checked and held until the command ends: writable, no other
-    process writing to it, and no results of a larger scale than ``--scale`` there unless
-    ``--overwrite`` (:func:`repro.runs.results.open_results`)."""
-    return open_results(args.results_dir, "--results-dir", scale=args.scale,
-                        overwrite=args.overwrite)
-
-
-def figures_folder(args: argparse.Namespace, scale: str | None = None) -> Path:
-    """The driver's ``--figures-dir``, checked before any work: writable, not ``--results-dir``,
-    and no figures of a larger scale than the run's (``scale``, default ``--scale``; a replot's
-    is its results') there unless ``--overwrite`` (:func:`repro.runs.results.open_figures`)."""
-    return open_figures(args.figures_dir, "--figures-dir",
-                        scale=args.scale if scale is None else scale, overwrite=args.overwrite,
-                        results=args.results_dir)
-
-
-def replot_figures(args: argparse.Namespace, *names: str) -> tuple[Path, list[Path]]:
-    """``--replot``'s figures folder (:func:`figures_folder` at the scale of the results it
-    draws) and the paths of those results, ``names`` in ``--results-dir``, the sources of its
+def replot_figures(folders: Folders, *names: str) -> tuple[Path, list[Path]]:
+    """``--replot``'s figures folder (:meth:`Folders.open_figures` at the scale of the results it
+    draws) and the paths of those results, ``names`` in the results folder, the sources of its
     figure (read them with :func:`read_for_replot` first)."""
     from repro.runs.results import figure_scale, source_records
 
-    sources = [Path(args.results_dir) / name for name in names]
-    return figures_folder(args, figure_scale(source_records(sources[:1]))), sources
+    sources = [folders.results / name for name in names]
+    return folders.open_figures(figure_scale(source_records(sources[:1]))), sources
 
 
 
-def replot_pair(args: argparse.Namespace, stem: str, title: Callable[[dict[str, Any]], str],
+def replot_pair(folders: Folders, stem: str, title: Callable[[dict[str, Any]], str],
                 plot: Callable[..., None]) -> int:
     """``--replot`` of a study whose results are ``<stem>.csv`` and ``<stem>_summary.csv``: its
     figure ``<stem>`` drawn again from them, ``plot(table, summary, figure stem, title, sources)``,
@@ -123,9 +158,9 @@ def replot_pair(args: argparse.Namespace, stem: str, title: Callable[[dict[str, 
     from repro.runs.results import read_provenance
 
     names = (f"{stem}.csv", f"{stem}_summary.csv")
-    table, summary = read_for_replot(args, *names)
-    text = title(read_provenance(Path(args.results_dir) / names[0]))
-    figures, sources = replot_figures(args, *names)
+    table, summary = read_for_replot(folders, *names)
+    text = title(read_provenance(folders.results / names[0]))
+    figures, sources = replot_figures(folders, *names)
     plot(table, summary, figures / stem, text, sources)
     print(f"wrote {figures / stem}.png/.pdf")
     return 0
@@ -136,13 +171,13 @@ def add_replot(parser: argparse.ArgumentParser) -> None:
                         "results in --results-dir (nothing is run or written but the figure)")
 
 
-def read_for_replot(args: argparse.Namespace, *names: str) -> list:
-    """The result tables ``names`` in ``--results-dir`` that ``--replot`` draws from; a
+def read_for_replot(folders: Folders, *names: str) -> list:
+    """The result tables ``names`` in the results folder that ``--replot`` draws from; a
     UsageError naming ``--replot`` if one is missing (or torn from its sidecar)."""
     from repro.core.errors import UsageError
     from repro.runs.results import read_result
 
-    folder = Path(args.results_dir)
+    folder = folders.results
     tables = []
     for name in names:
         try:

@@ -56,7 +56,7 @@ from repro.runs.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PRO
                                    epochs_done, is_finished, locked_by, recorded_kernels,
                                    writer_lock)
 from repro.runs.workers import die_with_parent
-from repro.studies.kit.options import add_common, figures_folder, results_folder
+from repro.studies.kit.options import Folders, add_common
 
 
 @dataclass(frozen=True)
@@ -497,11 +497,11 @@ def check_sweep_arguments(args: argparse.Namespace) -> None:
         check_scheduler(args.scheduler)
 
 
-def check_study_arguments(args: argparse.Namespace) -> tuple[Path, Path]:
+def check_study_arguments(args: argparse.Namespace, folders: Folders) -> tuple[Path, Path]:
     """Check the options of :func:`add_study_arguments` before any work: the sweep's, and the
-    figures and results folders (:func:`~repro.studies.kit.options.figures_folder`,
-    :func:`~repro.studies.kit.options.results_folder`); returns the results and figures folders,
-    the results folder held until the command ends."""
+    figures and results folders (:meth:`~repro.studies.kit.options.Folders.open_figures`,
+    :meth:`~repro.studies.kit.options.Folders.open_results`); returns the results and figures
+    folders, the results folder held until the command ends."""
     check_sweep_arguments(args)
-    figures = figures_folder(args)
-    return results_folder(args), figures
+    figures = folders.open_figures()
+    return folders.open_results(), figures

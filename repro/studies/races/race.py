@@ -35,8 +35,8 @@ from repro.envs.renewal.distributions import DISTRIBUTIONS
 from repro.runs.progress import progress
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
-from repro.studies.kit.options import (add_common, add_replot, figures_folder, read_for_replot,
-                                       replot_figures, results_folder)
+from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+                                       replot_figures)
 from repro.studies.races.study import (exact_safe_dts, fit_power_law, largest_safe_dt,
                                        race_probability_exact, race_probability_mc)
 
@@ -188,17 +188,17 @@ FIGURE_TABLES = ("race_dt_vs_n", "table_race", "race_exact")
 """The tables the figure draws, the first its name."""
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     if args.replot:
         names = [f"{name}.csv" for name in FIGURE_TABLES]
-        read = read_for_replot(args, *names)
-        figures, sources = replot_figures(args, *names)
+        read = read_for_replot(folders, *names)
+        figures, sources = replot_figures(folders, *names)
         plot(dict(zip(FIGURE_TABLES, read)), figures / FIGURE_TABLES[0], sources)
         print(f"wrote {figures / FIGURE_TABLES[0]}.png/.pdf")
         return 0
     cfg = for_scale(RaceConfig, args.scale, **given_fields(args, RaceConfig))
-    figures = None if args.no_figure else figures_folder(args)
-    results = results_folder(args)
+    figures = None if args.no_figure else folders.open_figures()
+    results = folders.open_results()
     t0 = time.perf_counter()
     tables = run_study(cfg, args.seed)
     wall = time.perf_counter() - t0

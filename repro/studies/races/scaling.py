@@ -43,8 +43,8 @@ from repro.runs.memory import require_memory
 from repro.runs.progress import progress
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
-from repro.studies.kit.options import (add_common, add_replot, figures_folder, read_for_replot,
-                                       replot_figures, results_folder)
+from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+                                       replot_figures)
 from repro.studies.races.study import exact_safe_dts, fit_power_law
 
 SIMULATORS = ("event_driven", "rounding_fixed_step", "time_stepped")
@@ -255,26 +255,26 @@ TABLES = ("scaling", "scaling_wall", "scaling_fit")
 """The result tables of the study, each ``<name>.csv``."""
 
 
-def replot(args: argparse.Namespace) -> int:
+def replot(folders: Folders) -> int:
     """``--replot``: the figure from the study's tables in --results-dir."""
     names = [f"{name}.csv" for name in TABLES]
-    tables = dict(zip(TABLES, read_for_replot(args, *names)))
-    figures, sources = replot_figures(args, *names)
+    tables = dict(zip(TABLES, read_for_replot(folders, *names)))
+    figures, sources = replot_figures(folders, *names)
     plot(tables, figures / "scaling", sources)
     print(f"wrote {figures / 'scaling'}.png/.pdf")
     return 0
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     if args.replot:
-        return replot(args)
+        return replot(folders)
     given = given_fields(args, ScalingConfig)
     if given.get("n_agents"):
         given["n_agents"] = tuple(sorted(given["n_agents"]))  # the fits read them in order
     cfg = for_scale(ScalingConfig, args.scale, **given)
     check_work(cfg)
-    figures = None if args.no_figure else figures_folder(args)
-    results = results_folder(args)
+    figures = None if args.no_figure else folders.open_figures()
+    results = folders.open_results()
     warm_up()
     t0 = time.perf_counter()
     tables = run_study(cfg, args.seed)

@@ -31,8 +31,8 @@ from repro.envs.wildfire import WildfireConfig, make_env
 from repro.envs.wildfire.policies import POLICIES
 from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
-from repro.studies.kit.options import (add_common, add_replot, figures_folder, read_for_replot,
-                                       replot_figures, results_folder)
+from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+                                       replot_figures)
 from repro.studies.kit.sweep import check_sweep_arguments, map_tasks
 from repro.studies.races.study import FIT, RACES, fit_power_law
 from repro.studies.wildfire.study import evaluate
@@ -212,23 +212,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def replot(args: argparse.Namespace) -> int:
+def replot(folders: Folders) -> int:
     """``--replot``: the figure from the race table and its fits in --results-dir."""
     names = [f"{RACES}.csv", f"{FIT}.csv"]
-    table, fits = read_for_replot(args, *names)
-    figures, sources = replot_figures(args, *names)
+    table, fits = read_for_replot(folders, *names)
+    figures, sources = replot_figures(folders, *names)
     plot(table, fits, figures / RACES, sources)
     print(f"wrote {figures / RACES}.png/.pdf")
     return 0
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = for_scale(BeyondRacesConfig, args.scale, **given_fields(args, BeyondRacesConfig))
     if args.replot:
-        return replot(args)
+        return replot(folders)
     check_sweep_arguments(args)
-    figures = figures_folder(args)
-    results = results_folder(args)
+    figures = folders.open_figures()
+    results = folders.open_results()
     t0 = time.perf_counter()
     # largest N first: the longest cells start first, so the workers finish together
     tasks = [(policy, n, float(x), cfg.episodes, args.seed) for n in sorted(cfg.n_agents)[::-1]

@@ -33,6 +33,7 @@ from repro.learn.config import learner_stem
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.runs.stats import bootstrap_ci
+from repro.studies.kit.options import Folders
 from repro.studies.kit.sweep import check_study_arguments, policy_stream, run_sweep
 from repro.studies.transfer.study import (add_size_arguments, make_jobs, runs_folder, study_config,
                                           test_env_seed)
@@ -101,19 +102,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                          "(default 2017-04-22, the one the figure was drawn with)")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     from repro.runs.run_folder import CHECKPOINT
 
     cfg = study_config(args, sim_version=args.sim_version or FIGURE_VERSION)
     cfg = dataclasses.replace(cfg, only=("ED", *cfg.variant_pair()[::-1]))
-    results, _ = check_study_arguments(args)
+    results, _ = check_study_arguments(args, folders)
     labelled = make_jobs(cfg, args.scale, args.seed)
     t0 = time.perf_counter()
-    folders = run_sweep([job for _, job in labelled], runs_folder(args.runs_dir, cfg, args.scale),
-                        n_jobs=args.n_jobs, scheduler=args.scheduler)
+    done = run_sweep([job for _, job in labelled], runs_folder(folders, cfg),
+                     n_jobs=args.n_jobs, scheduler=args.scheduler)
     env_seed, test = test_env_seed(args.seed), cfg.test_simulator()
     rows = []
-    for (label, job), folder in zip(labelled, folders):
+    for (label, job), folder in zip(labelled, done):
         stream = policy_stream(args.seed, _POLICY_STREAM, job.name)
         for name, clamps in CLAMPS.items():
             value, changed = score(test, folder / CHECKPOINT, clamps, cfg.test_episodes,

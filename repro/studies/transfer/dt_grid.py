@@ -33,7 +33,7 @@ from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, l
                                 learner_stem)
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, read_result, save_figure, write_result
-from repro.studies.kit.options import add_replot, read_for_replot, replot_figures
+from repro.studies.kit.options import Folders, add_replot, read_for_replot, replot_figures
 from repro.studies.kit.sweep import add_study_arguments, check_study_arguments
 from repro.studies.races import study as races
 from repro.studies.transfer import study as transfer
@@ -155,15 +155,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def replot(cfg: TransferDtConfig, args: argparse.Namespace) -> int:
+def replot(cfg: TransferDtConfig, folders: Folders) -> int:
     """``--replot``: the figure of ``cfg``'s learner from its CSVs (and X2's race rates where
     they are in --results-dir), titled with the sizes its sidecar records."""
     names = [f"{cfg.stem}.csv", f"{cfg.stem}_summary.csv"]
-    per_policy, summary = read_for_replot(args, *names)
-    results = Path(args.results_dir)
+    per_policy, summary = read_for_replot(folders, *names)
+    results = folders.results
     prov = read_provenance(results / names[0])
     races = read_races(results, cfg.race_agents)
-    figures, sources = replot_figures(args, *names, *([] if races is None else [RACES]))
+    figures, sources = replot_figures(folders, *names, *([] if races is None else [RACES]))
     study = from_recorded(transfer.TransferConfig, prov["config"]["study"])
     plot(per_policy, summary, races, cfg.race_agents, figures / cfg.stem,
          title(study, prov["scale"]), sources)
@@ -171,16 +171,16 @@ def replot(cfg: TransferDtConfig, args: argparse.Namespace) -> int:
     return 0
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = for_scale(TransferDtConfig, args.scale, learner=args.learner,
                     **given_fields(args, TransferDtConfig, ("seeds",)))
     if args.replot:
-        return replot(cfg, args)
+        return replot(cfg, folders)
     study = cfg.study(args.scale)
-    results, figures = check_study_arguments(args)
+    results, figures = check_study_arguments(args, folders)
     t0 = time.perf_counter()
     tested, extra = transfer.train_and_test(
-        study, args, transfer.make_jobs(study, args.scale, args.seed))
+        study, folders, args, transfer.make_jobs(study, args.scale, args.seed))
     # summarised in the order tested, so that the shared simulators get the study's CIs too
     summary = by_dt(transfer.summarise(tested, study.n_boot, args.seed))
     per_policy = by_dt(tested)

@@ -22,7 +22,7 @@ from repro.envs.wildfire import make_env
 from repro.envs.wildfire.policies import POLICIES
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.kit.options import add_common, results_folder
+from repro.studies.kit.options import Folders, add_common
 from repro.studies.transfer.study import TransferConfig, test_env_seed
 from repro.studies.wildfire.study import adr, evaluate
 
@@ -49,10 +49,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_arguments(p, TransferConfig, ("test_episodes",))
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = for_scale(TransferConfig, args.scale, **given_fields(args, TransferConfig,
                                                                ("test_episodes",)))
-    results = results_folder(args)
+    results = folders.open_results()
     t0 = time.perf_counter()
     table = pd.concat([heuristic_adrs(dataclasses.replace(cfg, corrected=corrected), args.seed)
                        for corrected in (False, True)], ignore_index=True)

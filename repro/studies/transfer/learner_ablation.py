@@ -33,7 +33,7 @@ from repro.envs.wildfire import FIGURE_VERSION, RELEASED_VERSION
 from repro.learn.config import learner_stem
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
-from repro.studies.kit.options import add_replot, read_for_replot, replot_figures
+from repro.studies.kit.options import Folders, add_replot, read_for_replot, replot_figures
 from repro.studies.kit.sweep import check_jobs, check_study_arguments
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, effects,
                                           make_jobs, recorded_config, runs_folder, study_config,
@@ -107,32 +107,32 @@ def title(base: TransferConfig, scale: str) -> str:
             f"{scale} scale: {base.seeds} policies x {base.epochs} epochs x {batch_label(base)}")
 
 
-def replot(base: TransferConfig, args: argparse.Namespace) -> int:
+def replot(base: TransferConfig, folders: Folders) -> int:
     """``--replot``: the figure of ``base``'s learner from its summary CSV, titled with the
     settings its sidecar records."""
     stem = learner_stem(NAME, base.learner)
-    summary, = read_for_replot(args, f"{stem}_summary.csv")
-    prov = read_provenance(Path(args.results_dir) / f"{stem}_summary.csv")
-    figures, sources = replot_figures(args, f"{stem}_summary.csv")
+    summary, = read_for_replot(folders, f"{stem}_summary.csv")
+    prov = read_provenance(folders.results / f"{stem}_summary.csv")
+    figures, sources = replot_figures(folders, f"{stem}_summary.csv")
     out = figures / stem
     plot(summary, out, title(recorded_config(prov), prov["scale"]), sources)
     print(f"wrote {out}.png/.pdf")
     return 0
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     base = study_config(args, only=tuple(args.simulator) or DEFAULT_SIMULATORS)
     if args.replot:
-        return replot(base, args)
-    results, figures = check_study_arguments(args)
-    plan = [(name, cfg, runs_folder(args.runs_dir, cfg, args.scale))
+        return replot(base, folders)
+    results, figures = check_study_arguments(args, folders)
+    plan = [(name, cfg, runs_folder(folders, cfg))
             for name, cfg in studies(base)]
     for _, cfg, runs in plan:  # every study's folders before any trains
         check_jobs([job for _, job in make_jobs(cfg, args.scale, args.seed)], runs)
     t0 = time.perf_counter()
     per_policy, summary = [], []
     for name, cfg, _ in plan:
-        tested, _ = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
+        tested, _ = train_and_test(cfg, folders, args, make_jobs(cfg, args.scale, args.seed))
         for frame, out in ((tested, per_policy), (summarise(tested, cfg.n_boot, args.seed),
                                                   summary)):
             out.append(frame.assign(setting=name)[["setting", *frame.columns]])

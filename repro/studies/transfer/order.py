@@ -38,7 +38,7 @@ import pandas as pd
 from repro.learn.config import learner_label, learner_stem
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
-from repro.studies.kit.options import add_replot, replot_pair
+from repro.studies.kit.options import Folders, add_replot, replot_pair
 from repro.studies.kit.sweep import check_jobs, check_study_arguments
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, effects,
                                           make_jobs, recorded_config, runs_folder, study_config,
@@ -102,27 +102,27 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def replot(base: TransferConfig, args: argparse.Namespace) -> int:
+def replot(base: TransferConfig, folders: Folders) -> int:
     """``--replot``: the figure of ``base``'s learner from its CSVs, titled with the settings
     their sidecar records."""
-    return replot_pair(args, learner_stem(NAME, base.learner), plot=plot,
+    return replot_pair(folders, learner_stem(NAME, base.learner), plot=plot,
                        title=lambda prov: title(recorded_config(prov), prov["scale"]))
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     # the transfer study's sizes at every scale, so that the released-order runs are its own
     base = study_config(args)
     if args.replot:
-        return replot(base, args)
-    results, figures = check_study_arguments(args)
-    plan = [(semantics, order, cfg, runs_folder(args.runs_dir, cfg, args.scale))
+        return replot(base, folders)
+    results, figures = check_study_arguments(args, folders)
+    plan = [(semantics, order, cfg, runs_folder(folders, cfg))
             for semantics, order, cfg in studies(base)]
     for _, _, cfg, runs in plan:  # every study's folders before any trains
         check_jobs([job for _, job in make_jobs(cfg, args.scale, args.seed)], runs)
     t0 = time.perf_counter()
     per_policy, summary = [], []
     for semantics, order, cfg, _ in plan:
-        tested, _ = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
+        tested, _ = train_and_test(cfg, folders, args, make_jobs(cfg, args.scale, args.seed))
         for frame, out in ((tested, per_policy), (summarise(tested, cfg.n_boot, args.seed),
                                                   summary)):
             out.append(frame.assign(semantics=semantics, order=order)[

@@ -25,9 +25,8 @@ from repro.learn.config import (BATCH_UNITS, LEARNERS, SAMPLERS, SETTING_FIELDS,
                                 add_study_learner_arguments, batch_unit, check_policy_study,
                                 learner_suffix, setting_tag)
 from repro.paper import TRANSFER_ADR
-from repro.runs.files import check_writable_dir
 from repro.runs.stats import bootstrap_ci, iqm, sem
-from repro.studies.kit.options import add_common
+from repro.studies.kit.options import Folders, add_common
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, map_tasks, policy_stream,
                                      run_sweep)
 from repro.studies.wildfire.study import adr, evaluate
@@ -333,24 +332,25 @@ def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
     return for_scale(TransferConfig, args.scale, **{**given, **fields})
 
 
-def runs_folder(runs_dir: str | Path, cfg: TransferConfig, scale: str) -> Path:
-    """The folder of the study's run folders: one per semantics and scale (UsageError naming
-    ``--runs-dir`` if it cannot be written)."""
-    return check_writable_dir(Path(runs_dir) / cfg.name.replace("_", "-") / scale, "--runs-dir")
+def runs_folder(folders: Folders, cfg: TransferConfig) -> Path:
+    """The folder of the study's run folders in the runs folder: one per semantics and scale
+    (UsageError naming ``--runs-dir`` if it cannot be written)."""
+    return folders.run_root(cfg.name.replace("_", "-"), folders.scale)
 
 
-def train_and_test(cfg: TransferConfig, args: argparse.Namespace,
+def train_and_test(cfg: TransferConfig, folders: Folders, args: argparse.Namespace,
                    labelled: list[tuple[str, TrainJob]]) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Train (or resume) the ``labelled`` jobs in the study's run folders, then test every
-    policy on ED; returns the per-policy table and the sweep's timing for the provenance sidecar."""
-    runs = runs_folder(args.runs_dir, cfg, args.scale)
+    """Train (or resume) the ``labelled`` jobs in the study's run folders (``args``: the root
+    seed and the sweep's workers), then test every policy on ED; returns the per-policy table
+    and the sweep's timing for the provenance sidecar."""
+    runs = runs_folder(folders, cfg)
     t0 = time.perf_counter()
-    folders = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
-                        scheduler=args.scheduler)
+    done = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
+                     scheduler=args.scheduler)
     t_train = time.perf_counter() - t0
-    per_policy = evaluate_policies(cfg, labelled, folders, args.seed, n_jobs=args.n_jobs,
+    per_policy = evaluate_policies(cfg, labelled, done, args.seed, n_jobs=args.n_jobs,
                                    scheduler=args.scheduler)
-    seconds = [pd.read_csv(f / "progress.csv").seconds for f in folders]
+    seconds = [pd.read_csv(f / "progress.csv").seconds for f in done]
     # the median skips each worker's first epoch, which includes numba's start-up
     return per_policy, dict(
         runs_dir=str(runs), sweep_seconds=round(t_train, 3),

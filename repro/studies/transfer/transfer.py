@@ -44,7 +44,7 @@ from repro.envs.wildfire import (FIGURE_VERSION, QUIRKS, RELEASED_VERSION, SIM_V
 from repro.learn.config import SAMPLERS, learner_label
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
-from repro.studies.kit.options import add_replot, replot_pair
+from repro.studies.kit.options import Folders, add_replot, replot_pair
 from repro.studies.kit.sweep import check_study_arguments
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, fs_label,
                                           make_jobs, recorded_config, study_config, summarise,
@@ -147,20 +147,20 @@ def figure_title(cfg: TransferConfig, scale: str) -> str:
             f"{cfg.sim_version}")
 
 
-def replot(cfg: TransferConfig, args: argparse.Namespace) -> int:
+def replot(cfg: TransferConfig, folders: Folders) -> int:
     """``--replot``: the figure of the study ``cfg`` names, from its CSVs and the settings its
     sidecar records."""
-    return replot_pair(args, cfg.name, plot=plot, title=lambda prov: figure_title(
+    return replot_pair(folders, cfg.name, plot=plot, title=lambda prov: figure_title(
         recorded_config(prov), prov["scale"]))
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = config_from_args(args)
     if args.replot:
-        return replot(cfg, args)
-    results, figures = check_study_arguments(args)
+        return replot(cfg, folders)
+    results, figures = check_study_arguments(args, folders)
     t0 = time.perf_counter()
-    per_policy, extra = train_and_test(cfg, args, make_jobs(cfg, args.scale, args.seed))
+    per_policy, extra = train_and_test(cfg, folders, args, make_jobs(cfg, args.scale, args.seed))
     summary = summarise(per_policy, cfg.n_boot, args.seed)
     prov = provenance(dataclasses.asdict(cfg), command="fig-transfer", scale=args.scale,
                       seed=args.seed, wall_seconds=time.perf_counter() - t0, extra=extra)

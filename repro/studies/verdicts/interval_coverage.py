@@ -41,8 +41,8 @@ from repro.core.errors import UsageError
 from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
 from repro.runs.stats import INTERVALS, STATISTICS, coverage, iqm
-from repro.studies.kit.options import (add_common, add_replot, figures_folder, read_for_replot,
-                                       replot_figures, results_folder)
+from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+                                       replot_figures)
 
 NAME = "interval_coverage"
 """Stem of the result file and the figure."""
@@ -199,17 +199,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = for_scale(IntervalCoverageConfig, args.scale,
                     **given_fields(args, IntervalCoverageConfig))
     if args.replot:
-        (table,) = read_for_replot(args, f"{NAME}.csv")
-        figures, sources = replot_figures(args, f"{NAME}.csv")
+        (table,) = read_for_replot(folders, f"{NAME}.csv")
+        figures, sources = replot_figures(folders, f"{NAME}.csv")
         plot(table, figures / NAME, sources)
         print(f"wrote {figures / NAME}.png/.pdf")
         return 0
-    figures = figures_folder(args)
-    results = results_folder(args)
+    figures = folders.open_figures()
+    results = folders.open_results()
     pool, used = suite_pool(results)
     if SUITE in cfg.populations and len(pool) < 2 * MIN_GROUP:
         raise UsageError("--populations", f"without {SUITE} where --results-dir holds no "

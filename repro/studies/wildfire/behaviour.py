@@ -52,10 +52,9 @@ from repro.envs.wildfire import make_env
 from repro.envs.wildfire.policies import FlowchartPolicy
 from repro.learn.config import add_study_learner_arguments
 from repro.paper import BEHAVIOUR_FREQUENCIES, FLOWCHART_WORSE
-from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.kit.options import add_common, results_folder
+from repro.studies.kit.options import Folders, add_common
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      policy_stream, run_sweep)
 from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, counted,
@@ -138,12 +137,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_learner_arguments(p, "wildfire_behaviour_suite*")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = behaviour_config(BehaviourConfig, args)
     check_sweep_arguments(args)
-    results = results_folder(args)
-    runs = check_writable_dir(Path(args.runs_dir) / cfg.name.replace("_", "-") / args.scale,
-                              "--runs-dir")
+    results = folders.open_results()
+    runs = folders.run_root(cfg.name.replace("_", "-"), folders.scale)
     jobs = make_jobs(cfg, args.scale, args.seed)
     t0 = time.perf_counter()
     folders = run_sweep(jobs, runs, n_jobs=args.n_jobs, scheduler=args.scheduler)

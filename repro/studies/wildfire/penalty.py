@@ -50,10 +50,9 @@ from repro.envs.wildfire.policies import FlowchartPolicy
 from repro.learn.config import (add_study_learner_arguments, learner_name, learner_suffix,
                                 study_train_config)
 from repro.paper import BEHAVIOUR_FREQUENCIES
-from repro.runs.files import check_writable_dir
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.kit.options import add_common, results_folder
+from repro.studies.kit.options import Folders, add_common
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
                                      policy_stream, run_sweep)
 from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, counted,
@@ -204,13 +203,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_learner_arguments(p, "wildfire_penalty_suite*")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, folders: Folders) -> int:
     cfg = behaviour_config(PenaltyConfig, args)
     check_sweep_arguments(args)
-    results = results_folder(args)
+    results = folders.open_results()
     stem = "_".join(("wildfire_penalty", *learner_suffix(cfg.learner)))
-    runs = check_writable_dir(Path(args.runs_dir) / stem.replace("_", "-") / args.scale,
-                              "--runs-dir")
+    runs = folders.run_root(stem.replace("_", "-"), folders.scale)
     jobs = make_jobs(cfg, args.scale, args.seed)
     t0 = time.perf_counter()
     folders = run_sweep(jobs, runs, n_jobs=args.n_jobs, scheduler=args.scheduler)
