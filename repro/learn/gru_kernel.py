@@ -30,7 +30,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from repro.learn.network import CHUNK, LANES, accumulate_layer, add_products, kl_weighting
+from repro.learn.network import (CHUNK, LANES, accumulate_layer, add_products, affine_chunk,
+                                 kl_weighting)
 from repro.learn.policy_kernel import sigmoid64, tanh64
 
 
@@ -38,14 +39,10 @@ from repro.learn.policy_kernel import sigmoid64, tanh64
 
 @njit(cache=True, error_model="numpy")
 def linear_columns(src, w, b, out):
-    """out = W src + b over every column: per unit, the sum in input order, then the bias."""
+    """out = W src + b over every column, chunk by chunk as the MLP's layers
+    (:func:`repro.learn.network.affine_chunk`)."""
     for n0 in range(0, src.shape[1], CHUNK):
-        out[:, n0:n0 + CHUNK] = 0.0
-        add_products(out, n0, src, n0, w)
-        for j in range(w.shape[0]):
-            row = out[j, n0:n0 + CHUNK]
-            for q in range(row.shape[0]):
-                row[q] += b[j]
+        affine_chunk(out, src, n0, w, b)
 
 
 @njit(cache=True, error_model="numpy")

@@ -238,20 +238,26 @@ def _forward(x, weights, biases, hidden, slopes, logits):
     last = len(weights) - 1
     for n0 in range(0, x.shape[1], CHUNK):
         for k in range(last + 1):
-            w, b = weights[k], biases[k]
-            src = x if k == 0 else hidden[k - 1]
             dst = logits if k == last else hidden[k]
-            dst[:, n0:n0 + CHUNK] = 0.0
-            add_products(dst, n0, src, n0, w)
-            for j in range(w.shape[0]):
-                out = dst[j, n0:n0 + CHUNK]
-                for u in range(out.shape[0]):
-                    out[u] += b[j]
-                if k < last:
-                    slope = slopes[k][j, n0:n0 + CHUNK]
+            affine_chunk(dst, x if k == 0 else hidden[k - 1], n0, weights[k], biases[k])
+            if k < last:
+                for j in range(dst.shape[0]):
+                    out, slope = dst[j, n0:n0 + CHUNK], slopes[k][j, n0:n0 + CHUNK]
                     for u in range(out.shape[0]):
                         out[u] = activation(out[u])
                         slope[u] = 1.0 - np.float64(out[u]) * out[u]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def affine_chunk(dst, src, n0, w, b):
+    """dst = W src + b on the chunk of columns from ``n0``: per unit, the sum of its inputs'
+    terms in input order (:func:`add_products`), then the bias."""
+    dst[:, n0:n0 + CHUNK] = 0.0
+    add_products(dst, n0, src, n0, w)
+    for j in range(w.shape[0]):
+        out = dst[j, n0:n0 + CHUNK]
+        for u in range(out.shape[0]):
+            out[u] += b[j]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
