@@ -248,7 +248,7 @@ def parsed(argv: list[str]) -> argparse.Namespace:
     seen = {}
     module = importlib.import_module(COMMANDS[ALIASES.get(argv[0], argv[0])][0])
 
-    def grab(args):
+    def grab(args, folders=None):
         seen["args"] = args
         return 0
 
