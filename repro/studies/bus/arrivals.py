@@ -20,6 +20,7 @@ import pandas as pd
 
 from repro.paper import BUS_BUSES_DRAWN
 from repro.runs.results import save_figure
+from repro.studies.bus.pictures import VARIANTS  # noqa: F401 (read by the command line)
 from repro.studies.bus.pictures import add_policy_arguments, policy_grid, run_policy_figure
 from repro.studies.kit.options import Folders
 

@@ -25,6 +25,10 @@ from repro.studies.kit.options import (Folders, add_common, add_replot, read_for
 from repro.studies.kit.sweep import add_sweep_arguments, check_sweep_arguments
 
 
+VARIANTS = ("policies",)
+"""The option that chooses which panels a picture holds, not its settings: each panel's episode is
+the same whichever others are drawn (:func:`repro.studies.kit.options.scale_departures`)."""
+
 TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",
           "authors": "Authors' Thresholds", "thresholds": "Optimized Thresholds (ours)",
           "gru": "Optimized GRU Policy (sampled)", "gru-greedy": "Optimized GRU Policy (greedy)"}
