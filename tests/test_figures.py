@@ -59,9 +59,9 @@ def test_bus_panels_fit_a_column_with_the_legend_inside(drawn, module, csv, all_
     fig = drawn[0]
     assert fig.get_figwidth() == pictures.COLUMN_WIDTH
     axes = [ax for ax in fig.axes if ax.get_visible()]
-    assert len(axes) == table.policy.nunique() == 4
+    assert len(axes) == table.policy.nunique() == 6  # the paper's four, the GRU's two
     corners = {(round(ax.get_position().x0, 2), round(ax.get_position().y0, 2)) for ax in axes}
-    assert len(corners) == 4 and len({x for x, _ in corners}) == 2  # two by two
+    assert len(corners) == 6 and len({x for x, _ in corners}) == 2  # two to a row
     fig.tight_layout()  # as save_figure lays it out
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
