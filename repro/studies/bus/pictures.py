@@ -31,7 +31,7 @@ the same whichever others are drawn (:func:`repro.studies.kit.options.scale_depa
 
 TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",
           "authors": "Authors' Thresholds", "thresholds": "Optimized Thresholds (ours)",
-          "gru": "Optimized GRU Policy (sampled)", "gru-greedy": "Optimized GRU Policy (greedy)"}
+          "gru": "Optimized GRU (sampled)", "gru-greedy": "Optimized GRU (greedy)"}
 
 
 def add_policy_arguments(p: argparse.ArgumentParser) -> None:
