@@ -10,8 +10,9 @@ import pandas as pd
 import pytest
 
 from repro.core.errors import UsageError
-from repro.runs.results import (correction_paths, read_provenance, shown_provenance,
-                                source_records, write_correction, write_result)
+from repro.runs.results import (correction_paths, read_provenance, recreation_paths,
+                                shown_provenance, source_records, write_correction,
+                                write_result)
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
 
@@ -69,6 +70,18 @@ def test_every_committed_correction_names_a_sidecar_that_holds_its_value():
             assert json.loads(side.read_text())[note["field"]] == note["value"], path
 
 
+def test_every_committed_recreation_made_its_results_bytes():
+    """A re-creation note beside a committed result records a run that wrote the very bytes its
+    sidecar describes, at its scale."""
+    notes = sorted((ROOT / "results").rglob("*.recreated-*.json"))
+    for path in notes:
+        note = json.loads(path.read_text())
+        side = json.loads((path.parent / note["recreates"]).read_text())
+        assert note["csv_sha256"] == side["csv_sha256"] and note["scale"] == side["scale"], path
+        assert note["finished_utc"] != side["finished_utc"], path
+    assert notes
+
+
 def test_a_correction_is_a_note_of_its_own_written_once(tmp_path):
     result = tmp_path / "r.csv"
     write_result_csv(pd.DataFrame(dict(x=[1])), result, git_commit="aaa")
@@ -87,3 +100,37 @@ def test_a_correction_is_a_note_of_its_own_written_once(tmp_path):
     assert tree_snapshot(tmp_path) == before
     write_result(result, pd.DataFrame(dict(x=[2])), {"scale": "paper"})  # the result made again
     assert correction_paths(result) == [] and "corrections" not in shown_provenance(result)
+
+
+def test_a_result_made_again_byte_for_byte_keeps_its_first_sidecar(tmp_path, monkeypatch):
+    """A run that makes the same CSV bytes at the same scale leaves the first run's sidecar (and
+    its notes) as they were and records itself in a dated re-creation note; other bytes, or
+    another scale, replace the pair and its notes."""
+    result, frame = tmp_path / "r.csv", pd.DataFrame(dict(x=[1.5, 2.0]))
+    write_result(result, frame, {"scale": "paper", "git_commit": "first"})
+    write_correction(result, "git_commit", "fixed", "wrong checkout", date="2026-01-02")
+    side = (tmp_path / "r.provenance.json").read_bytes()
+    monkeypatch.setattr("time.gmtime", lambda *a: __import__("time").struct_time(
+        (2026, 11, 29, 9, 30, 0, 6, 333, 0)))
+    write_result(result, frame, {"scale": "paper", "git_commit": "second"})
+    assert (tmp_path / "r.provenance.json").read_bytes() == side
+    [note] = recreation_paths(result)
+    assert note.name == "r.recreated-2026-11-29T093000Z.json"
+    shown = shown_provenance(result)
+    assert shown["git_commit"] == "first" and shown["corrections"][0]["value"] == "fixed"
+    assert [n["git_commit"] for n in shown["recreations"]] == ["second"]
+    assert shown["recreations"][0]["recreates"] == "r.provenance.json"
+    write_result(result, frame, {"scale": "quick", "git_commit": "third"}, overwrite=True)
+    assert read_provenance(result)["git_commit"] == "third"
+    assert recreation_paths(result) == correction_paths(result) == []
+    write_result(result, frame.assign(x=[1.5, 2.5]), {"scale": "quick", "git_commit": "fourth"})
+    assert read_provenance(result)["git_commit"] == "fourth" and recreation_paths(result) == []
+
+
+def test_a_result_whose_sidecar_describes_other_bytes_is_replaced_not_noted(tmp_path):
+    result, frame = tmp_path / "r.csv", pd.DataFrame(dict(x=[1]))
+    write_result(result, frame, {"scale": "paper", "git_commit": "first"})
+    side = tmp_path / "r.provenance.json"
+    side.write_text(json.dumps({**json.loads(side.read_text()), "csv_sha256": "0" * 64}))
+    write_result(result, frame, {"scale": "paper", "git_commit": "second"})
+    assert read_provenance(result)["git_commit"] == "second" and recreation_paths(result) == []

@@ -224,8 +224,11 @@ def test_two_writers_never_leave_a_torn_pair_and_a_reader_never_takes_one(tmp_pa
         prov = read_provenance(path)
         assert prov[CSV_HASH] == hashlib.sha256(path.read_bytes()).hexdigest()
         assert read_result(path).writer.iloc[0] == prov["writer"]
-    assert reads > 0 and sorted(p.name for p in tmp_path.iterdir()) == sorted(
+    pairs = sorted(p.name for p in tmp_path.iterdir() if ".recreated-" not in p.name)
+    assert reads > 0 and pairs == sorted(
         [f"slot{i}.csv" for i in range(6)] + [f"slot{i}.provenance.json" for i in range(6)])
+    for note in tmp_path.glob("*.recreated-*.json"):  # a writer making its own bytes again
+        assert json.loads(note.read_text())["recreates"] in pairs
 
 
 RACE = ("race", "--scale", "smoke", "--n-sets", "400", "--n-max", "5", "--distribution",

@@ -21,7 +21,11 @@ A result is a pair, a CSV and its sidecar, and the pair is trusted only whole:
   of one of its fields is a separate, dated note beside it, ``<stem>.correction-<date>.json``
   (:func:`write_correction`), and :func:`shown_provenance` shows the sidecar with its notes. A
   note marked ``in_place`` records an edit made in the sidecar itself before this rule: the sidecar
-  holds the note's ``value``, and the note keeps what the run wrote (``recorded``).
+  holds the note's ``value``, and the note keeps what the run wrote (``recorded``). A run that
+  makes a result's CSV again byte for byte, at the scale its sidecar records, keeps the first
+  sidecar and leaves a note of its own beside it, ``<stem>.recreated-<time>.json`` with its
+  provenance (:func:`write_result`): the first run stays the result's author, and each
+  re-creation is on record.
 - **The paper scale is what was run, not what was asked.** A run started with ``--scale paper``
   and settings of its own (``race --scale paper --n-sets 10``) records the scale ``custom``
   (:func:`repro.runs.provenance.run_scale`), below every scale: it neither replaces paper-scale
@@ -299,7 +303,9 @@ def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any], *,
     """Write a result CSV and its provenance sidecar, both atomically, the sidecar recording the
     CSV's hash. The old sidecar goes first, so that a sidecar never describes a CSV it was not
     written with: an interrupted write leaves a CSV without a sidecar, which readers take for a
-    missing result (:func:`read_result`); the old sidecar's correction notes go with it. Refused
+    missing result (:func:`read_result`); the old sidecar's notes go with it. A CSV that is
+    already there byte for byte, with its sidecar, at ``prov``'s scale is kept with its first
+    sidecar, and ``prov`` goes into a re-creation note beside it (:data:`RECREATION`). Refused
     (UsageError naming --results-dir) if ``dest`` holds a result of a larger scale than
     ``prov``'s, unless ``overwrite`` (or the folder was opened with it)."""
     dest = Path(dest)
@@ -313,12 +319,42 @@ def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any], *,
         mine = prov.get("scale")
         if scale_rank(theirs) > scale_rank(mine) and not (overwrite or _held.get(folder.resolve())):
             _refuse_larger([(dest.name, theirs)], mine, "--results-dir", folder)
+        if theirs == mine and _holds(dest, data):
+            write_json(_recreation_path(dest), {"recreates": sidecar_path(dest).name, **prov})
+            return dest
         sidecar_path(dest).unlink(missing_ok=True)
-        for note in correction_paths(dest):  # notes of the sidecar just removed
+        for note in correction_paths(dest) + recreation_paths(dest):  # of the sidecar removed
             note.unlink()
         write_bytes(dest, data)
         write_json(sidecar_path(dest), prov)
     return dest
+
+
+def _holds(dest: Path, data: bytes) -> bool:
+    """Whether ``dest`` is already the CSV ``data``, with a sidecar that describes it."""
+    try:
+        if dest.read_bytes() != data:
+            return False
+        want = read_provenance(dest).get(CSV_HASH)
+    except FileNotFoundError:
+        return False
+    return want in (None, hashlib.sha256(data).hexdigest())
+
+
+RECREATION = "{stem}.recreated-{time}.json"
+"""A re-creation note's name, beside the result ``<stem>.csv``; ``time``: YYYY-MM-DDTHHMMSSZ
+(UTC), when the run that made the CSV again wrote it."""
+
+
+def _recreation_path(result: Path) -> Path:
+    stamp = time.strftime("%Y-%m-%dT%H%M%SZ", time.gmtime())
+    return result.with_name(RECREATION.format(stem=result.stem, time=stamp))
+
+
+def recreation_paths(result: str | Path) -> list[Path]:
+    """The re-creation notes of ``result``'s sidecar, oldest first."""
+    result = Path(result)
+    return sorted(result.parent.glob(RECREATION.format(stem=result.stem, time="*")))
 
 
 def read_result(result: str | Path) -> pd.DataFrame:
@@ -384,11 +420,19 @@ def _corrections(result: str | Path) -> dict[str, Any]:
     return {"corrections": notes} if notes else {}
 
 
+def _recreations(result: str | Path) -> dict[str, Any]:
+    """``{"recreations": [note, ...]}`` of ``result``'s re-creation notes, oldest first; empty
+    if it has none."""
+    notes = [json.loads(path.read_text()) for path in recreation_paths(result)]
+    return {"recreations": notes} if notes else {}
+
+
 def shown_provenance(result: str | Path) -> dict[str, Any]:
     """The sidecar of ``result`` as its run wrote it, with its correction notes under
-    ``corrections`` where it has any: a reader sees both the recorded and the corrected value of
-    a field."""
-    return {**read_provenance(result), **_corrections(result)}
+    ``corrections`` and its re-creation notes under ``recreations`` where it has any: a reader
+    sees both the recorded and the corrected value of a field, and every later run that made the
+    same bytes."""
+    return {**read_provenance(result), **_corrections(result), **_recreations(result)}
 
 
 def read_provenance(result: str | Path) -> dict[str, Any]:
