@@ -15,7 +15,7 @@ from repro.core.errors import UsageError
 from repro.core.rollout import BadActions, run_to_end
 from repro.envs.bus import BusConfig, make_env, make_reference_env
 from repro.envs.bus.metrics import (arrival_table, record_loads, time_to_regularity,
-                                    time_to_uniform)
+                                    time_to_uniform, window_shares)
 from repro.envs.bus.params import SWITCHES
 from repro.envs.bus.policies import ThresholdPolicy, no_holding
 
@@ -180,6 +180,7 @@ def test_time_to_uniform():
     assert time_to_uniform(df, 6.0) == 60.0
     assert time_to_uniform(df, 6.0, share=0.95) == 90.0
     assert np.isnan(time_to_uniform(df.assign(h_min=2.0), 6.0))
+    assert window_shares(df, 6.0).round(6).tolist() == [0.0, 0.0, 0.9, 1.0]
 
 
 def test_run_to_end_stops_when_all_done():

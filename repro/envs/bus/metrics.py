@@ -62,11 +62,19 @@ def time_to_uniform(arrivals: pd.DataFrame, headway_min: float,
     known headways lie within H +- band; NaN if there is none. The paper says when each policy
     "achieves" uniformity, judged from its arrival figure: a first time, which later stray
     windows do not undo (:func:`time_to_regularity` asks for it to last)."""
-    known = arrivals[arrivals.h_min.notna()]
-    ok = (np.abs(known.h_min - headway_min) <= band_min).groupby(
-        (known.time_min // window_min).astype(int)).mean()
+    ok = window_shares(arrivals, headway_min, band_min, window_min)
     hit = ok.index[ok.to_numpy() >= share]
     return float(hit[0] * window_min) if len(hit) else float("nan")
+
+
+def window_shares(arrivals: pd.DataFrame, headway_min: float,
+                  band_min: float = REGULARITY_BAND_MIN,
+                  window_min: float = UNIFORM_WINDOW_MIN) -> pd.Series:
+    """Per window (0, 30, 60, ... min; indexed by its number) of one episode's table, the share
+    of its known headways that lie within H +- band: how near to uniform each window comes."""
+    known = arrivals[arrivals.h_min.notna()]
+    return (np.abs(known.h_min - headway_min) <= band_min).groupby(
+        (known.time_min // window_min).astype(int)).mean()
 
 
 def time_to_regularity(arrivals: pd.DataFrame, headway_min: float,
