@@ -312,8 +312,11 @@ def test_the_settings_of_a_run_are_compared_with_its_scales():
     assert _departures("fig-transfer", "--scale", "paper", "--sim-version", "2017-04-22",
                        "--learner", "suite", "--n-jobs", "2", "--seed", "0") == []
     assert _departures("fig-transfer", "--scale", "paper", "--sampler", "released-pool") == []
-    assert _departures("fig-transfer", "--scale", "paper", "--simulator", "ED") == [
-        "--simulator"]
+    assert _departures("fig-transfer", "--scale", "paper", "--simulator", "ED") == ["--only"]
+    # a command's own default of a field is its scale's value (c9-inputs: the figure's version)
+    assert _departures("c9-inputs", "--scale", "paper", "--sim-version", "2017-04-22") == []
+    assert _departures("c9-inputs", "--scale", "paper", "--sim-version", "2017-05-16") == [
+        "--sim-version"]
 
 
 def test_a_smaller_scale_run_may_write_beside_nothing_larger(tmp_path):

@@ -160,22 +160,27 @@ def _describe(kind: type, optional: bool) -> str:
 
 
 def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None = None,
-                         show_defaults: bool = True) -> None:
+                         show_defaults: bool = True,
+                         defaults: dict[str, Any] | None = None) -> None:
     """A flag for each field of ``cls`` (or of ``fields``), and one for each of its old spellings
     (``cls.ALIASES``): ``--field`` takes a value of the field's type ("none" where None is
     allowed), one or more for a tuple (``--sizes 1 2``, or ``--sizes 1 --sizes 2``); a boolean
     field is ``--field`` / ``--no-field``. A flag not given leaves no attribute
     (:func:`given_fields`). ``show_defaults``: the help ends with the field's default and the
-    scales that change it (False where another layer, such as a named learner, sets it)."""
+    scales that change it (False where another layer, such as a named learner, sets it);
+    ``defaults``: a command's own defaults of some fields, shown instead (the command applies
+    them)."""
     old = {}
     for alias, name in getattr(cls, "ALIASES", {}).items():
         old.setdefault(name, []).append(flag(alias))
-    defaults = {f.name: f.default for f in dataclasses.fields(cls)}
+    own = defaults or {}
     for name in fields or settings(cls):
         kind, optional, sequence = _field_type(cls, name)
         text = field_help(cls, name)
-        if show_defaults and defaults[name] is not dataclasses.MISSING:
-            text += f" (default: {_default_text(cls, name, defaults[name])})"
+        if name in own:
+            text += f" (default here: {_shown(own[name])})"
+        elif show_defaults and _defaults(cls)[name] is not dataclasses.MISSING:
+            text += f" (default: {_default_text(cls, name, _defaults(cls)[name])})"
         if old.get(name):
             text += f" (old spelling: {', '.join(old[name])})"
         names = (flag(name), *old.get(name, ()))
@@ -191,16 +196,26 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
             action = parser.add_argument(*names, dest=name, type=_parse_value(kind, optional),
                                          default=argparse.SUPPRESS, help=text)
         action.setting = (cls, name)  # whose value a scale sets (scale_departures)
+        if name in own:
+            action.own_default = own[name]  # this command's value instead of any scale's
+
+
+def _defaults(cls: type) -> dict[str, Any]:
+    return {f.name: f.default for f in dataclasses.fields(cls)}
+
+
+def _shown(value: Any) -> str:
+    """A value as help shows it (a tuple's items separated by spaces, as the flag takes them)."""
+    if isinstance(value, tuple):
+        return " ".join(map(str, value)) if value else "none"
+    return str(value)
 
 
 def _default_text(cls: type, name: str, default: Any) -> str:
     """A field's default as help shows it, with the scales that change it (``cls.SCALES``)."""
-    def shown(value: Any) -> str:
-        return " ".join(map(str, value)) if isinstance(value, tuple) else str(value)
-
-    scaled = [f"{scale}: {shown(fields[name])}" for scale, fields in
+    scaled = [f"{scale}: {_shown(fields[name])}" for scale, fields in
               getattr(cls, "SCALES", {}).items() if name in fields]
-    return "; ".join([shown(default), *scaled])
+    return "; ".join([_shown(default), *scaled])
 
 
 def given_fields(args: argparse.Namespace, cls: type,

@@ -110,7 +110,8 @@ ones in a ``VARIANTS`` tuple (``fig-transfer --sim-version``: ``*_20170422``).""
 def scale_departures(parser: argparse.ArgumentParser, args: argparse.Namespace,
                      variants: tuple[str, ...] = ()) -> list[str]:
     """The options (their flags) whose values in ``args`` are not those of ``--scale``: a config
-    field's flag given with another value than the scale's, any other option that is not
+    field's flag given with another value than the scale's (or than the command's own default
+    of it, ``add_config_arguments(defaults=...)``), any other option that is not
     :data:`NEUTRAL` nor a variant (:data:`VARIANTS` and ``variants``) given with another value
     than its default. A run with any is not a run of its scale
     (:func:`repro.runs.provenance.run_scale`)."""
@@ -120,8 +121,12 @@ def scale_departures(parser: argparse.ArgumentParser, args: argparse.Namespace,
         if dest in (*NEUTRAL, *VARIANTS, *variants) or not hasattr(args, dest):
             continue
         setting = getattr(action, "setting", None)  # (config class, field): add_config_arguments
-        expected = (getattr(for_scale(setting[0], args.scale), setting[1]) if setting
-                    else action.default)
+        if hasattr(action, "own_default"):
+            expected = action.own_default
+        elif setting:
+            expected = getattr(for_scale(setting[0], args.scale), setting[1])
+        else:
+            expected = action.default
         if _comparable(getattr(args, dest)) != _comparable(expected):
             out.append(action.option_strings[0])
     return out

@@ -26,6 +26,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from repro.core.config import add_config_arguments
 from repro.core.rollout import DecisionBatch, Policy
 from repro.envs.wildfire import FIGURE_VERSION, make_env
 from repro.envs.wildfire.params import FIRES, HEALTH, OBS_PER_FIRE, SOJOURN
@@ -35,8 +36,8 @@ from repro.runs.results import write_result
 from repro.runs.stats import bootstrap_ci
 from repro.studies.kit.options import Folders
 from repro.studies.kit.sweep import check_study_arguments, policy_stream, run_sweep
-from repro.studies.transfer.study import (add_size_arguments, make_jobs, runs_folder, study_config,
-                                          test_env_seed)
+from repro.studies.transfer.study import (TransferConfig, add_size_arguments, make_jobs,
+                                          runs_folder, study_config, test_env_seed)
 from repro.studies.wildfire.study import adr, evaluate
 
 NAME = "c9_inputs"
@@ -98,14 +99,14 @@ def score(env_cfg, checkpoint, clamps: tuple, episodes: int, env_seed: int,
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_size_arguments(p, "c9_inputs_suite*")
-    p.add_argument("--sim-version", help="the released simulator's version of the transfer study "
-                                         "(default 2017-04-22, the one the figure was drawn with)")
+    add_config_arguments(p, TransferConfig, ("sim_version",),
+                         defaults=dict(sim_version=FIGURE_VERSION))
 
 
 def run(args: argparse.Namespace, folders: Folders) -> int:
     from repro.runs.run_folder import CHECKPOINT
 
-    cfg = study_config(args, sim_version=args.sim_version or FIGURE_VERSION)
+    cfg = study_config(args, sim_version=getattr(args, "sim_version", FIGURE_VERSION))
     cfg = dataclasses.replace(cfg, only=("ED", *cfg.variant_pair()[::-1]))
     results, _ = check_study_arguments(args, folders)
     labelled = make_jobs(cfg, args.scale, args.seed)

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from repro.core.config import add_config_arguments
 from repro.envs.wildfire import FIGURE_VERSION, RELEASED_VERSION
 from repro.learn.config import learner_stem
 from repro.runs.provenance import provenance
@@ -95,9 +96,7 @@ def plot(summary: pd.DataFrame, stem: Path, title: str, sources: list[Path]) -> 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_size_arguments(p, "learner_ablation_suite*")
-    p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
-                   help="training simulator of every row, repeatable (default: "
-                        + ", ".join(DEFAULT_SIMULATORS) + ")")
+    add_config_arguments(p, TransferConfig, ("only",), defaults=dict(only=DEFAULT_SIMULATORS))
     add_replot(p)
 
 
@@ -121,7 +120,7 @@ def replot(base: TransferConfig, folders: Folders) -> int:
 
 
 def run(args: argparse.Namespace, folders: Folders) -> int:
-    base = study_config(args, only=tuple(args.simulator) or DEFAULT_SIMULATORS)
+    base = study_config(args, only=getattr(args, "only", DEFAULT_SIMULATORS))
     if args.replot:
         return replot(base, folders)
     results, figures = check_study_arguments(args, folders)

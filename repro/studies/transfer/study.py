@@ -17,7 +17,6 @@ import pandas as pd
 
 from repro.core.config import (Validated, add_config_arguments, for_scale, from_recorded,
                                given_fields)
-from repro.core.errors import require
 from repro.core.rollout import children
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
@@ -86,6 +85,7 @@ class TransferConfig(Validated):
     n_boot: int = 2000
     """Bootstrap replicates of each simulator's CI."""
 
+    ALIASES: ClassVar[dict[str, str]] = {"simulator": "only", "no_quirk": "quirks_off"}
     SCALES: ClassVar[dict] = {
         "smoke": dict(seeds=1, epochs=2, batch_episodes=8, batch_decisions=300, test_episodes=20,
                       n_boot=200),
@@ -112,11 +112,9 @@ class TransferConfig(Validated):
         self.check(self.variant_t_health > 0, "variant_t_health", "> 0")
         self.check(self.n_boot >= 1, "n_boot", "an integer >= 1")
         short = [q.split("_")[1] for q in QUIRKS]
-        require(set(self.quirks_off) <= set(short), "--no-quirk", "one of " + ", ".join(short),
-                list(self.quirks_off))
-        labels = list(self.simulators(every=True))
-        require(set(self.only) <= set(labels), "--simulator", "one of " + ", ".join(labels),
-                list(self.only))
+        self.check(set(self.quirks_off) <= set(short), "quirks_off", "one of " + ", ".join(short))
+        self.check(set(self.only) <= set(self.simulators(every=True)), "only",
+                   "one of " + ", ".join(self.simulators(every=True)))
 
     @property
     def pool(self) -> bool:
@@ -312,6 +310,9 @@ def distance_in_se(mean: float, err: float, paper_mean: float, paper_err: float)
 SIZES = ("seeds", "epochs", "test_episodes")
 """The TransferConfig fields that every study of the transfer family takes as flags, besides the
 learner and its batch sizes (:func:`repro.learn.config.add_study_learner_arguments`)."""
+SEMANTICS = ("corrected", "quirks_off", "fire_out_first", "sim_version", "sampler", "only")
+"""The TransferConfig fields that choose the simulators a transfer study trains and tests on, and
+how it samples: flags of the drivers that let a user choose them."""
 
 
 def add_size_arguments(p: argparse.ArgumentParser, writes: str) -> None:
@@ -327,9 +328,8 @@ def add_size_arguments(p: argparse.ArgumentParser, writes: str) -> None:
 def study_config(args: argparse.Namespace, **fields) -> TransferConfig:
     """The config of :func:`add_size_arguments`'s options at ``args.scale``, with ``fields``
     (None: the scale's)."""
-    given = given_fields(args, TransferConfig, (*SIZES, "learner", "batch_decisions",
-                                                "batch_episodes"))
-    return for_scale(TransferConfig, args.scale, **{**given, **fields})
+    return for_scale(TransferConfig, args.scale, **{**given_fields(args, TransferConfig),
+                                                    **fields})
 
 
 def runs_folder(folders: Folders, cfg: TransferConfig) -> Path:

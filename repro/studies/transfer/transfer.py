@@ -39,16 +39,15 @@ import numpy as np
 import pandas as pd
 
 from repro.core.config import add_config_arguments, given_fields
-from repro.envs.wildfire import (FIGURE_VERSION, QUIRKS, RELEASED_VERSION, SIM_VERSIONS,
-                                 WildfireConfig)
-from repro.learn.config import SAMPLERS, learner_label
+from repro.envs.wildfire import QUIRKS, WildfireConfig
+from repro.learn.config import learner_label
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
 from repro.studies.kit.options import Folders, add_replot, replot_pair
 from repro.studies.kit.sweep import check_study_arguments
-from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, fs_label,
-                                          make_jobs, recorded_config, study_config, summarise,
-                                          train_and_test)
+from repro.studies.transfer.study import (SEMANTICS, TransferConfig, add_size_arguments,
+                                          batch_label, fs_label, make_jobs, recorded_config,
+                                          study_config, summarise, train_and_test)
 
 
 def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str,
@@ -91,7 +90,7 @@ def plot(per_policy: pd.DataFrame, summary: pd.DataFrame, stem: Path, title: str
     save_figure(fig, stem, sources)
 
 
-VARIANTS = ("corrected", "no_quirk", *QUIRKS, "sim_version", "no_fire_out_first", "sampler")
+VARIANTS = ("corrected", "quirks_off", *QUIRKS, "sim_version", "fire_out_first", "sampler")
 """Options that choose the study, each writing result files of its own (``transfer_corrected*``,
 ``*_no_q3*``, ``*_20170422``, ``*_no_fire_out_first``, ``*_pool``), not its settings
 (:func:`repro.studies.kit.options.scale_departures`)."""
@@ -99,40 +98,19 @@ VARIANTS = ("corrected", "no_quirk", *QUIRKS, "sim_version", "no_fire_out_first"
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_size_arguments(p, "transfer*_suite*")
-    p.add_argument("--corrected", action="store_true",
-                   help="quirks Q1-Q6 off (paper's prose); writes transfer_corrected*")
-    # each quirk's flag as train spells it: --no-quirk-q3-unclamped-health switches Q3 off in
-    # every simulator of the study (an ablation; writes transfer_no_q3*)
+    # the study's semantics and sampler (each writes files of its own), and the simulators it
+    # trains: flags of TransferConfig's fields; each quirk's flag as train spells it too
+    # (--no-quirk-q3-unclamped-health switches Q3 off in every simulator of the study)
+    add_config_arguments(p, TransferConfig, SEMANTICS)
     add_config_arguments(p, WildfireConfig, QUIRKS)
-    p.add_argument("--no-quirk", action="append", default=[], metavar="Q",
-                   help="old spelling: --no-quirk q3 is --no-quirk-q3-unclamped-health "
-                        "(repeatable)")
-    p.add_argument("--simulator", action="append", default=[], metavar="LABEL",
-                   help="train and test only this simulator (e.g. FS-1), repeatable")
-    p.add_argument("--sim-version", choices=tuple(SIM_VERSIONS),
-                   help=f"the released simulator's version (default {RELEASED_VERSION}, the "
-                        f"released HEAD; {FIGURE_VERSION}: the one the paper's runs were trained "
-                        f"on, which writes *_{FIGURE_VERSION.replace('-', '')})")
-    p.add_argument("--sampler", choices=SAMPLERS,
-                   help="the runs' batch sampler (default independent: every episode its own "
-                        "seeded stream; released-pool: the released runner's unseeded workers "
-                        "sharing one stream, as the paper's runs were trained); released-pool "
-                        "writes *_pool")
-    p.add_argument("--no-fire-out-first", action="store_true",
-                   help="a UAV whose macro-action ends as a fire goes out observes first (the "
-                        "released order reversed, X4); writes *_no_fire_out_first")
     add_replot(p)
 
 
 def config_from_args(args: argparse.Namespace) -> TransferConfig:
     """The study's config of :func:`add_arguments`'s options (UsageError if bad)."""
-    off = [q.split("_")[1] for q, on in given_fields(args, WildfireConfig).items() if not on]
-    return study_config(args, corrected=args.corrected or None,
-                        quirks_off=tuple(sorted({*off, *(q.lower() for q in args.no_quirk)}))
-                        or None,
-                        only=tuple(args.simulator) or None,
-                        fire_out_first=False if args.no_fire_out_first else None,
-                        sim_version=args.sim_version, sampler=args.sampler)
+    off = {q.split("_")[1] for q, on in given_fields(args, WildfireConfig).items() if not on}
+    given = {q.lower() for q in getattr(args, "quirks_off", ())}
+    return study_config(args, quirks_off=tuple(sorted(off | given)) or None)
 
 
 def figure_title(cfg: TransferConfig, scale: str) -> str:
