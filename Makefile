@@ -14,6 +14,8 @@ STAMP  := $(VENV)/.installed
 # the bus pictures' panels in `make reproduce`: the paper's, and the released GRU policy that drew
 # them (C5 is decided on it; its runs are trained by the first of the two)
 BUS_PANELS := nohold authors thresholds mlp gru gru-greedy
+# pytest-xdist workers of `make test`: auto, one per core; 0 runs the tests in this process
+TEST_WORKERS ?= auto
 
 # Each command of `python -m repro` has the target of its name, and each of its other names an
 # alias target (tests/test_make.py checks both).
@@ -46,11 +48,11 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP) ## create .venv and install the suite
 
-test: lint ## lint, then run the test suite
-	$(PY) -m pytest
+test: lint ## lint, then run the test suite, one worker per core (TEST_WORKERS)
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist worksteal
 
 test-fast: $(STAMP) ## the tests not marked slow (about a minute): while editing
-	$(PY) -m pytest -m "not slow"
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist worksteal -m "not slow"
 
 lint: $(STAMP) ## ruff: style (100 columns) and likely bugs (pyproject.toml says which rules)
 	$(BIN)/ruff check repro tests
