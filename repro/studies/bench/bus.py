@@ -16,10 +16,10 @@ from repro.envs.bus import BusConfig, make_env, make_reference_env
 from repro.envs.bus.policies import no_holding
 from repro.learn.trained_policy import trained_env_config
 from repro.studies.bench import common as bench_common
-from repro.studies.bench.common import VARIANTS, BenchConfig
+from repro.studies.bench.common import BenchConfig
 from repro.studies.kit.options import Folders
 
-__all__ = ["VARIANTS", "BusBenchConfig", "add_arguments", "measure", "run"]
+VARIANTS = bench_common.VARIANTS
 
 
 @dataclass(frozen=True)

@@ -18,10 +18,10 @@ from repro.envs.wildfire import WildfireConfig, make_env, make_reference_env
 from repro.envs.wildfire.policies import RandomPolicy
 from repro.learn.trained_policy import trained_env_config
 from repro.studies.bench import common as bench_common
-from repro.studies.bench.common import VARIANTS, BenchConfig
+from repro.studies.bench.common import BenchConfig
 from repro.studies.kit.options import Folders
 
-__all__ = ["VARIANTS", "WildfireBenchConfig", "add_arguments", "measure", "run"]
+VARIANTS = bench_common.VARIANTS
 
 
 @dataclass(frozen=True)

@@ -20,9 +20,12 @@ import pandas as pd
 
 from repro.paper import BUS_BUSES_DRAWN
 from repro.runs.results import save_figure
-from repro.studies.bus.pictures import VARIANTS  # noqa: F401 (read by the command line)
+from repro.studies.bus import pictures
 from repro.studies.bus.pictures import add_policy_arguments, policy_grid, run_policy_figure
 from repro.studies.kit.options import Folders
+
+VARIANTS = pictures.VARIANTS
+"""Options that choose the picture's panels, not their settings (read by the command line)."""
 
 
 def plot(arrivals: pd.DataFrame, stem, all_buses: bool, sources: list[Path]) -> None:

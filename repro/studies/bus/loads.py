@@ -32,12 +32,15 @@ from repro.learn.config import DEFAULT_LEARNER
 from repro.paper import BUS_BUSES_DRAWN, PAPER_RECORDS, PAPER_STOPS, paper_loads
 from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
-from repro.studies.bus.pictures import VARIANTS  # noqa: F401 (read by the command line)
+from repro.studies.bus import pictures
 from repro.studies.bus.pictures import (add_policy_arguments, learner_csv, policy_grid,
                                         run_policy_figure)
 from repro.studies.bus.policies import (TrainedPolicy, lambda_summary_csv, make_policy,
                                         picture_arrivals)
 from repro.studies.kit.options import Folders
+
+VARIANTS = pictures.VARIANTS
+"""Options that choose the picture's panels, not their settings (read by the command line)."""
 
 LOAD_CSV = "bus_load.csv"
 SWITCHES_CSV = "bus_load_switches.csv"
