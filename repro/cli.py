@@ -228,6 +228,18 @@ def parse_arguments(module: Any, parser: argparse.ArgumentParser,
     return parser.parse_args(tokens + argv), {flag: f"{path}: {key}" for flag, key in keys.items()}
 
 
+def spelled_as_given(parser: argparse.ArgumentParser, argv: list[str]) -> dict[str, str]:
+    """Each option's first flag -> the other spelling of it that ``argv`` gives (an old
+    spelling, such as ``--simulator`` for ``--only``), so that an error names the flag the user
+    typed."""
+    out = {}
+    for action in parser._actions:
+        for option in action.option_strings[1:]:
+            if any(t == option or t.startswith(option + "=") for t in argv):
+                out[action.option_strings[0]] = option
+    return out
+
+
 def show_defaults(parser: argparse.ArgumentParser) -> None:
     """End the help of every option that has a default, and does not say it yet, with it (a
     switch's default, off, goes unsaid)."""
@@ -259,6 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         module.add_arguments(parser)
         args, keys = parse_arguments(module, parser, argv[1:])
+        keys = {**spelled_as_given(parser, argv[1:]), **keys}
         # every seed becomes a numpy SeedSequence, which takes no negative entropy
         if getattr(args, "seed", None) is not None and args.seed < 0:
             raise UsageError("--seed", "an integer >= 0", args.seed)
@@ -273,7 +286,7 @@ def main(argv: list[str] | None = None) -> int:
         note_scale_departures(module, parser, args)
         return int((module.run(args) if folders is None else module.run(args, folders)) or 0)
     except UsageError as err:
-        if err.param in keys:  # a bad value from the --config file: named by its key there
+        if err.param in keys:  # named as given: an old spelling, or a key of the --config file
             err = UsageError(keys[err.param], err.allowed, err.got)
         print(f"repro {typed}: error: {err}", file=sys.stderr)
         return 2

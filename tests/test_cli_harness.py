@@ -356,3 +356,17 @@ def test_values_that_cannot_mean_anything_are_one_line(tmp_path, monkeypatch, ca
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and param in err
     assert tree_snapshot(tmp_path) == before and not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["transfer-ablation", "--scale", "smoke", "--simulator", "nope"], "--simulator"),
+    (["transfer-ablation", "--scale", "smoke", "--only", "nope"], "--only"),
+    (["transfer", "--scale", "smoke", "--no-quirk", "q9"], "--no-quirk"),
+])
+def test_a_bad_value_is_named_by_the_spelling_given(argv, named, tmp_path, capsys):
+    """An option with an old spelling (``--simulator`` for ``--only``): the error names the flag
+    the user typed."""
+    assert main([*argv, "--results-dir", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"error: {named}: must be" in err
+    assert not (tmp_path / "r").exists()
