@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 import pandas as pd
@@ -365,6 +366,17 @@ def test_a_sweeps_sidecars_name_the_kernels_its_runs_were_trained_under(tmp_path
         recorded = provenance({}, command="x", scale=None, seed=None, wall_seconds=0)
         assert sorted(json.dumps(k, sort_keys=True) for k in recorded["trained_under"]) == sorted(
             json.dumps(k, sort_keys=True) for k in (kernels.record(), other))
+        # an earlier arithmetic that trains the run's policy (mlp) to today's bits: recorded as
+        # it was, no warning
+        [(earlier, _)] = kernels.SAME_BITS.items()
+        same = {**kernels.record(), "arithmetic": earlier}
+        (tmp_path / "b" / run_folder.KERNELS).write_text(json.dumps(same))
+        release_results()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", kernels.KernelWarning)
+            run_sweep(jobs, tmp_path)
+        assert same in provenance({}, command="x", scale=None, seed=None,
+                                  wall_seconds=0)["trained_under"]
     finally:
         release_results()
     assert "trained_under" not in provenance({}, command="x", scale=None, seed=None,

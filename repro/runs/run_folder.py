@@ -443,13 +443,22 @@ def recorded_kernels(folder: Path, param: str = "--out") -> dict[str, Any] | Non
     return describe_kernels(kernels, machine.get("cpu", "unknown"))
 
 
+def kernels_in_todays_terms(folder: Path, param: str = "--out") -> dict[str, Any] | None:
+    """The kernels the run in ``folder`` was trained with (:func:`recorded_kernels`), its
+    arithmetic read as today's where that trains its policy to the same bits
+    (:data:`~repro.runs.kernels.SAME_BITS`): equal to :func:`kernel_record` if and only if this
+    process trains the run's epochs bit for bit as they were trained."""
+    earlier = recorded_kernels(folder, param)
+    policy = ((_read_object(folder / CONFIG, param) or {}).get("train") or {}).get("policy", "mlp")
+    if earlier is not None and policy in SAME_BITS.get(earlier.get("arithmetic"), ()):
+        earlier = {**earlier, "arithmetic": kernel_record()["arithmetic"]}
+    return earlier
+
+
 def check_kernels(folder: Path, param: str = "--out") -> None:
     """Refuse (UsageError naming ``param``) resuming the run in ``folder`` under other kernels than
     its epochs were trained with; warn where they are not recorded."""
-    earlier, now = recorded_kernels(folder, param), kernel_record()
-    policy = ((_read_object(folder / CONFIG, param) or {}).get("train") or {}).get("policy", "mlp")
-    if earlier is not None and policy in SAME_BITS.get(earlier.get("arithmetic"), ()):
-        earlier = {**earlier, "arithmetic": now["arithmetic"]}
+    earlier, now = kernels_in_todays_terms(folder, param), kernel_record()
     if earlier is None:
         warnings.warn(f"{folder}: the kernels its epochs were trained with are not recorded (a run "
                       "from before the pin); resuming it may mix kernels", KernelWarning,

@@ -53,8 +53,8 @@ from repro.runs.kernels import KernelWarning, record as kernel_record
 from repro.runs.locks import folder_lock
 from repro.runs.provenance import note_trained_under
 from repro.runs.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PROVENANCE,
-                                   epochs_done, is_finished, locked_by, recorded_kernels,
-                                   writer_lock)
+                                   epochs_done, is_finished, kernels_in_todays_terms, locked_by,
+                                   recorded_kernels, writer_lock)
 from repro.runs.workers import die_with_parent
 from repro.studies.kit.options import Folders, add_common
 
@@ -324,14 +324,14 @@ def longest_first(jobs: list[TrainJob]) -> list[TrainJob]:
 
 def _note_kernels(folders: list[Path]) -> None:
     """Note the kernels each run was trained under in the command's sidecars
-    (:func:`repro.runs.provenance.note_trained_under`), warning (:class:`KernelWarning`) where they
-    are not this process's: such results are not regenerated bit for bit on a machine of the pin."""
+    (:func:`repro.runs.provenance.note_trained_under`), warning (:class:`KernelWarning`) where this
+    process would not train it to the same bits (an earlier arithmetic that trains its policy to
+    today's bits does): such results are not regenerated bit for bit on a machine of the pin."""
     now = kernel_record()
     others = 0
     for folder in folders:
-        kernels = recorded_kernels(folder, "--runs-dir")
-        note_trained_under(kernels)
-        others += kernels != now
+        note_trained_under(recorded_kernels(folder, "--runs-dir"))
+        others += kernels_in_todays_terms(folder, "--runs-dir") != now
     if others:
         warnings.warn(f"{others} of the {len(folders)} runs were trained under other CPU kernels "
                       "than this process's, or before runs recorded theirs (their sidecars say "
