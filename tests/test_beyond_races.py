@@ -108,7 +108,7 @@ def test_x2_check_can_pass_and_fail(tmp_path):
 
 @pytest.mark.parametrize("argv, param", [
     (["--episodes", "0"], "--episodes"), (["--n-agents", "3"], "--n-agents"),
-    (["--n-agents", "0", "--n-agents", "3"], "--n-agents"), (["--policy", "greedy"], "--policies"),
+    (["--n-agents", "0", "--n-agents", "3"], "--n-agents"), (["--policy", "greedy"], "--policy"),
     (["--log10-dt-min", "1"], "--log10-dt-min"), (["--log10-dt-min", "-12"], "--log10-dt-min"),
     (["--log10-dt-step", "0"], "--log10-dt-step"), (["--delta", "1.5"], "--delta"),
     (["--n-jobs", "0"], "--n-jobs"), (["--scale", "huge"], "--scale"), (["--seed", "-1"], "--seed"),
