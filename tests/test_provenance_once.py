@@ -134,3 +134,24 @@ def test_a_result_whose_sidecar_describes_other_bytes_is_replaced_not_noted(tmp_
     side.write_text(json.dumps({**json.loads(side.read_text()), "csv_sha256": "0" * 64}))
     write_result(result, frame, {"scale": "paper", "git_commit": "second"})
     assert read_provenance(result)["git_commit"] == "second" and recreation_paths(result) == []
+
+
+def test_a_figure_drawn_again_byte_for_byte_keeps_its_first_sidecar(tmp_path):
+    """As a result: the same files from the same sources keep the first sidecar and get a note;
+    other files replace the sidecar and its notes."""
+    from repro.runs.results import write_figure
+
+    result = tmp_path / "r.csv"
+    write_result(result, pd.DataFrame(dict(x=[1])), {"scale": "paper", "command": "c"})
+    figs = tmp_path / "fig"
+    figs.mkdir()
+    stem, side = figs / "r", figs / "r.provenance.json"
+    files = {figs / "r.png": b"png", figs / "r.pdf": b"pdf"}
+    write_figure(stem, files, [result])
+    first = side.read_bytes()
+    write_figure(stem, files, [result], extra={"again": True})
+    assert side.read_bytes() == first
+    [note] = recreation_paths(side)
+    assert json.loads(note.read_text())["again"] and note.name.startswith("r.recreated-")
+    write_figure(stem, {**files, figs / "r.png": b"other"}, [result])
+    assert side.read_bytes() != first and recreation_paths(side) == []

@@ -36,8 +36,9 @@ Figures are guarded the same way. A figure is ``<stem>.png`` and ``<stem>.pdf`` 
 (each with its hash and scale) and the scale (:func:`save_figure`). A driver checks its figures
 folder for figures of a larger scale before any work (:func:`open_figures`), and a figure is not
 replaced by one of a smaller scale unless told to; figures without a sidecar are replaced. A
-figure's sidecar has the name of its stem's result's, so a figures folder is never the results
-folder.
+figure drawn again byte for byte from the same sources keeps its first sidecar, with a
+re-creation note beside it, as a result does. A figure's sidecar has the name of its stem's
+result's, so a figures folder is never the results folder.
 """
 
 from __future__ import annotations
@@ -153,7 +154,9 @@ def write_figure(stem: str | Path, files: dict[Path, bytes], sources: Sequence[s
     with it (:func:`open_figures`), and if
     another process holds the folder (a folder this process did not open is locked for the write,
     waiting up to :data:`PAIR_WAIT`). As for a result, the old sidecar goes first, so that a
-    sidecar never describes files it was not written with."""
+    sidecar never describes files it was not written with, and files that are already there byte
+    for byte, drawn from the same sources at the same scale, keep their first sidecar with a
+    re-creation note beside it (:func:`_figure_holds`)."""
     records = source_records(sources)
     mine = figure_scale(records)
     folder = Path(stem).parent
@@ -164,19 +167,34 @@ def write_figure(stem: str | Path, files: dict[Path, bytes], sources: Sequence[s
         if scale_rank(theirs) > scale_rank(mine) and not (
                 overwrite or _figures_held.get(folder.resolve())):
             _refuse_larger([(next(iter(files)).name, theirs)], mine, param, folder, "figures")
-        figure_sidecar(stem).unlink(missing_ok=True)
+        prov = {"command": records[0]["command"] if records else None, "scale": mine,
+                "figures": {dest.name: hashlib.sha256(data).hexdigest()
+                            for dest, data in files.items()},
+                "sources": records, **run_record(), **(extra or {})}
+        side = figure_sidecar(stem)
+        if _figure_holds(side, files, prov):
+            write_json(_recreation_path(side), {"recreates": side.name, **prov})
+            return list(files)
+        side.unlink(missing_ok=True)
+        for note in recreation_paths(side):  # notes of the sidecar just removed
+            note.unlink()
         for dest, data in files.items():
             write_bytes(dest, data)
-        write_json(figure_sidecar(stem), {
-            "command": records[0]["command"] if records else None,
-            "scale": mine,
-            "figures": {dest.name: hashlib.sha256(data).hexdigest()
-                        for dest, data in files.items()},
-            "sources": records,
-            **run_record(),
-            **(extra or {}),
-        })
+        write_json(side, prov)
     return list(files)
+
+
+def _figure_holds(side: Path, files: dict[Path, bytes], prov: dict[str, Any]) -> bool:
+    """Whether the figure whose sidecar is ``side`` is already ``files``, drawn from the same
+    sources at the same scale as ``prov`` records: a figure drawn again byte for byte keeps its
+    first sidecar, as a result does (:func:`write_result`)."""
+    try:
+        theirs = json.loads(side.read_text())
+        same_files = all(dest.read_bytes() == data for dest, data in files.items())
+    except (OSError, ValueError):
+        return False
+    return same_files and isinstance(theirs, dict) and all(
+        theirs.get(key) == prov[key] for key in ("figures", "sources", "scale"))
 
 
 def scale_rank(scale: Any) -> int:
@@ -346,15 +364,21 @@ RECREATION = "{stem}.recreated-{time}.json"
 (UTC), when the run that made the CSV again wrote it."""
 
 
-def _recreation_path(result: Path) -> Path:
+def _stem(path: Path) -> str:
+    """A result's or a figure's stem, from its CSV or its sidecar."""
+    return path.name.removesuffix(".provenance.json").removesuffix(".csv")
+
+
+def _recreation_path(path: Path) -> Path:
     stamp = time.strftime("%Y-%m-%dT%H%M%SZ", time.gmtime())
-    return result.with_name(RECREATION.format(stem=result.stem, time=stamp))
+    return path.with_name(RECREATION.format(stem=_stem(path), time=stamp))
 
 
-def recreation_paths(result: str | Path) -> list[Path]:
-    """The re-creation notes of ``result``'s sidecar, oldest first."""
-    result = Path(result)
-    return sorted(result.parent.glob(RECREATION.format(stem=result.stem, time="*")))
+def recreation_paths(path: str | Path) -> list[Path]:
+    """The re-creation notes of the sidecar of ``path`` (a result's CSV, or a figure's
+    sidecar), oldest first."""
+    path = Path(path)
+    return sorted(path.parent.glob(RECREATION.format(stem=_stem(path), time="*")))
 
 
 def read_result(result: str | Path) -> pd.DataFrame:
