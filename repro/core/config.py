@@ -174,13 +174,14 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
     for alias, name in getattr(cls, "ALIASES", {}).items():
         old.setdefault(name, []).append(flag(alias))
     own = defaults or {}
+    declared = {f.name: f.default for f in dataclasses.fields(cls)}
     for name in fields or settings(cls):
         kind, optional, sequence = _field_type(cls, name)
         text = field_help(cls, name)
         if name in own:
             text += f" (default here: {_shown(own[name])})"
-        elif show_defaults and _defaults(cls)[name] is not dataclasses.MISSING:
-            text += f" (default: {_default_text(cls, name, _defaults(cls)[name])})"
+        elif show_defaults and declared[name] is not dataclasses.MISSING:
+            text += f" (default: {_default_text(cls, name, declared[name])})"
         if old.get(name):
             text += f" (old spelling: {', '.join(old[name])})"
         names = (flag(name), *old.get(name, ()))
@@ -198,10 +199,6 @@ def add_config_arguments(parser: Any, cls: type, fields: tuple[str, ...] | None 
         action.setting = (cls, name)  # whose value a scale sets (scale_departures)
         if name in own:
             action.own_default = own[name]  # this command's value instead of any scale's
-
-
-def _defaults(cls: type) -> dict[str, Any]:
-    return {f.name: f.default for f in dataclasses.fields(cls)}
 
 
 def _shown(value: Any) -> str:

@@ -173,7 +173,7 @@ def write_figure(stem: str | Path, files: dict[Path, bytes], sources: Sequence[s
                 "sources": records, **run_record(), **(extra or {})}
         side = figure_sidecar(stem)
         if _figure_holds(side, files, prov):
-            write_json(_recreation_path(side), {"recreates": side.name, **prov})
+            _note_recreation(side, prov)
             return list(files)
         side.unlink(missing_ok=True)
         for note in recreation_paths(side):  # notes of the sidecar just removed
@@ -338,7 +338,7 @@ def write_result(dest: str | Path, frame: pd.DataFrame, prov: dict[str, Any], *,
         if scale_rank(theirs) > scale_rank(mine) and not (overwrite or _held.get(folder.resolve())):
             _refuse_larger([(dest.name, theirs)], mine, "--results-dir", folder)
         if theirs == mine and _holds(dest, data):
-            write_json(_recreation_path(dest), {"recreates": sidecar_path(dest).name, **prov})
+            _note_recreation(sidecar_path(dest), prov)
             return dest
         sidecar_path(dest).unlink(missing_ok=True)
         for note in correction_paths(dest) + recreation_paths(dest):  # of the sidecar removed
@@ -369,9 +369,12 @@ def _stem(path: Path) -> str:
     return path.name.removesuffix(".provenance.json").removesuffix(".csv")
 
 
-def _recreation_path(path: Path) -> Path:
+def _note_recreation(side: Path, prov: dict[str, Any]) -> None:
+    """Record, beside the sidecar ``side``, the run ``prov`` that made its files again byte for
+    byte: a re-creation note named for this moment (:data:`RECREATION`)."""
     stamp = time.strftime("%Y-%m-%dT%H%M%SZ", time.gmtime())
-    return path.with_name(RECREATION.format(stem=_stem(path), time=stamp))
+    note = side.with_name(RECREATION.format(stem=_stem(side), time=stamp))
+    write_json(note, {"recreates": side.name, **prov})
 
 
 def recreation_paths(path: str | Path) -> list[Path]:

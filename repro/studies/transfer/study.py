@@ -113,8 +113,8 @@ class TransferConfig(Validated):
         self.check(self.n_boot >= 1, "n_boot", "an integer >= 1")
         short = [q.split("_")[1] for q in QUIRKS]
         self.check(set(self.quirks_off) <= set(short), "quirks_off", "one of " + ", ".join(short))
-        self.check(set(self.only) <= set(self.simulators(every=True)), "only",
-                   "one of " + ", ".join(self.simulators(every=True)))
+        labels = list(self.simulators(every=True))
+        self.check(set(self.only) <= set(labels), "only", "one of " + ", ".join(labels))
 
     @property
     def pool(self) -> bool:
