@@ -1,8 +1,11 @@
 """``python -m repro <command>``: the one entry point; Makefile targets are thin wrappers over it.
 
-Each command lives in its own module, which defines ``add_arguments(parser)`` and ``run``: a
-driver (a command with ``--scale``) is called as ``run(args, folders)``, its folders resolved here
-once (:class:`~repro.studies.kit.options.Folders`), any other command as ``run(args)``.
+Each command lives in its own module, which defines ``add_arguments(parser)``, ``configure(args)``
+and ``run``: the parsed options are read once, by ``configure``, into the command's frozen settings
+(a driver's: a :class:`~repro.studies.kit.options.Command` of its study's config), and a driver (a
+command with ``--scale``) is called as ``run(settings, folders)``, its folders resolved here once
+(:class:`~repro.studies.kit.options.Folders`), any other command as ``run(settings)``. Nothing below
+``configure`` sees the parsed options.
 Only the module of the command being run is imported, and the command modules import torch,
 matplotlib and scipy's heavier parts inside the functions that compute with them, so a bad flag or
 value is refused in well under a second of CPU time (tests/test_cli_startup.py checks that torch
@@ -284,7 +287,8 @@ def main(argv: list[str] | None = None) -> int:
                 check_names(getattr(args, dest), param)
         folders = Folders.of(args)  # a driver's, the one place its folders are read
         note_scale_departures(module, parser, args)
-        return int((module.run(args) if folders is None else module.run(args, folders)) or 0)
+        config = module.configure(args)  # the module's settings: nothing below here reads args
+        return int((module.run(config) if folders is None else module.run(config, folders)) or 0)
     except UsageError as err:
         if err.param in keys:  # named as given: an old spelling, or a key of the --config file
             err = UsageError(keys[err.param], err.allowed, err.got)

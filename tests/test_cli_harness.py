@@ -275,11 +275,12 @@ def test_sweep_workers_die_with_their_driver(tmp_path):
     import time
 
     code = ("import sys; from pathlib import Path; from repro.envs import toy\n"
+            "from repro.studies.kit.options import Workers\n"
             "from repro.studies.kit.sweep import TrainJob, run_sweep\n"
             "from repro.learn.config import train_config\n"
             "jobs = [TrainJob(f's{s}', train_config('quick', 'toy', epochs=100000, "
             "batch_episodes=50, seed=s), toy.ToyConfig()) for s in (0, 1)]\n"
-            "run_sweep(jobs, Path(sys.argv[1]), n_jobs=2)\n")
+            "run_sweep(jobs, Path(sys.argv[1]), Workers(n_jobs=2))\n")
     driver = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], cwd=ROOT)
 
     def children() -> list[int]:

@@ -161,3 +161,44 @@ def test_no_module_imports_a_commands_module():
                       for target in targets if target in commands
                       and module.startswith("repro.studies."))
     assert borrowed == []
+
+
+PARSED_OPTIONS_READERS = {
+    "add_arguments", "extend_arguments", "configure", "config_from_args", "study_config",
+    "behaviour_config", "learner_overrides", "given_fields", "check_panel_options", "of",
+    "scale_departures", "note_scale_departures", "check_sizes", "parse_arguments", "main",
+    "spelled_as_given",
+}
+"""The functions that may read a command's parsed options: the command line's own, and each
+command's ``configure`` with the helpers it calls to make its settings."""
+
+
+def _takes_parsed_options(fn: ast.FunctionDef) -> bool:
+    params = [*fn.args.posonlyargs, *fn.args.args, *fn.args.kwonlyargs]
+    return any(p.arg == "args" or "Namespace" in ast.unparse(p.annotation or ast.Constant(""))
+               for p in params)
+
+
+def test_nothing_below_configure_reads_the_parsed_options():
+    """The parsed options are read once, by a command's ``configure``, into its frozen settings;
+    ``run`` and everything it calls take those (and the folders), never the Namespace."""
+    readers = []
+    for path in sorted(ROOT.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef) and _takes_parsed_options(node):
+                readers.append((module_name(path), node.name))
+    assert readers, "the check found no reader at all: it would pass whatever the code did"
+    assert [r for r in readers if r[1] not in PARSED_OPTIONS_READERS] == []
+
+
+def test_every_command_reads_its_options_in_configure():
+    import importlib
+    import inspect
+
+    from repro.cli import COMMANDS
+
+    for name, (module_path, _) in COMMANDS.items():
+        module = importlib.import_module(module_path)
+        assert callable(getattr(module, "configure", None)), name
+        first = next(iter(inspect.signature(module.run).parameters))
+        assert first != "args", f"{name}: run reads the parsed options"

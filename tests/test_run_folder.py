@@ -28,6 +28,7 @@ from repro.runs.run_folder import TIMING_COLUMNS
 from repro.runs import kernels
 from repro.runs.files import atomic_path
 from repro.runs.run_folder import CHECKPOINT, LOCK, PROGRESS, writer_lock
+from repro.studies.kit.options import Workers
 from repro.studies.kit.sweep import TrainJob, run_sweep
 from tests.conftest import tree_snapshot
 
@@ -171,12 +172,12 @@ def test_a_sweep_killed_at_any_write_resumes_to_the_uninterrupted_runs(tmp_path,
                                                                         when):
     jobs = [TrainJob(f"seed{s}", train_config("quick", "toy", epochs=3, batch_episodes=6, seed=s),
                      toy.ToyConfig()) for s in (0, 1)]
-    run_sweep(jobs, tmp_path / "whole", n_jobs=1)
+    run_sweep(jobs, tmp_path / "whole", Workers(n_jobs=1))
     with monkeypatch.context() as m:
         kill_at(m, when, "torn")
         with pytest.raises(Killed):
-            run_sweep(jobs, tmp_path / "killed", n_jobs=1)
-    run_sweep(jobs, tmp_path / "killed", n_jobs=1)
+            run_sweep(jobs, tmp_path / "killed", Workers(n_jobs=1))
+    run_sweep(jobs, tmp_path / "killed", Workers(n_jobs=1))
     for job in jobs:
         assert files(tmp_path / "killed" / job.name) == files(tmp_path / "whole" / job.name)
 

@@ -248,16 +248,16 @@ def parsed(argv: list[str]) -> argparse.Namespace:
     seen = {}
     module = importlib.import_module(COMMANDS[ALIASES.get(argv[0], argv[0])][0])
 
-    def grab(args, folders=None):
+    def grab(args):
         seen["args"] = args
-        return 0
+        return args
 
-    original = module.run
-    module.run = grab
+    originals = module.configure, module.run
+    module.configure, module.run = grab, lambda *_: 0
     try:
         assert main(argv) == 0
     finally:
-        module.run = original
+        module.configure, module.run = originals
     return seen["args"]
 
 
@@ -266,13 +266,15 @@ def test_flags_override_the_file_and_old_keys_read_as_new(tmp_path):
     path.write_text('env = "wildfire"\nepochs = 3\nquirk_q3 = false\nobs_norm = true\n'
                     'hidden = [8, 8]\ndt = 0.5\nmax_decisions = "none"\n')
     args = parsed(["train", "--config", str(path), "--epochs", "5", "--quirk-q3-unclamped-health"])
-    cfg, _, env_cfg = train.make_from_args(args)
+    run = train.configure(args)
+    cfg, env_cfg = run.train, run.env_config
     assert (cfg.epochs, cfg.normalize_obs, cfg.hidden) == (5, True, (8, 8))
     assert (env_cfg.quirk_q3_unclamped_health, env_cfg.dt, env_cfg.max_decisions) == (
         True, 0.5, None)
     # sections, as in a run's config.json, and flag spellings as keys
     path.write_text('[train]\nenv = "bus"\n"batch-episodes" = 7\n[env]\nno-b2 = true\n')
-    cfg, _, env_cfg = train.make_from_args(parsed(["train", "--config", str(path)]))
+    run = train.configure(parsed(["train", "--config", str(path), "--out", str(tmp_path / "r")]))
+    cfg, env_cfg = run.train, run.env_config
     assert (cfg.env, cfg.batch_episodes, env_cfg.b2_headway, env_cfg.b1_reward) == (
         "bus", 7, False, True)
 
@@ -347,9 +349,9 @@ def test_the_numba_record_of_a_config_is_its_fields_and_nothing_hand_listed():
 ])
 def test_a_study_spells_a_quirk_as_train_does_and_takes_the_old_spellings(argv, tmp_path):
     """fig-transfer switches a quirk off by train's flag; the old ones give the same study."""
-    from repro.studies.transfer.transfer import config_from_args
+    from repro.studies.transfer.transfer import configure
 
-    cfg = config_from_args(parsed(["fig-transfer", "--scale", "smoke", *argv]))
+    cfg = configure(parsed(["fig-transfer", "--scale", "smoke", *argv])).study
     assert cfg.quirks_off == ("q3", "q5") and cfg.name == "transfer_no_q3_no_q5"
     sim = cfg.test_simulator()
     assert not (sim.quirk_q3_unclamped_health or sim.quirk_q5_discount_from_action_start)

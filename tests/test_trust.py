@@ -32,6 +32,7 @@ from repro.runs.results import (CSV_HASH, RESULTS_LOCK, csv_bytes, read_provenan
 from repro.runs.run_folder import (CHECKPOINT, load_checkpoint, save_checkpoint, state_problem,
                                    writer_lock)
 from repro.studies.kit import sweep
+from repro.studies.kit.options import Workers
 from tests.conftest import ROOT, tree_snapshot, write_result_csv
 
 
@@ -134,7 +135,7 @@ def test_a_refusal_pickles_as_itself():
 def test_a_refusal_in_a_worker_process_reaches_the_caller_intact():
     with pytest.raises(UsageError) as caught:
         sweep.map_tasks(require, [(True, "--a", "b"), (False, "--runs-dir", "free", "/r")],
-                        n_jobs=2)
+                        Workers(n_jobs=2))
     assert str(caught.value) == "--runs-dir: must be free, got '/r'"
 
 

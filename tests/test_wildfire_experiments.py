@@ -18,6 +18,7 @@ from repro.envs.wildfire.policies import (FLOWCHART_HOLD_ALONE, FLOWCHART_HOLD_S
                                           FLOWCHART_TARGET, FlowchartPolicy)
 from repro.runs.run_folder import TIMING_COLUMNS
 from repro.paper import TRANSFER_ADR
+from repro.studies.kit.options import Workers
 from repro.studies.kit.sweep import run_sweep
 from repro.studies.transfer.study import TransferConfig, evaluate_policies, make_jobs
 from repro.studies.wildfire.study import BehaviourConfig, behaviour_config, frequencies
@@ -25,6 +26,11 @@ from repro.studies.wildfire.study import evaluate
 from tests.conftest import tree_snapshot, write_result_csv
 
 pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
+
+
+def on_dask_of(cluster) -> Workers:
+    """The workers of a test's Dask cluster."""
+    return Workers(scheduler=cluster.scheduler_address)
 
 
 def test_simulators_are_the_papers():
@@ -81,14 +87,13 @@ def test_sweep_on_a_local_dask_cluster_matches_joblib_and_skips_finished_runs(tm
                                   protocol="tcp://", host="127.0.0.1",
                                   dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
-        on_dask = run_sweep(jobs, tmp_path / "dask", scheduler=cluster.scheduler_address)
+        on_dask = run_sweep(jobs, tmp_path / "dask", on_dask_of(cluster))
         before = tree_snapshot(tmp_path / "dask")
-        run_sweep(jobs, tmp_path / "dask", scheduler=cluster.scheduler_address)
+        run_sweep(jobs, tmp_path / "dask", on_dask_of(cluster))
         assert tree_snapshot(tmp_path / "dask") == before  # finished runs are skipped
-        tested_on_dask = evaluate_policies(cfg, labelled, on_dask, 0,
-                                           scheduler=cluster.scheduler_address)
-    on_joblib = run_sweep(jobs, tmp_path / "joblib", n_jobs=1)
-    a, b, c = (evaluate_policies(cfg, labelled, f, 0, n_jobs=n).drop(columns="run")
+        tested_on_dask = evaluate_policies(cfg, labelled, on_dask, 0, on_dask_of(cluster))
+    on_joblib = run_sweep(jobs, tmp_path / "joblib", Workers(n_jobs=1))
+    a, b, c = (evaluate_policies(cfg, labelled, f, 0, Workers(n_jobs=n)).drop(columns="run")
                for f, n in ((on_dask, 1), (on_joblib, 1), (on_joblib, 2)))
     pd.testing.assert_frame_equal(a, b)
     pd.testing.assert_frame_equal(a, c)  # tested on two worker processes
@@ -118,9 +123,9 @@ def test_a_dask_sweep_needs_no_shared_disk(tmp_path, monkeypatch):
     _, labelled = _jobs(("ED", "FS-1"))
     jobs = [job for _, job in labelled]
     monkeypatch.chdir(tmp_path)
-    run_sweep(jobs, Path("joblib"), n_jobs=1)
+    run_sweep(jobs, Path("joblib"), Workers(n_jobs=1))
     begun = dataclasses.replace(jobs[0], train=dataclasses.replace(jobs[0].train, epochs=1))
-    run_sweep([begun], Path("dask"), n_jobs=1)  # one run begun on the client's disk...
+    run_sweep([begun], Path("dask"), Workers(n_jobs=1))  # one run begun on the client's disk...
     progress = Path("dask") / begun.name / "progress.csv"
     progress.write_text(progress.read_text() + "1,torn")  # ...and stopped in a write
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
@@ -129,7 +134,7 @@ def test_a_dask_sweep_needs_no_shared_disk(tmp_path, monkeypatch):
             distributed.Client(cluster) as client:
         client.register_plugin(WorkOnItsOwnDisk(str(tmp_path / "worker-disk")))
         with distributed.get_task_stream(client) as tasks:
-            run_sweep(jobs, Path("dask"), scheduler=cluster.scheduler_address)
+            run_sweep(jobs, Path("dask"), on_dask_of(cluster))
     # one task per epoch, so a worker that dies loses at most the epoch in progress: the begun
     # run's second epoch, the other run's two
     assert sum("run_shipped_job" in t["key"] for t in tasks.data) == 3
@@ -220,7 +225,7 @@ def test_a_dask_sweep_whose_workers_go_away_stops_after_the_silence(tmp_path, mo
         monkeypatch.setattr(sweep, "is_finished", then_leave)
         t0 = time.perf_counter()
         with pytest.raises(UsageError, match="--scheduler") as caught:
-            run_sweep(jobs, tmp_path / "runs", scheduler=cluster.scheduler_address)
+            run_sweep(jobs, tmp_path / "runs", on_dask_of(cluster))
         assert 3 <= time.perf_counter() - t0 < 60
     assert "no task finished within 3 s" in str(caught.value)
     assert epochs_done(tmp_path / "runs" / jobs[0].name) == 1
@@ -241,7 +246,7 @@ def test_map_tasks_on_dask_keeps_the_order_and_stops_when_the_workers_go_away(mo
     distributed = pytest.importorskip("dask.distributed")
     with _cluster(distributed) as cluster:
         tasks = [(0.3 - 0.1 * i, i) for i in range(3)]  # the last submitted finishes first
-        assert sweep.map_tasks(_sleep_then, tasks, scheduler=cluster.scheduler_address) == [0, 1, 2]
+        assert sweep.map_tasks(_sleep_then, tasks, on_dask_of(cluster)) == [0, 1, 2]
         monkeypatch.setattr(sweep, "CLUSTER_SILENCE", 3.0)
         cluster.scale(0)
         deadline = time.monotonic() + 20
@@ -249,7 +254,7 @@ def test_map_tasks_on_dask_keeps_the_order_and_stops_when_the_workers_go_away(mo
             time.sleep(0.05)
         t0 = time.perf_counter()
         with pytest.raises(UsageError, match="--scheduler") as caught:
-            sweep.map_tasks(_sleep_then, tasks, scheduler=cluster.scheduler_address)
+            sweep.map_tasks(_sleep_then, tasks, on_dask_of(cluster))
         assert 3 <= time.perf_counter() - t0 < 60
     assert "no task finished within 3 s" in str(caught.value)
 
@@ -271,10 +276,10 @@ def test_a_worker_that_dies_is_one_line_on_joblib_and_on_dask(monkeypatch, capsy
 
     with pytest.raises(WorkerDied, match="joblib: SIGKILL: most often the system out of memory "
                        r"\(fewer --n-jobs") as caught:
-        sweep.map_tasks(_die, [(signal.SIGKILL,), (signal.SIGKILL,)], n_jobs=2)
+        sweep.map_tasks(_die, [(signal.SIGKILL,), (signal.SIGKILL,)], Workers(n_jobs=2))
     assert "\n" not in str(caught.value) and "runs these tasks again" in str(caught.value)
     with pytest.raises(WorkerDied, match="joblib: SIGSEGV: a crash in compiled code") as crashed:
-        sweep.map_tasks(_die, [(signal.SIGSEGV,), (signal.SIGSEGV,)], n_jobs=2)
+        sweep.map_tasks(_die, [(signal.SIGSEGV,), (signal.SIGSEGV,)], Workers(n_jobs=2))
     assert "out of memory" not in str(crashed.value) and "\n" not in str(crashed.value)
     distributed = pytest.importorskip("dask.distributed")
     import dask
@@ -284,7 +289,7 @@ def test_a_worker_that_dies_is_one_line_on_joblib_and_on_dask(monkeypatch, capsy
                                      protocol="tcp://", host="127.0.0.1",
                                      dashboard_address=None) as cluster:
         with pytest.raises(WorkerDied, match="Dask: every worker that ran one task died") as caught:
-            sweep.map_tasks(_die, [(signal.SIGKILL,)], scheduler=cluster.scheduler_address)
+            sweep.map_tasks(_die, [(signal.SIGKILL,)], on_dask_of(cluster))
     assert "\n" not in str(caught.value)
 
     def dies(*args, **kwargs):
@@ -438,7 +443,7 @@ def test_fs1_trained_with_t_health_2_9999_transfers_worse_than_with_3(tmp_path, 
     cfg = TransferConfig(seeds=1, epochs=30, batch_episodes=60, test_episodes=300,
                          log10_dts=(0.0,))
     labelled = [(lab, job) for lab, job in make_jobs(cfg, "smoke", 0) if lab.startswith("FS-1")]
-    folders = run_sweep([job for _, job in labelled], tmp_path, n_jobs=1)
+    folders = run_sweep([job for _, job in labelled], tmp_path, Workers(n_jobs=1))
     adr = evaluate_policies(cfg, labelled, folders, 0).set_index("simulator").adr_ed
     assert adr["FS-1 (T_health=2.9999)"] < adr["FS-1"] - 0.3, adr.to_dict()
 

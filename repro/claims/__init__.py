@@ -496,7 +496,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    f"check, <results-dir>/{SMOKE_OUT}, never {PAPER_CLAIMS})")
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class ClaimsCommand:
+    """What ``claims`` renders from, and where."""
+
+    results: Path
+    """The folder of result files the checks read (``--results-dir``)."""
+    interval: str
+    """The 95% intervals that decide the claims that compare intervals (``--interval``)."""
+    out: str | None
+    """The rendered table, a Markdown file (``--out``; None: by what the results are)."""
+
+
+def configure(args: argparse.Namespace) -> ClaimsCommand:
     require(args.results_dir.strip() != "", "--results-dir",
             "a folder of result files (not an empty path)", args.results_dir)
     require(args.interval in INTERVALS, "--interval", " or ".join(INTERVALS), args.interval)
@@ -509,10 +521,15 @@ def run(args: argparse.Namespace) -> int:
     # a Markdown name: never a result's CSV or sidecar
     require(args.out is None or args.out.endswith(".md"), "--out",
             "a Markdown file name ending in .md (never a result CSV or sidecar)", args.out)
-    evaluated = evaluate_all(results, args.interval)
+    return ClaimsCommand(results=results, interval=args.interval, out=args.out)
+
+
+def run(cmd: ClaimsCommand) -> int:
+    results = cmd.results
+    evaluated = evaluate_all(results, cmd.interval)
     paper = is_paper_set(results, evaluated)
     default = PAPER_CLAIMS if paper else str(results / SMOKE_OUT)
-    out = check_names(default if args.out is None else args.out, "--out")
+    out = check_names(default if cmd.out is None else cmd.out, "--out")
     missing = missing_claims(evaluated)
     why = (f"results of the {' and '.join(sorted(result_scales(results)))} scale"
            if not is_paper_scale(results) else
@@ -522,7 +539,7 @@ def run(args: argparse.Namespace) -> int:
             str(out))
     require(not out.is_dir(), "--out", "a file, not a folder", str(out))
     check_writable_dir(out.parent, "--out")
-    text = render(results, args.interval, evaluated)
+    text = render(results, cmd.interval, evaluated)
     write_text(out, text)
     if not paper:  # the smoke check's table, for the end of `make reproduce`
         print(text.split("\n## Details")[0].rstrip())

@@ -46,9 +46,8 @@ from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
 from repro.runs.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.studies.bus import sweeps as bus_sweeps
-from repro.studies.kit.options import Folders, add_replot, replot_pair
-from repro.studies.kit.sweep import (TrainJob, add_study_arguments, check_study_arguments, run_dir,
-                                     run_sweep)
+from repro.studies.kit.options import Command, Folders, add_replot, replot_pair
+from repro.studies.kit.sweep import TrainJob, add_study_arguments, run_dir, run_sweep
 from repro.studies.transfer import study as transfer
 
 REFERENCE = "m-gae"
@@ -121,15 +120,16 @@ def estimator_jobs(cfg: MgaeStudyConfig, base: list[TrainJob]) -> list[tuple[str
             if e == REFERENCE or not is_m_gae(e, job.train.lam)]
 
 
-def bus_runs(cfg: MgaeStudyConfig, folders: Folders, args: argparse.Namespace) -> pd.DataFrame:
+def bus_runs(cmd: Command[MgaeStudyConfig], folders: Folders) -> pd.DataFrame:
     """Train (or resume) the bus runs; one row per run with its final return."""
-    sweep = cfg.bus(args.scale)
+    cfg = cmd.study
+    sweep = cfg.bus(folders.scale)
     bus = BusConfig()
     root = folders.run_root(bus_sweeps.runs_folder(bus))
-    base = [j for j in bus_sweeps.jobs(sweep, "lambda", args.seed, bus)
+    base = [j for j in bus_sweeps.jobs(sweep, "lambda", cmd.seed, bus)
             if j.train.lam == sweep.batch_lambda]  # the paper's bus lambda, 2
     labelled = estimator_jobs(cfg, base)
-    run_sweep([job for _, job in labelled], root, n_jobs=args.n_jobs, scheduler=args.scheduler)
+    run_sweep([job for _, job in labelled], root, cmd.workers)
     rows = []
     for estimator, job in labelled:
         final = bus_sweeps.final_returns(sweep, bus_sweeps.curves(sweep, [job], root))
@@ -140,13 +140,12 @@ def bus_runs(cfg: MgaeStudyConfig, folders: Folders, args: argparse.Namespace) -
     return pd.DataFrame(rows)
 
 
-def wildfire_runs(cfg: MgaeStudyConfig, folders: Folders,
-                  args: argparse.Namespace) -> pd.DataFrame:
+def wildfire_runs(cmd: Command[MgaeStudyConfig], folders: Folders) -> pd.DataFrame:
     """Train (or resume) the wildfire runs and test them on ED; one row per run with its ADR."""
-    study = cfg.wildfire(args.scale)
-    base = [job for _, job in transfer.make_jobs(study, args.scale, args.seed)]
-    labelled = estimator_jobs(cfg, base)
-    tested, sweep = transfer.train_and_test(study, folders, args, labelled)
+    study = cmd.study.wildfire(folders.scale)
+    base = [job for _, job in transfer.make_jobs(study, folders.scale, cmd.seed)]
+    labelled = estimator_jobs(cmd.study, base)
+    tested, sweep = transfer.train_and_test(study, folders, labelled, cmd.seed, cmd.workers)
     return pd.DataFrame(dict(env="wildfire", estimator=tested.simulator,
                              lam=[job.train.lam for _, job in labelled],
                              seed=tested.train_seed, epochs=tested.epochs,
@@ -227,23 +226,27 @@ def replot(cfg: MgaeStudyConfig, folders: Folders) -> int:
         from_recorded(MgaeStudyConfig, prov["config"]["study"]), prov["scale"]))
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = for_scale(MgaeStudyConfig, args.scale, learner=args.learner,
-                    **given_fields(args, MgaeStudyConfig, ("seeds",)))
-    if args.replot:
+def configure(args: argparse.Namespace) -> Command[MgaeStudyConfig]:
+    return Command.of(args, for_scale(MgaeStudyConfig, args.scale, learner=args.learner,
+                                      **given_fields(args, MgaeStudyConfig, ("seeds",))))
+
+
+def run(cmd: Command[MgaeStudyConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         return replot(cfg, folders)
-    results, figures = check_study_arguments(args, folders)
+    results, figures = folders.open()
     t0 = time.perf_counter()
-    runs = pd.concat([bus_runs(cfg, folders, args), wildfire_runs(cfg, folders, args)],
+    runs = pd.concat([bus_runs(cmd, folders), wildfire_runs(cmd, folders)],
                      ignore_index=True)
-    summary = summarise(runs, cfg.n_boot, args.seed)
-    bus, wildfire = cfg.bus(args.scale), cfg.wildfire(args.scale)
+    summary = summarise(runs, cfg.n_boot, seed)
+    bus, wildfire = cfg.bus(scale), cfg.wildfire(scale)
     prov = provenance(dict(study=dataclasses.asdict(cfg), bus=dataclasses.asdict(bus),
                            wildfire=dataclasses.asdict(wildfire)),
-                      command="beyond-mgae", scale=args.scale, seed=args.seed,
+                      command="beyond-mgae", scale=scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0)
     sources = [write_result(results / f"{cfg.stem}.csv", runs, prov),
                write_result(results / f"{cfg.stem}_summary.csv", summary, prov)]
-    plot(runs, summary, figures / cfg.stem, title(cfg, args.scale), sources)
+    plot(runs, summary, figures / cfg.stem, title(cfg, scale), sources)
     print(summary.to_string(index=False))
     return 0

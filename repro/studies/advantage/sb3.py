@@ -30,7 +30,6 @@ import dataclasses
 import importlib
 import io
 import json
-import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,9 +47,8 @@ from repro.runs.files import write_bytes, write_json
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
 from repro.runs.stats import bootstrap_ci, ci_side, iqm, sem
-from repro.studies.kit.options import Folders, add_replot, read_for_replot, replot_figures
-from repro.studies.kit.sweep import (TrainJob, add_study_arguments, check_study_arguments,
-                                     map_tasks, run_sweep)
+from repro.studies.kit.options import Command, Folders, add_replot, read_for_replot, replot_figures
+from repro.studies.kit.sweep import TrainJob, add_study_arguments, map_tasks, run_sweep
 from repro.studies.wildfire.study import adr, evaluate
 
 ENVS = ("wildfire", "bus")
@@ -218,10 +216,11 @@ def sb3_task(env: str, method: str, seed: int, cfg: Sb3StudyConfig, test_env_see
     return {**row, **test_score(env, as_policy(model), cfg, test_env_seed)}, data
 
 
-def sb3_runs(cfg: Sb3StudyConfig, args: argparse.Namespace, root: Path) -> pd.DataFrame:
+def sb3_runs(cmd: Command[Sb3StudyConfig], root: Path) -> pd.DataFrame:
     """Train (or reuse) every SB3 run; one row per run with its test score."""
+    cfg, seed = cmd.study, cmd.seed
     wanted = [(env, method, s) for env in ENVS for method in METHODS if method.startswith("sb3")
-              for s in range(args.seed, args.seed + cfg.seeds)]
+              for s in range(seed, seed + cfg.seeds)]
     rows: dict[tuple, dict] = {}
     tasks = []
     for env, method, s in wanted:
@@ -233,15 +232,14 @@ def sb3_runs(cfg: Sb3StudyConfig, args: argparse.Namespace, root: Path) -> pd.Da
                                  str(folder))
             rows[(env, method, s)] = kept["row"]
             continue
-        tasks.append((env, method, s, cfg, test_env_seed(args.seed, env),
-                      policy_stream(args.seed, env, method, s)))
+        tasks.append((env, method, s, cfg, test_env_seed(seed, env),
+                      policy_stream(seed, env, method, s)))
     # a round of tasks at a time, each run's files written as its round ends: an interrupted
     # study loses at most the round in flight
-    size = args.n_jobs or os.cpu_count() or 1
+    size = cmd.workers.processes
     for start in range(0, len(tasks), size):
         chunk = tasks[start:start + size]
-        for task, (row, data) in zip(chunk, map_tasks(sb3_task, chunk, n_jobs=args.n_jobs,
-                                                        scheduler=args.scheduler)):
+        for task, (row, data) in zip(chunk, map_tasks(sb3_task, chunk, cmd.workers)):
             env, method, s = task[:3]
             folder = root / env / f"{method}-seed{s}"
             folder.mkdir(parents=True, exist_ok=True)
@@ -252,22 +250,23 @@ def sb3_runs(cfg: Sb3StudyConfig, args: argparse.Namespace, root: Path) -> pd.Da
                          for key in wanted])
 
 
-def trpo_runs(cfg: Sb3StudyConfig, args: argparse.Namespace, root: Path) -> pd.DataFrame:
+def trpo_runs(cmd: Command[Sb3StudyConfig], root: Path) -> pd.DataFrame:
     """Train (or resume) the PS-TRPO runs with the sweep machinery and test them."""
     from repro.runs.run_folder import CHECKPOINT
     from repro.learn.trained_policy import policy_from_checkpoint
 
+    cfg, seed = cmd.study, cmd.seed
     rows = []
     for env in ENVS:
         jobs = [TrainJob(f"ps-trpo-mgae-seed{s}",
                          train_config("quick", env, "authors", seed=s, epochs=cfg.updates,
                                       batch_decisions=cfg.batch_decisions, lam=lam_of(env)),
                          env_config(env))
-                for s in range(args.seed, args.seed + cfg.seeds)]
-        folders = run_sweep(jobs, root / env, n_jobs=args.n_jobs, scheduler=args.scheduler)
+                for s in range(seed, seed + cfg.seeds)]
+        folders = run_sweep(jobs, root / env, cmd.workers)
         for job, folder in zip(jobs, folders):
             progress = pd.read_csv(folder / "progress.csv")
-            stream = policy_stream(args.seed, env, "ps-trpo-mgae", job.train.seed)
+            stream = policy_stream(seed, env, "ps-trpo-mgae", job.train.seed)
             policy = policy_from_checkpoint(folder / CHECKPOINT, np.random.default_rng(stream))
             last = progress.average_discounted_return.iloc[-max(1, len(progress) // 10):]
             rows.append(dict(env=env, method="ps-trpo-mgae", lam=job.train.lam,
@@ -276,7 +275,7 @@ def trpo_runs(cfg: Sb3StudyConfig, args: argparse.Namespace, root: Path) -> pd.D
                              train_adr_last=float(last.mean()), gamma_d=float("nan"),
                              seconds=float(progress.seconds_sim.sum()
                                            + progress.seconds_update.sum()),
-                             **test_score(env, policy, cfg, test_env_seed(args.seed, env)),
+                             **test_score(env, policy, cfg, test_env_seed(seed, env)),
                              run=str(folder)))
     return pd.DataFrame(rows)
 
@@ -393,21 +392,25 @@ def replot(cfg: Sb3StudyConfig, folders: Folders) -> int:
     return 0
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = for_scale(Sb3StudyConfig, args.scale, **given_fields(
-        args, Sb3StudyConfig, ("seeds", "updates", "batch_decisions")))
-    if args.replot:
+def configure(args: argparse.Namespace) -> Command[Sb3StudyConfig]:
+    return Command.of(args, for_scale(Sb3StudyConfig, args.scale, **given_fields(
+        args, Sb3StudyConfig, ("seeds", "updates", "batch_decisions"))))
+
+
+def run(cmd: Command[Sb3StudyConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         return replot(cfg, folders)
-    results, figures = check_study_arguments(args, folders)
+    results, figures = folders.open()
     root = folders.run_root("beyond-sb3")
     t0 = time.perf_counter()
-    runs = pd.concat([sb3_runs(cfg, args, root), trpo_runs(cfg, args, root),
-                      heuristic_rows(cfg, args.seed)], ignore_index=True)[list(COLUMNS)]
-    summary = summarise(runs, cfg.n_boot, args.seed)
-    prov = provenance(dataclasses.asdict(cfg), command="beyond-sb3", scale=args.scale,
-                      seed=args.seed, wall_seconds=time.perf_counter() - t0)
+    runs = pd.concat([sb3_runs(cmd, root), trpo_runs(cmd, root),
+                      heuristic_rows(cfg, seed)], ignore_index=True)[list(COLUMNS)]
+    summary = summarise(runs, cfg.n_boot, seed)
+    prov = provenance(dataclasses.asdict(cfg), command="beyond-sb3", scale=scale,
+                      seed=seed, wall_seconds=time.perf_counter() - t0)
     sources = [write_result(results / "beyond_sb3.csv", runs, prov),
                write_result(results / "beyond_sb3_summary.csv", summary, prov)]
-    plot(runs, summary, figures / "beyond_sb3", title(cfg, args.scale), sources)
+    plot(runs, summary, figures / "beyond_sb3", title(cfg, scale), sources)
     print(summary.to_string(index=False))
     return 0

@@ -17,7 +17,7 @@ from repro.envs.bus.policies import no_holding
 from repro.learn.trained_policy import trained_env_config
 from repro.studies.bench import common as bench_common
 from repro.studies.bench.common import BenchConfig
-from repro.studies.kit.options import Folders
+from repro.studies.kit.options import Command, Folders
 
 VARIANTS = bench_common.VARIANTS
 
@@ -41,5 +41,9 @@ def measure(cfg: BusBenchConfig, seed: int, trained: dict[str, Any] | None = Non
                                 lambda env, rng: no_holding, cfg, seed, trained)
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    return bench_common.run(args, folders, "bench-bus", BusBenchConfig, measure)
+def configure(args: argparse.Namespace) -> Command:
+    return bench_common.configure(args, BusBenchConfig)
+
+
+def run(cmd: Command, folders: Folders) -> int:
+    return bench_common.run(cmd, folders, "bench-bus", measure)

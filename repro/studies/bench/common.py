@@ -58,7 +58,7 @@ from repro.learn.trained_policy import check_fits, load_trained_run, policy_from
 from repro.runs.memory import require_memory
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.kit.options import Folders, add_common
+from repro.studies.kit.options import Command, Folders, add_common
 
 
 CheapPolicy = Callable[[BatchEnv, np.random.Generator], Policy]
@@ -218,23 +218,31 @@ def add_arguments(p: argparse.ArgumentParser, config: type[BenchConfig]) -> None
                                         "instead of a fresh network, on that run's environment")
 
 
-def run(args: argparse.Namespace, folders: Folders, command: str, config: type[BenchConfig],
+def configure(args: argparse.Namespace,
+              config: type[BenchConfig]) -> Command[tuple[BenchConfig, str | None]]:
+    """An engine benchmark's sizes (a ``config`` at the scale) and the training run whose
+    checkpoint's network it times (``--checkpoint``; None: the engine's own network)."""
+    return Command.of(args, (for_scale(config, args.scale, **given_fields(args, config)),
+                             args.checkpoint))
+
+
+def run(cmd: Command[tuple[BenchConfig, str | None]], folders: Folders, command: str,
         measure_env: Callable[[BenchConfig, int, dict[str, Any] | None], pd.DataFrame]) -> int:
-    """The body of a benchmark command: sizes, checks, timing, the CSV ``<command>.csv``
+    """The body of a benchmark command: checks, timing, the CSV ``<command>.csv``
     (``<command>_checkpoint.csv`` with ``--checkpoint``)."""
-    cfg = for_scale(config, args.scale, **given_fields(args, config))
-    trained = (None if args.checkpoint is None
-               else load_trained_run(args.checkpoint, command.removeprefix("bench-")))
+    (cfg, checkpoint), seed = cmd.study, cmd.seed
+    trained = (None if checkpoint is None
+               else load_trained_run(checkpoint, command.removeprefix("bench-")))
     results = folders.open_results()
     load_before = os.getloadavg()[0]
     t0 = time.perf_counter()
-    frame = measure_env(cfg, args.seed, trained)
-    prov = provenance(cfg, command=command, scale=args.scale, seed=args.seed,
+    frame = measure_env(cfg, seed, trained)
+    prov = provenance(cfg, command=command, scale=folders.scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra={"note": "timings vary between runs and machines; one thread",
                              "load_average_1min": [load_before, os.getloadavg()[0]],
-                             "checkpoint": args.checkpoint})
-    stem = command.replace("-", "_") + ("" if args.checkpoint is None else "_checkpoint")
+                             "checkpoint": checkpoint})
+    stem = command.replace("-", "_") + ("" if checkpoint is None else "_checkpoint")
     write_result(results / f"{stem}.csv", frame, prov)
     print(frame.to_string(index=False))
     return 0

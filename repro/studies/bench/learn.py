@@ -24,14 +24,14 @@ import pandas as pd
 
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields, to_dict
 from repro.envs import BUILT_IN, env_package
-from repro.learn.config import DEFAULT_LEARNER, LEARNERS, learner_stem, train_config
+from repro.learn.config import DEFAULT_LEARNER, LEARNERS, TrainConfig, learner_stem, train_config
 from repro.learn.m_gae import m_gae_paths
 from repro.learn.process import configure_process
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.runs.run_folder import TIMING_COLUMNS, config_dict
 from repro.studies.kit.environments import add_chosen_env_arguments
-from repro.studies.kit.options import Folders, add_common
+from repro.studies.kit.options import Command, Folders, add_common
 
 if TYPE_CHECKING:
     from repro.learn.trainer import Trainer
@@ -167,12 +167,35 @@ def extend_arguments(p: argparse.ArgumentParser, argv: list[str]) -> None:
     add_chosen_env_arguments(p, argv if "--env" in argv else [*argv, "--env", "toy"])
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
+@dataclass(frozen=True)
+class LearnBench:
+    """What ``bench-learn`` times: its sizes, and the training run it times the epochs of."""
+
+    bench: BenchConfig
+    """The sizes (epochs, episodes per epoch, repeats of each piece)."""
+    env: str
+    """The environment's name (``--env``)."""
+    learner: str
+    """The named learner whose network and Fisher products are timed (``--learner``)."""
+    train: TrainConfig
+    """The training run: the named learner's (``--learner``), its batch counted in episodes."""
+    env_config: Any
+    """The environment's config, as its options give it."""
+
+
+def configure(args: argparse.Namespace) -> Command[LearnBench]:
     cfg = for_scale(BenchConfig, args.scale, **given_fields(args, BenchConfig))
-    pkg = env_package(args.env)
     train_cfg = train_config("quick", args.env, args.learner, seed=args.seed, epochs=cfg.epochs,
                              batch_episodes=cfg.episodes)
-    env_cfg = pkg.config_from_args(args)
+    return Command.of(args, LearnBench(bench=cfg, env=args.env, learner=args.learner,
+                                       train=train_cfg,
+                                       env_config=env_package(args.env).config_from_args(args)))
+
+
+def run(cmd: Command[LearnBench], folders: Folders) -> int:
+    setup = cmd.study
+    cfg, train_cfg, env_cfg = setup.bench, setup.train, setup.env_config
+    pkg = env_package(setup.env)
     results = folders.open_results()
     configure_process()  # as in training
     from repro.learn.trainer import Trainer  # torch: imported once the options are checked
@@ -184,13 +207,14 @@ def run(args: argparse.Namespace, folders: Folders) -> int:
     pieces = epoch_pieces(run, cfg.repeats)
     wall = time.perf_counter() - t0
     table = frame[["epoch", "batch_episodes", "decisions", *TIMING_COLUMNS]].copy()
-    table.insert(0, "env", args.env)
+    table.insert(0, "env", setup.env)
     table["update_share"] = table.seconds_update / (table.seconds_sim + table.seconds_update)
-    pieces.insert(0, "env", args.env)
+    pieces.insert(0, "env", setup.env)
     prov = provenance({"bench": to_dict(cfg), "train": to_dict(train_cfg),
                        "env": config_dict(env_cfg)},
-                      command="bench-learn", scale=args.scale, seed=args.seed, wall_seconds=wall)
-    stem = learner_stem("bench_learn", args.learner)
+                      command="bench-learn", scale=folders.scale, seed=cmd.seed,
+                      wall_seconds=wall)
+    stem = learner_stem("bench_learn", setup.learner)
     write_result(results / f"{stem}.csv", table, prov)
     write_result(results / f"{stem}_pieces.csv", pieces, prov)
     print(table.to_string(index=False))

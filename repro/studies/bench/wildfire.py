@@ -19,7 +19,7 @@ from repro.envs.wildfire.policies import RandomPolicy
 from repro.learn.trained_policy import trained_env_config
 from repro.studies.bench import common as bench_common
 from repro.studies.bench.common import BenchConfig
-from repro.studies.kit.options import Folders
+from repro.studies.kit.options import Command, Folders
 
 VARIANTS = bench_common.VARIANTS
 
@@ -45,5 +45,9 @@ def measure(cfg: WildfireBenchConfig, seed: int,
         lambda env, rng: RandomPolicy(rng, n_observed=env_cfg.n_observed), cfg, seed, trained)
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    return bench_common.run(args, folders, "bench-wildfire", WildfireBenchConfig, measure)
+def configure(args: argparse.Namespace) -> Command:
+    return bench_common.configure(args, WildfireBenchConfig)
+
+
+def run(cmd: Command, folders: Folders) -> int:
+    return bench_common.run(cmd, folders, "bench-wildfire", measure)

@@ -21,8 +21,9 @@ import pandas as pd
 from repro.paper import BUS_BUSES_DRAWN
 from repro.runs.results import save_figure
 from repro.studies.bus import pictures
-from repro.studies.bus.pictures import add_policy_arguments, policy_grid, run_policy_figure
-from repro.studies.kit.options import Folders
+from repro.studies.bus.pictures import (PictureConfig, add_policy_arguments, policy_grid,
+                                        run_policy_figure)
+from repro.studies.kit.options import Command, Folders
 
 VARIANTS = pictures.VARIANTS
 """Options that choose the picture's panels, not their settings (read by the command line)."""
@@ -52,6 +53,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_policy_arguments(p)
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    return run_policy_figure(args, folders, command="fig-bus-arrivals", csv_name="bus_arrivals.csv",
+configure = pictures.configure
+
+
+def run(cmd: Command[PictureConfig], folders: Folders) -> int:
+    return run_policy_figure(cmd, folders, command="fig-bus-arrivals", csv_name="bus_arrivals.csv",
                              table_of=lambda arrivals: arrivals, plot_table=plot)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, ma
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, record_loads, time_to_regularity,
                                     time_to_uniform)
 from repro.learn.config import LEARNERS
-from repro.studies.bus.policies import GRU_PANELS, POLICIES, picture_arrivals, policy_from_args
+from repro.studies.bus.policies import GRU_PANELS, POLICIES, PolicySources, picture_arrivals
 
 
 def _finite_or_none(x: float) -> float | None:
@@ -73,7 +74,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_switch_arguments(p)
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class EvalConfig:
+    """What ``bus-eval`` evaluates, and how it prints it."""
+
+    policy: str
+    """The policy's name (``--policy``)."""
+    sources: PolicySources
+    """Where a trained or optimised policy comes from."""
+    results_dir: Path
+    """Where the optimised thresholds and the best trained run are read (``--results-dir``)."""
+    json: bool
+    """Print one JSON object (``--json``)."""
+    bus: BusConfig
+    """The corridor, its switches B1-B5 as given."""
+
+
+def configure(args: argparse.Namespace) -> EvalConfig:
+    """The settings of :func:`add_arguments`'s options; a UsageError for a bad policy name or an
+    option the policy does not use."""
     require(args.policy in POLICIES, "--policy", "one of " + ", ".join(POLICIES), args.policy)
     own_thresholds = args.policy == "thresholds" and args.thresholds is None
     best_mlp = args.policy == "mlp" and args.mlp_run is None
@@ -88,11 +107,16 @@ def run(args: argparse.Namespace) -> int:
         ("--results-dir", args.results_dir, own_thresholds or best_mlp,
          "with --policy thresholds without --thresholds, or mlp without --mlp-run (they read "
          "it)"))
-    cfg = config_from_args(args)
-    policy = policy_from_args(args.policy, args, cfg, Path(args.results_dir or RESULTS_DIR))
-    summary, _ = evaluate(policy, cfg)
-    summary["policy"] = args.policy
-    if args.json:
+    return EvalConfig(policy=args.policy, sources=PolicySources.of(args),
+                      results_dir=Path(args.results_dir or RESULTS_DIR), json=args.json,
+                      bus=config_from_args(args))
+
+
+def run(cfg: EvalConfig) -> int:
+    policy = cfg.sources.policy(cfg.policy, cfg.bus, cfg.results_dir)
+    summary, _ = evaluate(policy, cfg.bus)
+    summary["policy"] = cfg.policy
+    if cfg.json:
         print(json.dumps(summary))
     else:
         for key, val in summary.items():

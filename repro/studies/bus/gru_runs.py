@@ -28,7 +28,7 @@ from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.bus.policies import TrainedPolicy
 from repro.studies.bus.sweeps import runs_folder
-from repro.studies.kit.options import Folders
+from repro.studies.kit.options import Folders, Workers
 from repro.studies.kit.sweep import TrainJob, policy_stream, run_dir, run_sweep
 
 RUNS_CSV = "bus_gru_runs.csv"
@@ -84,16 +84,15 @@ def test_return(run: Path, bus: BusConfig, episodes: int) -> float:
     return float(make_env(bus).rollout(policy, episodes).episode_return.mean())
 
 
-def best_gru_run(folders: Folders, bus: BusConfig, *, n_jobs: int | None,
-                 scheduler: str | None) -> Path:
+def best_gru_run(folders: Folders, bus: BusConfig, workers: Workers) -> Path:
     """Train (or resume, or find finished) the GRU runs of the folders' scale in their runs
-    folder (``n_jobs`` worker processes, or on the Dask ``scheduler``), score each, write
+    folder on ``workers``, score each, write
     bus_gru_runs.csv into their results folder, and return the best run's folder."""
     cfg = for_scale(GruRunsConfig, folders.scale)
     root = folders.run_root(runs_folder(bus))
     t0 = time.perf_counter()
     job_list = jobs(cfg, bus)
-    runs = run_sweep(job_list, root, n_jobs=n_jobs, scheduler=scheduler)
+    runs = run_sweep(job_list, root, workers)
     rows = []
     for job, folder in zip(job_list, runs):
         prog = pd.read_csv(folder / "progress.csv").iloc[:cfg.epochs]

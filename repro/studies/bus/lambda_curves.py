@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from repro.studies.kit.options import Folders
+from repro.studies.kit.options import Command, Folders
 
 from repro.studies.bus import sweeps as bus_sweeps
 
@@ -16,5 +16,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     bus_sweeps.add_arguments(p)
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    return bus_sweeps.run_named("lambda", args, folders)
+configure = bus_sweeps.configure
+
+
+def run(cmd: Command, folders: Folders) -> int:
+    return bus_sweeps.run_named("lambda", cmd, folders)

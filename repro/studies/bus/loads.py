@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from repro.envs.bus import BusConfig, config_from_args
+from repro.envs.bus import BusConfig
 from repro.envs.bus.metrics import l1_per_point, record_loads
 from repro.envs.bus.params import SWITCHES
 from repro.learn.config import DEFAULT_LEARNER
@@ -33,11 +33,11 @@ from repro.paper import BUS_BUSES_DRAWN, PAPER_RECORDS, PAPER_STOPS, paper_loads
 from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
 from repro.studies.bus import pictures
-from repro.studies.bus.pictures import (add_policy_arguments, learner_csv, policy_grid,
-                                        run_policy_figure)
+from repro.studies.bus.pictures import (PictureConfig, add_policy_arguments, learner_csv,
+                                        policy_grid, run_policy_figure)
 from repro.studies.bus.policies import (TrainedPolicy, lambda_summary_csv, make_policy,
                                         picture_arrivals)
-from repro.studies.kit.options import Folders
+from repro.studies.kit.options import Command, Folders
 
 VARIANTS = pictures.VARIANTS
 """Options that choose the picture's panels, not their settings (read by the command line)."""
@@ -112,26 +112,27 @@ def mlp_run_distances(cfg: BusConfig, results: Path, learner: str | None) -> pd.
     return pd.DataFrame(rows)
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    rc = run_policy_figure(args, folders, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
+configure = pictures.configure
+
+
+def run(cmd: Command[PictureConfig], folders: Folders) -> int:
+    rc = run_policy_figure(cmd, folders, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
                            plot_table=plot)
-    if args.replot:
+    if cmd.replot:
         return rc
-    fixed = [p for p in args.policies if p in FIXED]
+    cfg, learner = cmd.study, cmd.study.sources.learner
+    fixed = [p for p in cfg.policies if p in FIXED]
     if fixed:
         t0 = time.perf_counter()
-        cfg = config_from_args(args)
-        table = switch_distances(cfg, fixed)
-        prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
+        table = switch_distances(cfg.bus, fixed)
+        prov = provenance(cfg.bus, command="fig-bus-load", scale=folders.scale, seed=None,
                           wall_seconds=time.perf_counter() - t0)
         write_result(folders.results / SWITCHES_CSV, table, prov)
-    if "mlp" in args.policies and args.mlp_run is None:
+    if "mlp" in cfg.policies and cfg.sources.mlp_run is None:
         t0 = time.perf_counter()
-        cfg = config_from_args(args)
-        table = mlp_run_distances(cfg, folders.results, args.learner)
-        prov = provenance(cfg, command="fig-bus-load", scale=args.scale, seed=None,
+        table = mlp_run_distances(cfg.bus, folders.results, learner)
+        prov = provenance(cfg.bus, command="fig-bus-load", scale=folders.scale, seed=None,
                           wall_seconds=time.perf_counter() - t0,
-                          extra={"learner": args.learner or DEFAULT_LEARNER})
-        write_result(folders.results / learner_csv(MLP_RUNS_CSV, args.learner), table,
-                     prov)
+                          extra={"learner": learner or DEFAULT_LEARNER})
+        write_result(folders.results / learner_csv(MLP_RUNS_CSV, learner), table, prov)
     return rc

@@ -4,6 +4,7 @@ policy, a panel per policy, and the body of their run."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 from typing import Callable
@@ -12,17 +13,17 @@ import pandas as pd
 
 from repro.core.errors import refuse_unused, require
 from repro.envs.bus import add_switch_arguments, config_from_args
-from repro.envs.bus.policies import check_thresholds
+from repro.envs.bus.params import BusConfig
 from repro.learn.config import DEFAULT_LEARNER, add_learner_option, learner_stem
 from repro.paper import BUS_BUSES_DRAWN
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.bus.gru_runs import best_gru_run
-from repro.studies.bus.policies import (DEFAULT_PANELS, GRU_PANELS, POLICIES, best_run,
-                                        picture_arrivals, policy_from_args)
-from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+from repro.studies.bus.policies import (DEFAULT_PANELS, GRU_PANELS, POLICIES, PolicySources,
+                                        best_run, picture_arrivals)
+from repro.studies.kit.options import (Command, Folders, add_common, add_replot, read_for_replot,
                                        replot_figures)
-from repro.studies.kit.sweep import add_sweep_arguments, check_sweep_arguments
+from repro.studies.kit.sweep import add_sweep_arguments
 
 
 VARIANTS = ("policies",)
@@ -56,39 +57,64 @@ def add_policy_arguments(p: argparse.ArgumentParser) -> None:
     add_switch_arguments(p)
 
 
+@dataclasses.dataclass(frozen=True)
+class PictureConfig:
+    """A bus picture's settings: its panels, where their policies come from, the corridor."""
+
+    policies: tuple[str, ...]
+    """The panels, in order (``--policies``)."""
+    sources: PolicySources
+    """Where the panels' policies come from (``--thresholds``, ``--mlp-run``, ``--gru-run``,
+    ``--learner``)."""
+    all_buses: bool
+    """Draw all six buses, not the paper's buses 1-5 (``--all-buses``)."""
+    bus: BusConfig
+    """The corridor, its switches B1-B5 as given."""
+
+
+def configure(args: argparse.Namespace) -> Command[PictureConfig]:
+    """The picture's settings of :func:`add_policy_arguments`'s options, checked before any work:
+    the panels' names, and no option of a panel not drawn (:func:`check_panel_options`)."""
+    for name in args.policies:
+        require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
+    check_panel_options(args)
+    return Command.of(args, PictureConfig(
+        policies=tuple(args.policies), sources=PolicySources.of(args),
+        all_buses=args.all_buses, bus=config_from_args(args)))
+
+
 def learner_csv(csv_name: str, learner: str | None) -> str:
     """A bus figure's CSV for ``learner``'s mlp panel: ``csv_name``, its stem then ``_suite`` for
     the suite learner's."""
     return learner_stem(Path(csv_name).stem, learner or DEFAULT_LEARNER) + ".csv"
 
 
-def mlp_source(args: argparse.Namespace, folders: Folders) -> str | None:
+def mlp_source(cfg: PictureConfig, folders: Folders) -> str | None:
     """The run folder the mlp panel comes from (None without an mlp panel), for the provenance."""
-    if "mlp" not in args.policies:
+    if "mlp" not in cfg.policies:
         return None
-    return str(args.mlp_run if args.mlp_run is not None
-               else best_run(folders.results, learner=args.learner))
+    return str(cfg.sources.mlp_run if cfg.sources.mlp_run is not None
+               else best_run(folders.results, learner=cfg.sources.learner))
 
 
-def gru_source(args: argparse.Namespace, folders: Folders) -> str | None:
+def gru_source(cmd: Command[PictureConfig], folders: Folders) -> str | None:
     """The run folder the gru panels come from (None without a gru panel): --gru-run, else the
     best of the GRU runs, trained here where they are not finished
     (:func:`repro.studies.bus.gru_runs.best_gru_run`)."""
-    if not set(GRU_PANELS) & set(args.policies):
+    cfg = cmd.study
+    if not set(GRU_PANELS) & set(cfg.policies):
         return None
-    return str(args.gru_run if args.gru_run is not None
-               else best_gru_run(folders, config_from_args(args), n_jobs=args.n_jobs,
-                                 scheduler=args.scheduler))
+    return str(cfg.sources.gru_run if cfg.sources.gru_run is not None
+               else best_gru_run(folders, cfg.bus, cmd.workers))
 
 
-def collect(args: argparse.Namespace, results: Path) -> pd.DataFrame:
+def collect(cfg: PictureConfig, results: Path) -> pd.DataFrame:
     """One episode per policy (all are deterministic): its arrival table, tagged with the policy.
     Every policy is built before any is run, so bad input fails before any work."""
-    cfg = config_from_args(args)
-    policies = {name: policy_from_args(name, args, cfg, results) for name in args.policies}
+    policies = {name: cfg.sources.policy(name, cfg.bus, results) for name in cfg.policies}
     frames = []
     for name, policy in policies.items():
-        arrivals = picture_arrivals(policy, cfg)
+        arrivals = picture_arrivals(policy, cfg.bus)
         frames.append(arrivals.drop(columns="episode").assign(policy=name))
     cols = ["policy"] + [c for c in frames[0].columns if c != "policy"]
     return pd.concat(frames, ignore_index=True)[cols]
@@ -141,36 +167,33 @@ def check_panel_options(args: argparse.Namespace) -> None:
         ("--scheduler", args.scheduler, trains, training))
 
 
-def run_policy_figure(args: argparse.Namespace, folders: Folders, *, command: str, csv_name: str,
-                      table_of: Callable[[pd.DataFrame], pd.DataFrame],
+def run_policy_figure(cmd: Command[PictureConfig], folders: Folders, *, command: str,
+                      csv_name: str, table_of: Callable[[pd.DataFrame], pd.DataFrame],
                       plot_table: Callable[[pd.DataFrame, Path, bool, list[Path]], None]) -> int:
     """Shared body of the per-policy bus figures: simulate each policy's episode, derive the
     figure's table from the arrival records, write it with provenance, and draw it; with
     ``--replot``, draw the table written before (the panels of ``--policies``)."""
-    for name in args.policies:
-        require(name in POLICIES, "--policies", "names from " + ", ".join(POLICIES), name)
-    check_panel_options(args)
-    check_sweep_arguments(args)
-    if args.thresholds is not None:
-        check_thresholds(args.thresholds)
-    csv_name = learner_csv(csv_name, args.learner)
+    cfg = cmd.study
+    csv_name = learner_csv(csv_name, cfg.sources.learner)
     stem = folders.figures / Path(csv_name).stem
-    if args.replot:
+    if cmd.replot:
         table, = read_for_replot(folders, csv_name)
         _, sources = replot_figures(folders, csv_name)
-        plot_table(table[table.policy.isin(args.policies)], stem, args.all_buses, sources)
+        plot_table(table[table.policy.isin(cfg.policies)], stem, cfg.all_buses, sources)
         print(f"wrote {stem}.png/.pdf")
         return 0
     folders.open_figures()
     results = folders.open_results()
     t0 = time.perf_counter()
-    args.gru_run = gru_source(args, folders)  # the panels and the provenance name the run chosen
-    table = table_of(collect(args, results))
-    prov = provenance(config_from_args(args), command=command, scale=args.scale, seed=None,
+    # the panels and the provenance name the gru run chosen
+    cfg = dataclasses.replace(cfg, sources=dataclasses.replace(
+        cfg.sources, gru_run=gru_source(cmd, folders)))
+    table = table_of(collect(cfg, results))
+    prov = provenance(cfg.bus, command=command, scale=folders.scale, seed=None,
                       wall_seconds=time.perf_counter() - t0,
-                      extra={"policies": args.policies, "mlp_run": mlp_source(args, folders),
-                             "gru_run": args.gru_run,
-                             "learner": args.learner or DEFAULT_LEARNER})
-    plot_table(table, stem, args.all_buses, [write_result(results / csv_name, table, prov)])
+                      extra={"policies": list(cfg.policies), "mlp_run": mlp_source(cfg, folders),
+                             "gru_run": cfg.sources.gru_run,
+                             "learner": cfg.sources.learner or DEFAULT_LEARNER})
+    plot_table(table, stem, cfg.all_buses, [write_result(results / csv_name, table, prov)])
     print(f"wrote {results / csv_name} and {stem}.png/.pdf")
     return 0

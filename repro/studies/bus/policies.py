@@ -148,14 +148,36 @@ PICTURE_HORIZON = 6 * 3600.0
 """The episode length of the paper's bus pictures (s): the released code's PLOTTING runs."""
 
 
-def policy_from_args(name: str, args: argparse.Namespace, cfg: BusConfig,
-                     results_dir: Path) -> Policy:
-    """The named policy on corridor ``cfg``; --thresholds / --mlp-run / --gru-run, else the
-    optimised thresholds and the best trained run recorded in ``results_dir``."""
-    thresholds = None if args.thresholds is None else np.array(args.thresholds, float)
-    return make_policy(name, cfg, thresholds=thresholds, results_dir=results_dir,
-                       mlp_run=args.mlp_run, learner=args.learner,
-                       gru_run=getattr(args, "gru_run", None))
+@dataclasses.dataclass(frozen=True)
+class PolicySources:
+    """Where the bus policies a command draws or evaluates come from, as its options give them
+    (None: the default source)."""
+
+    thresholds: tuple[float, ...] | None = None
+    """Our thresholds T1-T3 in seconds (``--thresholds``; default: the optimised ones in the
+    results folder)."""
+    mlp_run: str | None = None
+    """The trained MLP's run folder (``--mlp-run``; default: the lambda sweep's best run)."""
+    gru_run: str | None = None
+    """The trained GRU's run folder (``--gru-run``)."""
+    learner: str | None = None
+    """The learner whose lambda sweep's best run is the MLP (``--learner``; default authors)."""
+
+    @classmethod
+    def of(cls, args: argparse.Namespace) -> PolicySources:
+        """The sources a command's options name (thresholds checked)."""
+        thresholds = None if args.thresholds is None else tuple(args.thresholds)
+        if thresholds is not None:
+            check_thresholds(thresholds)
+        return cls(thresholds=thresholds, mlp_run=args.mlp_run,
+                   gru_run=getattr(args, "gru_run", None), learner=args.learner)
+
+    def policy(self, name: str, cfg: BusConfig, results_dir: Path) -> Policy:
+        """The policy called ``name`` on corridor ``cfg``, from these sources, else the optimised
+        thresholds and the best trained run recorded in ``results_dir``."""
+        thresholds = None if self.thresholds is None else np.array(self.thresholds, float)
+        return make_policy(name, cfg, thresholds=thresholds, results_dir=results_dir,
+                           mlp_run=self.mlp_run, learner=self.learner, gru_run=self.gru_run)
 
 
 def picture_arrivals(policy: Policy, cfg: BusConfig, n_episodes: int = 1) -> pd.DataFrame:

@@ -52,9 +52,9 @@ from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
 from repro.runs.stats import bootstrap_ci, iqm
 from repro.studies.bus.policies import read_thresholds
-from repro.studies.kit.options import Folders, add_replot, read_for_replot, replot_figures
-from repro.studies.kit.sweep import (TrainJob, add_study_arguments, check_study_arguments, run_dir,
-                                     run_sweep)
+from repro.studies.kit.options import (Command, Folders, add_replot, read_for_replot,
+                                       replot_figures)
+from repro.studies.kit.sweep import TrainJob, add_study_arguments, run_dir, run_sweep
 
 SWEEPS = ("lambda", "batch")
 
@@ -309,25 +309,32 @@ def replot(sweep: str, cfg: BusSweepConfig, folders: Folders) -> int:
     return 0
 
 
-def run_named(sweep: str, args: argparse.Namespace, folders: Folders) -> int:
-    cfg = sweep_config(folders.scale, args.learner, **given_fields(args, BusSweepConfig, FLAGS))
-    if args.replot:
+def configure(args: argparse.Namespace) -> Command[tuple[BusSweepConfig, BusConfig]]:
+    """A sweep's settings and the corridor's, of :func:`add_arguments`'s options."""
+    cfg = sweep_config(args.scale, args.learner, **given_fields(args, BusSweepConfig, FLAGS))
+    return Command.of(args, (cfg, config_from_args(args)))
+
+
+def run_named(sweep: str, cmd: Command[tuple[BusSweepConfig, BusConfig]],
+              folders: Folders) -> int:
+    """The command of the sweep ``sweep`` ("lambda" or "batch")."""
+    (cfg, bus), seed = cmd.study, cmd.seed
+    if cmd.replot:
         return replot(sweep, cfg, folders)
-    results, figures = check_study_arguments(args, folders)
-    bus = config_from_args(args)
+    results, figures = folders.open()
     root = folders.run_root(runs_folder(bus))
     t0 = time.perf_counter()
     baselines = baseline_returns(results, bus)  # needs bus-thresholds: fails before training
-    job_list = jobs(cfg, sweep, args.seed, bus)
-    run_sweep(job_list, root, n_jobs=args.n_jobs, scheduler=args.scheduler)
+    job_list = jobs(cfg, sweep, seed, bus)
+    run_sweep(job_list, root, cmd.workers)
     table = curves(cfg, job_list, root)
     finals = final_returns(cfg, table)
     # the lambda sweep names its run folders: the figure drivers take the best policy from there
     runs = {(j.train.lam, getattr(j.train, cfg.unit), j.train.seed): run_dir(root, j)
             for j in job_list}
-    summ = summary(cfg, finals, baselines, args.seed, runs if sweep == "lambda" else None)
+    summ = summary(cfg, finals, baselines, seed, runs if sweep == "lambda" else None)
     read = convergence(table, cfg.early_epochs, cfg.final_epochs, baselines["thresholds"])
-    prov = provenance(cfg, command=f"fig-bus-{sweep}", scale=args.scale, seed=args.seed,
+    prov = provenance(cfg, command=f"fig-bus-{sweep}", scale=folders.scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0, extra={"runs_dir": str(root)})
     sources = [write_result(results / f"{cfg.stem(sweep)}.csv", table, prov),
                write_result(results / f"{cfg.stem(sweep)}_summary.csv", summ, prov),

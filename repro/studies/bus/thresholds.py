@@ -28,7 +28,7 @@ from repro.envs.bus.policies import AUTHORS_THRESHOLDS, ThresholdPolicy
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.bus.policies import THRESHOLDS_CSV
-from repro.studies.kit.options import Folders, add_common
+from repro.studies.kit.options import Command, Folders, add_common
 
 
 @dataclass(frozen=True)
@@ -90,13 +90,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_arguments(p, ThresholdsConfig)
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
+def configure(args: argparse.Namespace) -> Command[tuple[ThresholdsConfig, BusConfig]]:
     cfg = for_scale(ThresholdsConfig, args.scale, **given_fields(args, ThresholdsConfig))
-    bus = config_from_args(args)
+    return Command.of(args, (cfg, config_from_args(args)))
+
+
+def run(cmd: Command[tuple[ThresholdsConfig, BusConfig]], folders: Folders) -> int:
+    (cfg, bus), seed = cmd.study, cmd.seed
     results = folders.open_results()
     t0 = time.perf_counter()
-    table = optimise(cfg, bus, args.seed)
-    prov = provenance(cfg, command="bus-thresholds", scale=args.scale, seed=args.seed,
+    table = optimise(cfg, bus, seed)
+    prov = provenance(cfg, command="bus-thresholds", scale=folders.scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0, extra={"bus": to_dict(bus)})
     write_result(results / THRESHOLDS_CSV, table, prov)
     print(table.to_string(index=False))

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Generic, TypeVar
 
 from repro.core.config import DEFAULT_SCALE, SCALES, for_scale
-from repro.core.errors import require
+from repro.core.errors import UsageError, require
 from repro.runs.files import check_writable_dir
 from repro.runs.provenance import note_departures
 from repro.runs.results import open_figures, open_results
@@ -95,6 +97,88 @@ class Folders:
         created and checked writable (``--runs-dir``)."""
         assert self.runs is not None, "a driver that trains nothing asked for its runs folder"
         return check_writable_dir(self.runs.joinpath(*parts), "--runs-dir")
+
+
+    def open(self) -> tuple[Path, Path]:
+        """The results and figures folders of a driver that draws figures, checked before any
+        work (:meth:`open_figures`, then :meth:`open_results`)."""
+        figures = self.open_figures()
+        return self.open_results(), figures
+
+
+_ADDRESS = re.compile(r"(?:(tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*"
+                      r"[A-Za-z0-9])?):([0-9]{1,5})")
+_SCHEDULER_FORM = "the address of a running Dask scheduler, tcp://HOST:PORT (or tls://)"
+
+
+def check_scheduler(scheduler: str) -> tuple[str, str, int]:
+    """(scheme, host, port) of a ``--scheduler`` address in the form tcp://HOST:PORT, tls://HOST:PORT
+    or HOST:PORT; a UsageError otherwise, before any connection is tried."""
+    m = _ADDRESS.fullmatch(scheduler)
+    port = int(m.group(3)) if m else 0
+    if not m or not 1 <= port <= 65535:
+        raise UsageError("--scheduler", _SCHEDULER_FORM, scheduler)
+    return m.group(1) or "tcp", m.group(2).strip("[]"), port
+
+
+
+@dataclass(frozen=True)
+class Workers:
+    """Where a driver's parallel work runs (training runs, policy tests, Monte Carlo cells),
+    checked once by the command line (:meth:`of`)."""
+
+    n_jobs: int | None = None
+    """joblib worker processes (``--n-jobs``; None: one per core)."""
+    scheduler: str | None = None
+    """The address of an existing Dask scheduler to run on instead (``--scheduler``)."""
+
+    @property
+    def processes(self) -> int:
+        """The most joblib worker processes to start."""
+        return self.n_jobs or os.cpu_count() or 1
+
+    @classmethod
+    def of(cls, args: argparse.Namespace) -> Workers:
+        """The workers a driver's options name (a UsageError naming the flag if one is bad); the
+        default workers for a driver without such options."""
+        n_jobs, scheduler = getattr(args, "n_jobs", None), getattr(args, "scheduler", None)
+        require(n_jobs is None or n_jobs >= 1, "--n-jobs", "an integer >= 1", n_jobs)
+        if scheduler is not None:
+            check_scheduler(scheduler)
+        return cls(n_jobs=n_jobs, scheduler=scheduler)
+
+
+EVERY_CORE = Workers()
+"""A joblib worker process per core (no ``--n-jobs``, no ``--scheduler``)."""
+ONE_PROCESS = Workers(n_jobs=1)
+"""One joblib worker process."""
+
+C = TypeVar("C")
+
+
+@dataclass(frozen=True)
+class Command(Generic[C]):
+    """A driver's options, resolved once by the command line (:meth:`of`): with
+    :class:`Folders`, everything a driver's ``run`` reads."""
+
+    study: C
+    """The study's own settings: a frozen config (what the driver's sidecars record)."""
+    seed: int | None = None
+    """The root seed of every random stream (``--seed``); None for a driver without one."""
+    workers: Workers = EVERY_CORE
+    """Where its parallel work runs (``--n-jobs``, ``--scheduler``)."""
+    replot: bool = False
+    """Draw the figure again from the results there and run nothing (``--replot``)."""
+    figure: bool = True
+    """Draw the figure (off: ``--no-figure``)."""
+
+    @classmethod
+    def of(cls, args: argparse.Namespace, study: C) -> Command[C]:
+        """The command of a driver's parsed options and its ``study`` settings (made from them by
+        the driver's ``configure``)."""
+        return cls(study=study, seed=getattr(args, "seed", None), workers=Workers.of(args),
+                   replot=bool(getattr(args, "replot", False)),
+                   figure=not getattr(args, "no_figure", False))
 
 
 NEUTRAL = ("help", "config", "scale", "seed", "results_dir", "figures_dir", "runs_dir",

@@ -56,7 +56,8 @@ from repro.runs.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PRO
                                    epochs_done, is_finished, kernels_in_todays_terms, locked_by,
                                    recorded_kernels, writer_lock)
 from repro.runs.workers import die_with_parent
-from repro.studies.kit.options import Folders, add_common
+from repro.studies.kit.options import (_SCHEDULER_FORM, EVERY_CORE, Workers, add_common,
+                                     check_scheduler)
 
 
 @dataclass(frozen=True)
@@ -296,8 +297,7 @@ SWEEP_LOCK = "sweep.lock"
 """Held in a sweep's root folder while it trains: one sweep at a time per folder of runs."""
 
 
-def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
-              scheduler: str | None = None) -> list[Path]:
+def run_sweep(jobs: list[TrainJob], root: Path, workers: Workers = EVERY_CORE) -> list[Path]:
     """Run every job that is not done yet; returns every job's folder (in the order given).
 
     A sweep that has runs to train holds ``root``'s sweep.lock meanwhile: a second sweep over the
@@ -308,7 +308,7 @@ def run_sweep(jobs: list[TrainJob], root: Path, *, n_jobs: int | None = None,
     check_jobs(jobs, root)
     pending = longest_first([j for j in jobs if not is_done(root, j)])
     if pending:
-        _train(pending, Path(root), n_jobs, scheduler)
+        _train(pending, Path(root), workers)
     folders = [run_dir(root, j) for j in jobs]
     _note_kernels(folders)
     return folders
@@ -339,13 +339,13 @@ def _note_kernels(folders: list[Path]) -> None:
                       "under those kernels", KernelWarning, stacklevel=3)
 
 
-def _train(pending: list[TrainJob], root: Path, n_jobs: int | None,
-           scheduler: str | None) -> None:
+def _train(pending: list[TrainJob], root: Path, workers: Workers) -> None:
     """Train the runs ``pending`` under ``root``, holding its sweep.lock (:func:`run_sweep`)."""
-    workers = min(len(pending), n_jobs or os.cpu_count() or 1)
+    scheduler = workers.scheduler
+    processes = min(len(pending), workers.processes)
     if not scheduler:  # the runs train on this machine, ``workers`` at a time
         largest = max(pending, key=lambda j: sum(training_bytes(j.train, _env(j))))
-        check_training_size(largest.train, _env(largest), runs=workers)
+        check_training_size(largest.train, _env(largest), runs=processes)
     with folder_lock(root, SWEEP_LOCK, "--runs-dir", "a folder of runs"):
         for job in pending:
             holder = locked_by(run_dir(root, job))
@@ -354,16 +354,17 @@ def _train(pending: list[TrainJob], root: Path, n_jobs: int | None,
         if scheduler:
             _run_on_dask(pending, root, scheduler)
         else:
-            _on_joblib(run_job, [(j, root) for j in pending], workers,
+            _on_joblib(run_job, [(j, root) for j in pending], processes,
                        "training the sweep's runs", _RESUMES)
 
 
-def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None = None,
-              scheduler: str | None = None) -> list[Any]:
+def map_tasks(fn: Callable[..., Any], tasks: list[tuple],
+              workers: Workers = EVERY_CORE) -> list[Any]:
     """``[fn(*task) for task in tasks]`` on joblib worker processes, or on the Dask scheduler
-    named; the tasks carry everything they need (no shared disk). On Dask, a cluster that stops
-    answering stops the call (:func:`_next_finished`); a worker that dies stops it with
+    ``workers`` names; the tasks carry everything they need (no shared disk). On Dask, a cluster
+    that stops answering stops the call (:func:`_next_finished`); a worker that dies stops it with
     :class:`~repro.core.errors.WorkerDied`."""
+    scheduler = workers.scheduler
     if scheduler:
         from dask.distributed import as_completed
 
@@ -376,8 +377,8 @@ def map_tasks(fn: Callable[..., Any], tasks: list[tuple], *, n_jobs: int | None 
                 future = _next_finished(done, client, scheduler)
                 out[place[future.key]] = _dask_result(future, "running its tasks", _RUNS_AGAIN)
             return out
-    workers = max(1, min(len(tasks), n_jobs or os.cpu_count() or 1))
-    return _on_joblib(fn, tasks, workers, "running its tasks", _RUNS_AGAIN)
+    processes = max(1, min(len(tasks), workers.processes))
+    return _on_joblib(fn, tasks, processes, "running its tasks", _RUNS_AGAIN)
 
 
 _RUNS_AGAIN = ("the same command runs these tasks again, and trains nothing again that its run "
@@ -389,21 +390,6 @@ train nothing)."""
 SCHEDULER_DEADLINE = 30.0
 """Seconds that finding, reaching and hearing from ``--scheduler`` may take, whatever answers at
 the address (a Dask client's own timeout does not cover a listener that never answers)."""
-_ADDRESS = re.compile(r"(?:(tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*"
-                      r"[A-Za-z0-9])?):([0-9]{1,5})")
-_SCHEDULER_FORM = "the address of a running Dask scheduler, tcp://HOST:PORT (or tls://)"
-
-
-def check_scheduler(scheduler: str) -> tuple[str, str, int]:
-    """(scheme, host, port) of a ``--scheduler`` address in the form tcp://HOST:PORT, tls://HOST:PORT
-    or HOST:PORT; a UsageError otherwise, before any connection is tried."""
-    m = _ADDRESS.fullmatch(scheduler)
-    port = int(m.group(3)) if m else 0
-    if not m or not 1 <= port <= 65535:
-        raise UsageError("--scheduler", _SCHEDULER_FORM, scheduler)
-    return m.group(1) or "tcp", m.group(2).strip("[]"), port
-
-
 def _within(deadline: float, what: Callable[[], Any]) -> tuple[bool, Any]:
     """(True, what()) if it returns or raises within ``deadline`` seconds (its exception as the
     value), else (False, None). It runs on a daemon thread: one that never returns (a name lookup
@@ -488,20 +474,3 @@ def add_study_arguments(p: argparse.ArgumentParser, config: type,
     add_common(p)
     add_sweep_arguments(p)
     add_config_arguments(p, config, fields)
-
-
-def check_sweep_arguments(args: argparse.Namespace) -> None:
-    if args.n_jobs is not None and args.n_jobs < 1:
-        raise UsageError("--n-jobs", "an integer >= 1", args.n_jobs)
-    if getattr(args, "scheduler", None) is not None:
-        check_scheduler(args.scheduler)
-
-
-def check_study_arguments(args: argparse.Namespace, folders: Folders) -> tuple[Path, Path]:
-    """Check the options of :func:`add_study_arguments` before any work: the sweep's, and the
-    figures and results folders (:meth:`~repro.studies.kit.options.Folders.open_figures`,
-    :meth:`~repro.studies.kit.options.Folders.open_results`); returns the results and figures
-    folders, the results folder held until the command ends."""
-    check_sweep_arguments(args)
-    figures = folders.open_figures()
-    return folders.open_results(), figures

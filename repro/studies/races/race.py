@@ -35,7 +35,7 @@ from repro.envs.renewal.distributions import DISTRIBUTIONS
 from repro.runs.progress import progress
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
-from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+from repro.studies.kit.options import (Command, Folders, add_common, add_replot, read_for_replot,
                                        replot_figures)
 from repro.studies.races.study import (exact_safe_dts, fit_power_law, largest_safe_dt,
                                        race_probability_exact, race_probability_mc)
@@ -188,22 +188,26 @@ FIGURE_TABLES = ("race_dt_vs_n", "table_race", "race_exact")
 """The tables the figure draws, the first its name."""
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    if args.replot:
+def configure(args: argparse.Namespace) -> Command[RaceConfig]:
+    return Command.of(args, for_scale(RaceConfig, args.scale, **given_fields(args, RaceConfig)))
+
+
+def run(cmd: Command[RaceConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         names = [f"{name}.csv" for name in FIGURE_TABLES]
         read = read_for_replot(folders, *names)
         figures, sources = replot_figures(folders, *names)
         plot(dict(zip(FIGURE_TABLES, read)), figures / FIGURE_TABLES[0], sources)
         print(f"wrote {figures / FIGURE_TABLES[0]}.png/.pdf")
         return 0
-    cfg = for_scale(RaceConfig, args.scale, **given_fields(args, RaceConfig))
-    figures = None if args.no_figure else folders.open_figures()
+    figures = folders.open_figures() if cmd.figure else None
     results = folders.open_results()
     t0 = time.perf_counter()
-    tables = run_study(cfg, args.seed)
+    tables = run_study(cfg, seed)
     wall = time.perf_counter() - t0
     for name, frame in tables.items():
-        prov = provenance(cfg, command="race", scale=args.scale, seed=args.seed, wall_seconds=wall)
+        prov = provenance(cfg, command="race", scale=scale, seed=seed, wall_seconds=wall)
         write_result(results / f"{name}.csv", frame, prov)
     if figures is not None:
         plot(tables, figures / FIGURE_TABLES[0],

@@ -43,7 +43,7 @@ from repro.runs.memory import require_memory
 from repro.runs.progress import progress
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
-from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+from repro.studies.kit.options import (Command, Folders, add_common, add_replot, read_for_replot,
                                        replot_figures)
 from repro.studies.races.study import exact_safe_dts, fit_power_law
 
@@ -265,22 +265,26 @@ def replot(folders: Folders) -> int:
     return 0
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    if args.replot:
-        return replot(folders)
+def configure(args: argparse.Namespace) -> Command[ScalingConfig]:
     given = given_fields(args, ScalingConfig)
     if given.get("n_agents"):
         given["n_agents"] = tuple(sorted(given["n_agents"]))  # the fits read them in order
-    cfg = for_scale(ScalingConfig, args.scale, **given)
+    return Command.of(args, for_scale(ScalingConfig, args.scale, **given))
+
+
+def run(cmd: Command[ScalingConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
+        return replot(folders)
     check_work(cfg)
-    figures = None if args.no_figure else folders.open_figures()
+    figures = folders.open_figures() if cmd.figure else None
     results = folders.open_results()
     warm_up()
     t0 = time.perf_counter()
-    tables = run_study(cfg, args.seed)
+    tables = run_study(cfg, seed)
     wall = time.perf_counter() - t0
     for name, frame in tables.items():
-        prov = provenance(cfg, command="scaling", scale=args.scale, seed=args.seed,
+        prov = provenance(cfg, command="scaling", scale=scale, seed=seed,
                           wall_seconds=wall)
         write_result(results / f"{name}.csv", frame, prov)
     if figures is not None:

@@ -31,9 +31,9 @@ from repro.envs.wildfire import WildfireConfig, make_env
 from repro.envs.wildfire.policies import POLICIES
 from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
-from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+from repro.studies.kit.options import (Command, Folders, add_common, add_replot, read_for_replot,
                                        replot_figures)
-from repro.studies.kit.sweep import check_sweep_arguments, map_tasks
+from repro.studies.kit.sweep import map_tasks
 from repro.studies.races.study import FIT, RACES, fit_power_law
 from repro.studies.wildfire.study import evaluate
 
@@ -222,23 +222,27 @@ def replot(folders: Folders) -> int:
     return 0
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = for_scale(BeyondRacesConfig, args.scale, **given_fields(args, BeyondRacesConfig))
-    if args.replot:
+def configure(args: argparse.Namespace) -> Command[BeyondRacesConfig]:
+    return Command.of(args, for_scale(BeyondRacesConfig, args.scale,
+                                      **given_fields(args, BeyondRacesConfig)))
+
+
+def run(cmd: Command[BeyondRacesConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         return replot(folders)
-    check_sweep_arguments(args)
     figures = folders.open_figures()
     results = folders.open_results()
     t0 = time.perf_counter()
     # largest N first: the longest cells start first, so the workers finish together
-    tasks = [(policy, n, float(x), cfg.episodes, args.seed) for n in sorted(cfg.n_agents)[::-1]
+    tasks = [(policy, n, float(x), cfg.episodes, seed) for n in sorted(cfg.n_agents)[::-1]
              for policy in cfg.policies for x in cfg.log10_dts()]
-    table = pd.DataFrame(map_tasks(cell, tasks, n_jobs=args.n_jobs))
+    table = pd.DataFrame(map_tasks(cell, tasks, cmd.workers))
     table = table.sort_values(["policy", "n_agents", "log10_dt"], kind="stable",
                               key=lambda c: c.map(cfg.policies.index) if c.name == "policy"
                               else c).reset_index(drop=True)
     fits = fit(table, cfg.delta, c10_beta(results))
-    prov = provenance(cfg, command="beyond-races", scale=args.scale, seed=args.seed,
+    prov = provenance(cfg, command="beyond-races", scale=scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0)
     sources = [write_result(results / f"{RACES}.csv", table, prov),
                write_result(results / f"{FIT}.csv", fits, prov)]

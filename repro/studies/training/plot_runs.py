@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -134,22 +135,39 @@ def plot(labelled: list[tuple[str, list[pd.DataFrame]]], metric: str, env_name: 
     save_figure(fig, out.with_suffix(""), sources, formats=(out.suffix,), param="--out")
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class PlotRunsConfig:
+    """What ``plot-runs`` draws, and where."""
+
+    runs: tuple[str, ...]
+    """The run folders (``RUN_DIR ...``)."""
+    out: Path
+    """The figure, .png or .pdf (``--out``)."""
+    metric: str | None
+    """The progress.csv column drawn (``--metric``; None: the environment's usual one)."""
+
+
+def configure(args: argparse.Namespace) -> PlotRunsConfig:
     out = Path(args.out)
     require(out.suffix in FIGURE_FORMATS, "--out",
             "a file name ending in " + " or ".join(FIGURE_FORMATS), args.out)
     check_writable_dir(out.parent, "--out")
     require(args.metric is None or args.metric in METRICS, "--metric",
             "one of " + ", ".join(METRICS), args.metric)
-    runs = read_runs(args.runs)
+    return PlotRunsConfig(runs=tuple(args.runs), out=out, metric=args.metric)
+
+
+def run(cfg: PlotRunsConfig) -> int:
+    runs = read_runs(list(cfg.runs))
     envs = sorted({str(c["env_name"]) for c, _ in runs})
-    metric = args.metric or ("average_return" if envs == ["bus"] else
-                             "average_discounted_return")
-    missing = [name for name, (_, t) in zip(args.runs, runs) if metric not in t]
+    metric = cfg.metric or ("average_return" if envs == ["bus"] else
+                            "average_discounted_return")
+    missing = [name for name, (_, t) in zip(cfg.runs, runs) if metric not in t]
     require(not missing, "RUN_DIR", f"runs whose {PROGRESS} has a {metric} column",
             ", ".join(missing))
     labelled = groups(runs)
-    plot(labelled, metric, " and ".join(envs), out, [Path(r) / PROGRESS for r in args.runs])
+    out = cfg.out
+    plot(labelled, metric, " and ".join(envs), out, [Path(r) / PROGRESS for r in cfg.runs])
     for label, tables in labelled:
         c = curve(tables, metric)
         print(f"{label}: {metric} {c['mean'].iloc[-1]:.4g} at epoch {int(c['epoch'].iloc[-1])}")

@@ -9,11 +9,12 @@ it is an option of this command, not a training setting.
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from repro.core.config import SCALES, canonical_keys
 from repro.core.errors import UsageError, require
-from repro.core.rollout import BatchEnv
 from repro.envs import BUILT_IN, env_package
 from repro.learn.config import TrainConfig, add_learner_arguments, learner_overrides, train_config
 from repro.learn.process import configure_process
@@ -66,24 +67,38 @@ def saved_settings(data: dict[str, Any]) -> dict[str, Any]:
     return {**data, "train": train, "env": env}
 
 
-def make_from_args(args: argparse.Namespace, **overrides: Any) -> tuple[TrainConfig, BatchEnv, Any]:
-    """Train config, environment and environment config from parsed ``train``-style options."""
+@dataclass(frozen=True)
+class TrainRun:
+    """A training run as ``train``'s options give it."""
+
+    train: TrainConfig
+    """The learner's settings: the scale's, the named learner's, then the flags given."""
+    env_config: Any
+    """The environment's config (its package's), as its options give it."""
+    out: Path
+    """The run folder (``--out``; default runs/<env>/seed<seed>), checked writable."""
+    tensorboard: str | None
+    """A folder for TensorBoard scalars of each epoch's progress row (``--tensorboard``)."""
+
+
+def configure(args: argparse.Namespace) -> TrainRun:
+    """The run of :func:`add_arguments`'s options (and the chosen environment's)."""
     require(hasattr(args, "env"), "--env", "given: " + ", ".join(BUILT_IN)
             + ", or an importable module that provides the environment contract")
-    pkg = env_package(args.env)
-    cfg = train_config(args.scale, **{**learner_overrides(args), **overrides})
-    env_cfg = pkg.config_from_args(args)
-    return cfg, pkg.make_env(env_cfg), env_cfg
+    cfg = train_config(args.scale, **learner_overrides(args))
+    env_cfg = env_package(args.env).config_from_args(args)
+    out = check_writable_dir(f"runs/{cfg.env}/seed{cfg.seed}" if args.out is None else args.out,
+                             "--out")
+    return TrainRun(train=cfg, env_config=env_cfg, out=out, tensorboard=args.tensorboard)
 
 
-def run(args: argparse.Namespace) -> int:
-    cfg, env, env_cfg = make_from_args(args)
+def run(training: TrainRun) -> int:
+    cfg, env_cfg, out = training.train, training.env_config, training.out
+    env = env_package(cfg.env).make_env(env_cfg)
     configure_process()
     from repro.learn.trainer import Trainer  # torch: imported once the options are checked
 
-    out = check_writable_dir(f"runs/{cfg.env}/seed{cfg.seed}" if args.out is None else args.out,
-                             "--out")
-    board = None if args.tensorboard is None else TensorBoard(args.tensorboard)
+    board = None if training.tensorboard is None else TensorBoard(training.tensorboard)
     try:
         frame = Trainer(cfg, env, out, env_cfg).train(board)
     finally:

@@ -34,8 +34,8 @@ from repro.learn.config import learner_stem
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.runs.stats import bootstrap_ci
-from repro.studies.kit.options import Folders
-from repro.studies.kit.sweep import check_study_arguments, policy_stream, run_sweep
+from repro.studies.kit.options import Command, Folders
+from repro.studies.kit.sweep import policy_stream, run_sweep
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, make_jobs,
                                           runs_folder, study_config, test_env_seed)
 from repro.studies.wildfire.study import adr, evaluate
@@ -103,20 +103,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                          defaults=dict(sim_version=FIGURE_VERSION))
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
+def configure(args: argparse.Namespace) -> Command[TransferConfig]:
+    cfg = study_config(args, sim_version=getattr(args, "sim_version", FIGURE_VERSION))
+    return Command.of(args, dataclasses.replace(cfg, only=("ED", *cfg.variant_pair()[::-1])))
+
+
+def run(cmd: Command[TransferConfig], folders: Folders) -> int:
     from repro.runs.run_folder import CHECKPOINT
 
-    cfg = study_config(args, sim_version=getattr(args, "sim_version", FIGURE_VERSION))
-    cfg = dataclasses.replace(cfg, only=("ED", *cfg.variant_pair()[::-1]))
-    results, _ = check_study_arguments(args, folders)
-    labelled = make_jobs(cfg, args.scale, args.seed)
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    results, _ = folders.open()
+    labelled = make_jobs(cfg, scale, seed)
     t0 = time.perf_counter()
-    done = run_sweep([job for _, job in labelled], runs_folder(folders, cfg),
-                     n_jobs=args.n_jobs, scheduler=args.scheduler)
-    env_seed, test = test_env_seed(args.seed), cfg.test_simulator()
+    done = run_sweep([job for _, job in labelled], runs_folder(folders, cfg), cmd.workers)
+    env_seed, test = test_env_seed(seed), cfg.test_simulator()
     rows = []
     for (label, job), folder in zip(labelled, done):
-        stream = policy_stream(args.seed, _POLICY_STREAM, job.name)
+        stream = policy_stream(seed, _POLICY_STREAM, job.name)
         for name, clamps in CLAMPS.items():
             value, changed = score(test, folder / CHECKPOINT, clamps, cfg.test_episodes,
                                    env_seed, stream)
@@ -124,7 +127,7 @@ def run(args: argparse.Namespace, folders: Folders) -> int:
                              adr_ed=value, changed_share=changed, run=job.name))
     table = pd.DataFrame(rows)
     table["change"] = table.adr_ed - table.groupby("run").adr_ed.transform("first")
-    rng = np.random.default_rng(np.random.SeedSequence(args.seed, spawn_key=(_BOOT_STREAM,)))
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_BOOT_STREAM,)))
     summary = []
     for (label, name), g in table.groupby(["simulator", "clamp"], sort=False):
         point, lo, hi = bootstrap_ci(g.change.to_numpy(), np.mean, n_boot=cfg.n_boot, rng=rng)
@@ -133,8 +136,8 @@ def run(args: argparse.Namespace, folders: Folders) -> int:
                             changed_share=float(g.changed_share.mean())))
     summary = pd.DataFrame(summary)
     stem = learner_stem(NAME, cfg.learner)
-    prov = provenance(dataclasses.asdict(cfg), command="c9-inputs", scale=args.scale,
-                      seed=args.seed, wall_seconds=time.perf_counter() - t0,
+    prov = provenance(dataclasses.asdict(cfg), command="c9-inputs", scale=scale,
+                      seed=seed, wall_seconds=time.perf_counter() - t0,
                       extra=dict(study=cfg.name))
     write_result(results / f"{stem}.csv", table, prov)
     write_result(results / f"{stem}_summary.csv", summary, prov)

@@ -33,8 +33,8 @@ from repro.learn.config import (DEFAULT_LEARNER, LEARNERS, add_learner_option, l
                                 learner_stem)
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, read_result, save_figure, write_result
-from repro.studies.kit.options import Folders, add_replot, read_for_replot, replot_figures
-from repro.studies.kit.sweep import add_study_arguments, check_study_arguments
+from repro.studies.kit.options import Command, Folders, add_replot, read_for_replot, replot_figures
+from repro.studies.kit.sweep import add_study_arguments
 from repro.studies.races import study as races
 from repro.studies.transfer import study as transfer
 
@@ -171,26 +171,30 @@ def replot(cfg: TransferDtConfig, folders: Folders) -> int:
     return 0
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = for_scale(TransferDtConfig, args.scale, learner=args.learner,
-                    **given_fields(args, TransferDtConfig, ("seeds",)))
-    if args.replot:
+def configure(args: argparse.Namespace) -> Command[TransferDtConfig]:
+    return Command.of(args, for_scale(TransferDtConfig, args.scale, learner=args.learner,
+                                      **given_fields(args, TransferDtConfig, ("seeds",))))
+
+
+def run(cmd: Command[TransferDtConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         return replot(cfg, folders)
-    study = cfg.study(args.scale)
-    results, figures = check_study_arguments(args, folders)
+    study = cfg.study(scale)
+    results, figures = folders.open()
     t0 = time.perf_counter()
-    tested, extra = transfer.train_and_test(
-        study, folders, args, transfer.make_jobs(study, args.scale, args.seed))
+    tested, extra = transfer.train_and_test(study, folders, transfer.make_jobs(study, scale, seed),
+                                            seed, cmd.workers)
     # summarised in the order tested, so that the shared simulators get the study's CIs too
-    summary = by_dt(transfer.summarise(tested, study.n_boot, args.seed))
+    summary = by_dt(transfer.summarise(tested, study.n_boot, seed))
     per_policy = by_dt(tested)
     prov = provenance(dict(grid=dataclasses.asdict(cfg), study=dataclasses.asdict(study)),
-                      command="beyond-transfer-dt", scale=args.scale, seed=args.seed,
+                      command="beyond-transfer-dt", scale=scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0, extra=extra)
     sources = [write_result(results / f"{cfg.stem}.csv", per_policy, prov),
                write_result(results / f"{cfg.stem}_summary.csv", summary, prov)]
     races = read_races(results, cfg.race_agents)
-    plot(per_policy, summary, races, cfg.race_agents, figures / cfg.stem, title(study, args.scale),
+    plot(per_policy, summary, races, cfg.race_agents, figures / cfg.stem, title(study, scale),
          sources + ([] if races is None else [results / RACES]))
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high"]]
           .to_string(index=False))

@@ -22,7 +22,7 @@ from repro.envs.wildfire import make_env
 from repro.envs.wildfire.policies import POLICIES
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.kit.options import Folders, add_common
+from repro.studies.kit.options import Command, Folders, add_common
 from repro.studies.transfer.study import TransferConfig, test_env_seed
 from repro.studies.wildfire.study import adr, evaluate
 
@@ -49,15 +49,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_arguments(p, TransferConfig, ("test_episodes",))
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = for_scale(TransferConfig, args.scale, **given_fields(args, TransferConfig,
-                                                               ("test_episodes",)))
+def configure(args: argparse.Namespace) -> Command[TransferConfig]:
+    return Command.of(args, for_scale(TransferConfig, args.scale, **given_fields(
+        args, TransferConfig, ("test_episodes",))))
+
+
+def run(cmd: Command[TransferConfig], folders: Folders) -> int:
+    cfg = cmd.study
     results = folders.open_results()
     t0 = time.perf_counter()
-    table = pd.concat([heuristic_adrs(dataclasses.replace(cfg, corrected=corrected), args.seed)
+    table = pd.concat([heuristic_adrs(dataclasses.replace(cfg, corrected=corrected), cmd.seed)
                        for corrected in (False, True)], ignore_index=True)
     prov = provenance({"test_episodes": cfg.test_episodes}, command="wildfire-heuristics",
-                      scale=args.scale, seed=args.seed, wall_seconds=time.perf_counter() - t0)
+                      scale=folders.scale, seed=cmd.seed, wall_seconds=time.perf_counter() - t0)
     write_result(results / "wildfire_heuristics.csv", table, prov)
     print(table.to_string(index=False))
     return 0

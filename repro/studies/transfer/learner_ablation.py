@@ -34,8 +34,8 @@ from repro.envs.wildfire import FIGURE_VERSION, RELEASED_VERSION
 from repro.learn.config import learner_stem
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
-from repro.studies.kit.options import Folders, add_replot, read_for_replot, replot_figures
-from repro.studies.kit.sweep import check_jobs, check_study_arguments
+from repro.studies.kit.options import Command, Folders, add_replot, read_for_replot, replot_figures
+from repro.studies.kit.sweep import check_jobs
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, effects,
                                           make_jobs, recorded_config, runs_folder, study_config,
                                           summarise, train_and_test)
@@ -119,40 +119,44 @@ def replot(base: TransferConfig, folders: Folders) -> int:
     return 0
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    base = study_config(args, only=getattr(args, "only", DEFAULT_SIMULATORS))
-    if args.replot:
+def configure(args: argparse.Namespace) -> Command[TransferConfig]:
+    return Command.of(args, study_config(args, only=getattr(args, "only", DEFAULT_SIMULATORS)))
+
+
+def run(cmd: Command[TransferConfig], folders: Folders) -> int:
+    base, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         return replot(base, folders)
-    results, figures = check_study_arguments(args, folders)
+    results, figures = folders.open()
     plan = [(name, cfg, runs_folder(folders, cfg))
             for name, cfg in studies(base)]
     for _, cfg, runs in plan:  # every study's folders before any trains
-        check_jobs([job for _, job in make_jobs(cfg, args.scale, args.seed)], runs)
+        check_jobs([job for _, job in make_jobs(cfg, scale, seed)], runs)
     t0 = time.perf_counter()
     per_policy, summary = [], []
     for name, cfg, _ in plan:
-        tested, _ = train_and_test(cfg, folders, args, make_jobs(cfg, args.scale, args.seed))
-        for frame, out in ((tested, per_policy), (summarise(tested, cfg.n_boot, args.seed),
+        tested, _ = train_and_test(cfg, folders, make_jobs(cfg, scale, seed), seed, cmd.workers)
+        for frame, out in ((tested, per_policy), (summarise(tested, cfg.n_boot, seed),
                                                   summary)):
             out.append(frame.assign(setting=name)[["setting", *frame.columns]])
     per_policy, summary = (pd.concat(per_policy, ignore_index=True),
                            pd.concat(summary, ignore_index=True))
     pair = base.variant_pair()
-    c9 = pd.concat([effects(per_policy, pair, base.n_boot, args.seed, by=("setting",),
+    c9 = pd.concat([effects(per_policy, pair, base.n_boot, seed, by=("setting",),
                             score=score, stream=_EFFECT_STREAM).assign(protocol=protocol)
                     for protocol, score in (("final policy", "adr_ed"),
                                             ("last 40 policies", "adr_ed_kept"))]
                    if set(pair) <= set(base.only) else [], ignore_index=True)
     config = dict(dataclasses.asdict(base), rows=[cfg.name for _, cfg, _ in plan])
     stem = learner_stem(NAME, base.learner)
-    prov = provenance(config, command="learner-ablation", scale=args.scale, seed=args.seed,
+    prov = provenance(config, command="learner-ablation", scale=scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dirs=[str(runs) for *_, runs in plan]))
     write_result(results / f"{stem}.csv", per_policy, prov)
     sources = [write_result(results / f"{stem}_summary.csv", summary, prov)]
     if len(c9):
         write_result(results / f"{stem}_c9.csv", c9, prov)
-    plot(summary, figures / stem, title(base, args.scale), sources)
+    plot(summary, figures / stem, title(base, scale), sources)
     print(summary[["setting", "simulator", "mean", "sem", "mean_kept", "paper_mean",
                    "z_paper"]].to_string(index=False))
     if len(c9):

@@ -38,8 +38,8 @@ import pandas as pd
 from repro.learn.config import learner_label, learner_stem
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
-from repro.studies.kit.options import Folders, add_replot, replot_pair
-from repro.studies.kit.sweep import check_jobs, check_study_arguments
+from repro.studies.kit.options import Command, Folders, add_replot, replot_pair
+from repro.studies.kit.sweep import check_jobs
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, effects,
                                           make_jobs, recorded_config, runs_folder, study_config,
                                           summarise, train_and_test)
@@ -109,35 +109,39 @@ def replot(base: TransferConfig, folders: Folders) -> int:
                        title=lambda prov: title(recorded_config(prov), prov["scale"]))
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
+def configure(args: argparse.Namespace) -> Command[TransferConfig]:
     # the transfer study's sizes at every scale, so that the released-order runs are its own
-    base = study_config(args)
-    if args.replot:
+    return Command.of(args, study_config(args))
+
+
+def run(cmd: Command[TransferConfig], folders: Folders) -> int:
+    base, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         return replot(base, folders)
-    results, figures = check_study_arguments(args, folders)
+    results, figures = folders.open()
     plan = [(semantics, order, cfg, runs_folder(folders, cfg))
             for semantics, order, cfg in studies(base)]
     for _, _, cfg, runs in plan:  # every study's folders before any trains
-        check_jobs([job for _, job in make_jobs(cfg, args.scale, args.seed)], runs)
+        check_jobs([job for _, job in make_jobs(cfg, scale, seed)], runs)
     t0 = time.perf_counter()
     per_policy, summary = [], []
     for semantics, order, cfg, _ in plan:
-        tested, _ = train_and_test(cfg, folders, args, make_jobs(cfg, args.scale, args.seed))
-        for frame, out in ((tested, per_policy), (summarise(tested, cfg.n_boot, args.seed),
+        tested, _ = train_and_test(cfg, folders, make_jobs(cfg, scale, seed), seed, cmd.workers)
+        for frame, out in ((tested, per_policy), (summarise(tested, cfg.n_boot, seed),
                                                   summary)):
             out.append(frame.assign(semantics=semantics, order=order)[
                 ["semantics", "order", *frame.columns]])
     per_policy, summary = pd.concat(per_policy, ignore_index=True), pd.concat(summary,
                                                                              ignore_index=True)
-    effect = effects(per_policy, base.variant_pair(), base.n_boot, args.seed)
+    effect = effects(per_policy, base.variant_pair(), base.n_boot, seed)
     stem = learner_stem(NAME, base.learner)
     config = dict(dataclasses.asdict(base), studies=[cfg.name for _, _, cfg, _ in plan])
-    prov = provenance(config, command="beyond-order", scale=args.scale, seed=args.seed,
+    prov = provenance(config, command="beyond-order", scale=scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dirs=[str(runs) for *_, runs in plan]))
     sources = [write_result(results / f"{stem}.csv", per_policy, prov),
                write_result(results / f"{stem}_summary.csv", summary, prov)]
     write_result(results / f"{stem}_effect.csv", effect, prov)
-    plot(per_policy, summary, figures / stem, title(base, args.scale), sources)
+    plot(per_policy, summary, figures / stem, title(base, scale), sources)
     print(effect.to_string(index=False))
     return 0

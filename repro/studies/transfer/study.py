@@ -25,7 +25,7 @@ from repro.learn.config import (BATCH_UNITS, LEARNERS, SAMPLERS, SETTING_FIELDS,
                                 learner_suffix, setting_tag)
 from repro.paper import TRANSFER_ADR
 from repro.runs.stats import bootstrap_ci, iqm, sem
-from repro.studies.kit.options import Folders, add_common
+from repro.studies.kit.options import ONE_PROCESS, Folders, Workers, add_common
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, map_tasks, policy_stream,
                                      run_sweep)
 from repro.studies.wildfire.study import adr, evaluate
@@ -214,8 +214,8 @@ def test_env_seed(seed: int) -> int:
 
 
 def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
-                      folders: list[Path], seed: int, *, n_jobs: int | None = 1,
-                      scheduler: str | None = None) -> pd.DataFrame:
+                      folders: list[Path], seed: int,
+                      workers: Workers = ONE_PROCESS) -> pd.DataFrame:
     """One row per trained policy: its ADR on the ED test simulator under both protocols, and the
     training and test episodes that ended at the decision limit.
 
@@ -240,7 +240,7 @@ def evaluate_policies(cfg: TransferConfig, labelled: list[tuple[str, TrainJob]],
         tasks.append((cfg.test_simulator(), (folder / CHECKPOINT).read_bytes(),
                       [p.read_bytes() for p in kept], cfg.test_episodes, env_seed,
                       policy_stream(seed, _TEST_POLICY_STREAM, job.name)))
-    scores = map_tasks(score_policy, tasks, n_jobs=n_jobs, scheduler=scheduler)
+    scores = map_tasks(score_policy, tasks, workers)
     rows = []
     for ((label, job), folder), (mean, err, test_cut, kept) in zip(zip(labelled, folders), scores):
         curve = pd.read_csv(folder / "progress.csv")
@@ -338,18 +338,16 @@ def runs_folder(folders: Folders, cfg: TransferConfig) -> Path:
     return folders.run_root(cfg.name.replace("_", "-"), folders.scale)
 
 
-def train_and_test(cfg: TransferConfig, folders: Folders, args: argparse.Namespace,
-                   labelled: list[tuple[str, TrainJob]]) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Train (or resume) the ``labelled`` jobs in the study's run folders (``args``: the root
-    seed and the sweep's workers), then test every policy on ED; returns the per-policy table
-    and the sweep's timing for the provenance sidecar."""
+def train_and_test(cfg: TransferConfig, folders: Folders, labelled: list[tuple[str, TrainJob]],
+                   seed: int, workers: Workers) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Train (or resume) the ``labelled`` jobs in the study's run folders on ``workers``, then
+    test every policy on ED (``seed``: the root seed); returns the per-policy table and the
+    sweep's timing for the provenance sidecar."""
     runs = runs_folder(folders, cfg)
     t0 = time.perf_counter()
-    done = run_sweep([job for _, job in labelled], runs, n_jobs=args.n_jobs,
-                     scheduler=args.scheduler)
+    done = run_sweep([job for _, job in labelled], runs, workers)
     t_train = time.perf_counter() - t0
-    per_policy = evaluate_policies(cfg, labelled, done, args.seed, n_jobs=args.n_jobs,
-                                   scheduler=args.scheduler)
+    per_policy = evaluate_policies(cfg, labelled, done, seed, workers)
     seconds = [pd.read_csv(f / "progress.csv").seconds for f in done]
     # the median skips each worker's first epoch, which includes numba's start-up
     return per_policy, dict(

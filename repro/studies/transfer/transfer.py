@@ -43,8 +43,7 @@ from repro.envs.wildfire import QUIRKS, WildfireConfig
 from repro.learn.config import learner_label
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
-from repro.studies.kit.options import Folders, add_replot, replot_pair
-from repro.studies.kit.sweep import check_study_arguments
+from repro.studies.kit.options import Command, Folders, add_replot, replot_pair
 from repro.studies.transfer.study import (SEMANTICS, TransferConfig, add_size_arguments,
                                           batch_label, fs_label, make_jobs, recorded_config,
                                           study_config, summarise, train_and_test)
@@ -106,11 +105,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def config_from_args(args: argparse.Namespace) -> TransferConfig:
-    """The study's config of :func:`add_arguments`'s options (UsageError if bad)."""
+def configure(args: argparse.Namespace) -> Command[TransferConfig]:
+    """The study's settings of :func:`add_arguments`'s options (UsageError if bad)."""
     off = {q.split("_")[1] for q, on in given_fields(args, WildfireConfig).items() if not on}
     given = {q.lower() for q in getattr(args, "quirks_off", ())}
-    return study_config(args, quirks_off=tuple(sorted(off | given)) or None)
+    return Command.of(args, study_config(args, quirks_off=tuple(sorted(off | given)) or None))
 
 
 def figure_title(cfg: TransferConfig, scale: str) -> str:
@@ -132,19 +131,20 @@ def replot(cfg: TransferConfig, folders: Folders) -> int:
         recorded_config(prov), prov["scale"]))
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = config_from_args(args)
-    if args.replot:
+def run(cmd: Command[TransferConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         return replot(cfg, folders)
-    results, figures = check_study_arguments(args, folders)
+    results, figures = folders.open()
     t0 = time.perf_counter()
-    per_policy, extra = train_and_test(cfg, folders, args, make_jobs(cfg, args.scale, args.seed))
-    summary = summarise(per_policy, cfg.n_boot, args.seed)
-    prov = provenance(dataclasses.asdict(cfg), command="fig-transfer", scale=args.scale,
-                      seed=args.seed, wall_seconds=time.perf_counter() - t0, extra=extra)
+    per_policy, extra = train_and_test(cfg, folders, make_jobs(cfg, scale, seed), seed,
+                                       cmd.workers)
+    summary = summarise(per_policy, cfg.n_boot, seed)
+    prov = provenance(dataclasses.asdict(cfg), command="fig-transfer", scale=scale, seed=seed,
+                      wall_seconds=time.perf_counter() - t0, extra=extra)
     sources = [write_result(results / f"{cfg.name}.csv", per_policy, prov),
                write_result(results / f"{cfg.name}_summary.csv", summary, prov)]
-    plot(per_policy, summary, figures / cfg.name, figure_title(cfg, args.scale), sources)
+    plot(per_policy, summary, figures / cfg.name, figure_title(cfg, scale), sources)
     print(summary[["simulator", "n_policies", "mean", "sem", "ci_low", "ci_high",
                    "paper_mean"]].to_string(index=False))
     return 0

@@ -41,7 +41,7 @@ from repro.core.errors import UsageError
 from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
 from repro.runs.stats import INTERVALS, STATISTICS, coverage, iqm
-from repro.studies.kit.options import (Folders, add_common, add_replot, read_for_replot,
+from repro.studies.kit.options import (Command, Folders, add_common, add_replot, read_for_replot,
                                        replot_figures)
 
 NAME = "interval_coverage"
@@ -199,10 +199,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_replot(p)
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = for_scale(IntervalCoverageConfig, args.scale,
-                    **given_fields(args, IntervalCoverageConfig))
-    if args.replot:
+def configure(args: argparse.Namespace) -> Command[IntervalCoverageConfig]:
+    return Command.of(args, for_scale(IntervalCoverageConfig, args.scale,
+                                      **given_fields(args, IntervalCoverageConfig)))
+
+
+def run(cmd: Command[IntervalCoverageConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
+    if cmd.replot:
         (table,) = read_for_replot(folders, f"{NAME}.csv")
         figures, sources = replot_figures(folders, f"{NAME}.csv")
         plot(table, figures / NAME, sources)
@@ -215,8 +219,8 @@ def run(args: argparse.Namespace, folders: Folders) -> int:
         raise UsageError("--populations", f"without {SUITE} where --results-dir holds no "
                          "per-seed scores", ",".join(cfg.populations))
     t0 = time.perf_counter()
-    table = measure(cfg, pool, args.seed)
-    prov = provenance(cfg, command="interval-coverage", scale=args.scale, seed=args.seed,
+    table = measure(cfg, pool, seed)
+    prov = provenance(cfg, command="interval-coverage", scale=scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(suite_pool=dict(values=len(pool), files=used)))
     sources = [write_result(results / f"{NAME}.csv", table, prov)]

@@ -54,9 +54,8 @@ from repro.learn.config import add_study_learner_arguments
 from repro.paper import BEHAVIOUR_FREQUENCIES, FLOWCHART_WORSE
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.kit.options import Folders, add_common
-from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
-                                     policy_stream, run_sweep)
+from repro.studies.kit.options import Command, Folders, add_common
+from repro.studies.kit.sweep import TrainJob, add_sweep_arguments, policy_stream, run_sweep
 from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, counted,
                                           frequency_counts, shares)
 
@@ -137,17 +136,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_learner_arguments(p, "wildfire_behaviour_suite*")
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = behaviour_config(BehaviourConfig, args)
-    check_sweep_arguments(args)
+def configure(args: argparse.Namespace) -> Command[BehaviourConfig]:
+    return Command.of(args, behaviour_config(BehaviourConfig, args))
+
+
+def run(cmd: Command[BehaviourConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
     results = folders.open_results()
-    runs = folders.run_root(cfg.name.replace("_", "-"), folders.scale)
-    jobs = make_jobs(cfg, args.scale, args.seed)
+    runs = folders.run_root(cfg.name.replace("_", "-"), scale)
+    jobs = make_jobs(cfg, scale, seed)
     t0 = time.perf_counter()
-    folders = run_sweep(jobs, runs, n_jobs=args.n_jobs, scheduler=args.scheduler)
-    table, flowchart = measure(cfg, jobs, folders, args.seed)
-    prov = provenance(dataclasses.asdict(cfg), command="wildfire-behaviour", scale=args.scale,
-                      seed=args.seed, wall_seconds=time.perf_counter() - t0,
+    done = run_sweep(jobs, runs, cmd.workers)
+    table, flowchart = measure(cfg, jobs, done, seed)
+    prov = provenance(dataclasses.asdict(cfg), command="wildfire-behaviour", scale=scale,
+                      seed=seed, wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dir=str(runs), paper=PAPER))
     write_result(results / f"{cfg.name}.csv", table, prov)
     write_result(results / f"{cfg.name}_flowchart.csv", flowchart, prov)

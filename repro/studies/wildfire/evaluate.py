@@ -12,12 +12,13 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from repro.core.errors import require
-from repro.envs.wildfire import (QUIRKS, add_env_arguments, config_from_args, make_env,
-                                 make_reference_env)
+from repro.envs.wildfire import (QUIRKS, WildfireConfig, add_env_arguments, config_from_args,
+                                 make_env, make_reference_env)
 from repro.envs.wildfire.policies import POLICIES
 from repro.studies.wildfire.study import adr, evaluate
 
@@ -37,31 +38,55 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class EvalConfig:
+    """What ``wildfire-eval`` evaluates, and how it prints it."""
+
+    policy: str
+    """The heuristic policy (``--policy``)."""
+    engine: str
+    """The engine: fast (numba) or reference (SimPy) (``--engine``)."""
+    episodes: int
+    """Test episodes (``--episodes``)."""
+    seed: int
+    """The root seed of the environment and the policy (``--seed``)."""
+    json: bool
+    """Print one JSON object (``--json``)."""
+    env: WildfireConfig
+    """The simulator, as its options give it."""
+
+
+def configure(args: argparse.Namespace) -> EvalConfig:
     cfg = config_from_args(args)
     require(args.episodes >= 1, "--episodes", "an integer >= 1", args.episodes)
-    env = (make_env if args.engine == "fast" else make_reference_env)(cfg)
-    env_seed, policy_seed = np.random.SeedSequence(args.seed).spawn(2)
-    policy = POLICIES[args.policy](np.random.default_rng(policy_seed),
-                                   n_observed=cfg.n_observed)
+    return EvalConfig(policy=args.policy, engine=args.engine, episodes=args.episodes,
+                      seed=args.seed, json=args.json, env=cfg)
+
+
+def run(cfg: EvalConfig) -> int:
+    sim = cfg.env
+    env = (make_env if cfg.engine == "fast" else make_reference_env)(sim)
+    env_seed, policy_seed = np.random.SeedSequence(cfg.seed).spawn(2)
+    policy = POLICIES[cfg.policy](np.random.default_rng(policy_seed),
+                                  n_observed=sim.n_observed)
     t0 = time.perf_counter()
-    rollout = evaluate(env, policy, args.episodes, int(env_seed.generate_state(1)[0]),
+    rollout = evaluate(env, policy, cfg.episodes, int(env_seed.generate_state(1)[0]),
                        param="--episodes")
     seconds = time.perf_counter() - t0
-    mean, err = adr(rollout, cfg.gamma)
-    out = dict(adr=mean, sem=err, episodes=args.episodes, decisions=rollout.n_decisions,
+    mean, err = adr(rollout, sim.gamma)
+    out = dict(adr=mean, sem=err, episodes=cfg.episodes, decisions=rollout.n_decisions,
                seconds=round(seconds, 3), decisions_per_second=rollout.n_decisions / seconds,
-               mean_episode_return=float(rollout.episode_return.mean()), policy=args.policy,
-               engine=args.engine, sim=cfg.label, t_health=cfg.t_health,
-               **{f: getattr(cfg, f) for f in QUIRKS},
-               same_instant_order=cfg.same_instant_order,
-               max_decisions=cfg.max_decisions or 0, truncated_episodes=rollout.n_truncated,
-               seed=args.seed)
-    if args.json:
+               mean_episode_return=float(rollout.episode_return.mean()), policy=cfg.policy,
+               engine=cfg.engine, sim=sim.label, t_health=sim.t_health,
+               **{f: getattr(sim, f) for f in QUIRKS},
+               same_instant_order=sim.same_instant_order,
+               max_decisions=sim.max_decisions or 0, truncated_episodes=rollout.n_truncated,
+               seed=cfg.seed)
+    if cfg.json:
         print(json.dumps(out, sort_keys=True))
     else:
-        print(f"{args.policy} on {cfg.label} (T_health={cfg.t_health:g}, {args.engine}): "
-              f"ADR {mean:.4f} +- {err:.4f} over {args.episodes} episodes "
+        print(f"{cfg.policy} on {sim.label} (T_health={sim.t_health:g}, {cfg.engine}): "
+              f"ADR {mean:.4f} +- {err:.4f} over {cfg.episodes} episodes "
               f"({rollout.n_decisions} decisions, {seconds:.2f} s"
               f"{_cut(rollout.n_truncated)})")
     return 0

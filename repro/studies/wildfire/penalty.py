@@ -52,9 +52,8 @@ from repro.learn.config import (add_study_learner_arguments, learner_name, learn
 from repro.paper import BEHAVIOUR_FREQUENCIES
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.kit.options import Folders, add_common
-from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, check_sweep_arguments,
-                                     policy_stream, run_sweep)
+from repro.studies.kit.options import Command, Folders, add_common
+from repro.studies.kit.sweep import TrainJob, add_sweep_arguments, policy_stream, run_sweep
 from repro.studies.wildfire.study import (BehaviourConfig, adr, behaviour_config, counted,
                                           evaluate, frequency_counts, shares)
 
@@ -203,20 +202,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_study_learner_arguments(p, "wildfire_penalty_suite*")
 
 
-def run(args: argparse.Namespace, folders: Folders) -> int:
-    cfg = behaviour_config(PenaltyConfig, args)
-    check_sweep_arguments(args)
+def configure(args: argparse.Namespace) -> Command[PenaltyConfig]:
+    return Command.of(args, behaviour_config(PenaltyConfig, args))
+
+
+def run(cmd: Command[PenaltyConfig], folders: Folders) -> int:
+    cfg, scale, seed = cmd.study, folders.scale, cmd.seed
     results = folders.open_results()
     stem = "_".join(("wildfire_penalty", *learner_suffix(cfg.learner)))
-    runs = folders.run_root(stem.replace("_", "-"), folders.scale)
-    jobs = make_jobs(cfg, args.scale, args.seed)
+    runs = folders.run_root(stem.replace("_", "-"), scale)
+    jobs = make_jobs(cfg, scale, seed)
     t0 = time.perf_counter()
-    folders = run_sweep(jobs, runs, n_jobs=args.n_jobs, scheduler=args.scheduler)
-    flow = {p: flowchart_adr(cfg, p, args.seed) for p in cfg.penalties}
-    table = pd.DataFrame([measure_policy(cfg, job, folder, args.seed, flow[-job.env_config.r_pen])
-                          for job, folder in zip(jobs, folders)])
-    prov = provenance(dataclasses.asdict(cfg), command="wildfire-penalty", scale=args.scale,
-                      seed=args.seed, wall_seconds=time.perf_counter() - t0,
+    done = run_sweep(jobs, runs, cmd.workers)
+    flow = {p: flowchart_adr(cfg, p, seed) for p in cfg.penalties}
+    table = pd.DataFrame([measure_policy(cfg, job, folder, seed, flow[-job.env_config.r_pen])
+                          for job, folder in zip(jobs, done)])
+    prov = provenance(dataclasses.asdict(cfg), command="wildfire-penalty", scale=scale,
+                      seed=seed, wall_seconds=time.perf_counter() - t0,
                       extra=dict(runs_dir=str(runs), paper=dict(BEHAVIOUR_FREQUENCIES)))
     write_result(results / f"{stem}.csv", table, prov)
     fitted = fit(table)

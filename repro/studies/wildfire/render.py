@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
@@ -56,7 +57,31 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    f"results (default: {RESULTS_DIR})")
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class RenderConfig:
+    """What ``render`` animates, and where it writes."""
+
+    env: str
+    """The environment, wildfire or bus (``--env``)."""
+    policy: str
+    """The policy's name (``--policy NAME``)."""
+    path: str | None
+    """The run folder or checkpoint the policy comes from (``--policy NAME PATH``), if any."""
+    out: Path
+    """The GIF to write (``--out``)."""
+    seed: int
+    """The episode (wildfire) and the policy's random source (``--seed``)."""
+    frames: int
+    """Pictures in the animation, at most (``--frames``)."""
+    fps: int
+    """Pictures per second of the animation (``--fps``)."""
+    results_dir: Path
+    """Where the bus policies thresholds and mlp find their results (``--results-dir``)."""
+
+
+def configure(args: argparse.Namespace) -> RenderConfig:
+    """The settings of :func:`add_arguments`'s options, checked before any work (the GIF's folder
+    writable)."""
     require(args.env in POLICIES, "--env", "wildfire or bus", args.env)
     name, *path = args.policy or [POLICIES[args.env][0]]
     require(name in POLICIES[args.env], "--policy", f"one of {', '.join(POLICIES[args.env])} "
@@ -76,15 +101,21 @@ def run(args: argparse.Namespace) -> int:
     check_writable_dir(out.parent, "--out")  # before the episode runs
     require(args.frames >= 2, "--frames", "an integer >= 2", args.frames)
     require(args.fps >= 1, "--fps", "an integer >= 1", args.fps)
-    rng = np.random.default_rng(args.seed)
-    episode = _wildfire if args.env == "wildfire" else _bus
-    times, pictures, draw = episode(name, path[0] if path else None, args, rng)
-    gif = _animate(times, pictures, draw, args.frames, args.fps)
-    write_figure(out.with_suffix(""), {out: gif.data}, [], param="--out",
-                 extra={"policy": name, "policy_file": _file_record(path[0] if path else None)})
+    return RenderConfig(env=args.env, policy=name, path=path[0] if path else None, out=out,
+                        seed=args.seed, frames=args.frames, fps=args.fps,
+                        results_dir=Path(args.results_dir or RESULTS_DIR))
+
+
+def run(cfg: RenderConfig) -> int:
+    rng = np.random.default_rng(cfg.seed)
+    episode = _wildfire if cfg.env == "wildfire" else _bus
+    times, pictures, draw = episode(cfg, rng)
+    gif = _animate(times, pictures, draw, cfg.frames, cfg.fps)
+    write_figure(cfg.out.with_suffix(""), {cfg.out: gif.data}, [], param="--out",
+                 extra={"policy": cfg.policy, "policy_file": _file_record(cfg.path)})
     shown = gif.pictures
-    print(f"wrote {out}: {shown} pictures of an episode of "
-          f"{times[-1]:.1f} s ({args.env}, {name})")
+    print(f"wrote {cfg.out}: {shown} pictures of an episode of "
+          f"{times[-1]:.1f} s ({cfg.env}, {cfg.policy})")
     return 0
 
 
@@ -106,7 +137,7 @@ def _trained(path: str, env_name: str, config_type: type, rng: np.random.Generat
     return cfg, policy_from_state(state, rng)
 
 
-def _wildfire(name: str, path: str | None, args: argparse.Namespace, rng: np.random.Generator):
+def _wildfire(render: RenderConfig, rng: np.random.Generator):
     """The episode's pictures; returns (times, frames, draw)."""
     from repro.envs.wildfire import WildfireConfig
     from repro.envs.wildfire.engine import WildfireBatch, WildfireEnv
@@ -114,30 +145,31 @@ def _wildfire(name: str, path: str | None, args: argparse.Namespace, rng: np.ran
     from repro.envs.wildfire.policies import POLICIES as HEURISTICS
     from repro.envs.wildfire.render import draw, frame_of_state
 
-    if name == "checkpoint":
-        cfg, policy = _trained(path, "wildfire", WildfireConfig, rng)
+    if render.policy == "checkpoint":
+        cfg, policy = _trained(render.path, "wildfire", WildfireConfig, rng)
     else:
         cfg = WildfireConfig()
-        policy = HEURISTICS[name](rng, n_observed=cfg.n_observed)
+        policy = HEURISTICS[render.policy](rng, n_observed=cfg.n_observed)
     env = WildfireEnv(cfg)
-    batch = WildfireBatch(env, draw_episodes(cfg, 1, args.seed))
+    batch = WildfireBatch(env, draw_episodes(cfg, 1, render.seed))
     frames = _run(lambda: frame_of_state(env, batch.states[0]),
-                  lambda: float(batch.states[0]["now"]), cfg.t_max / (100 * args.frames),
+                  lambda: float(batch.states[0]["now"]), cfg.t_max / (100 * render.frames),
                   lambda: batch.n_pending > 0, lambda: batch.act(policy(batch.pending())))
     return [f.time for f in frames], frames, lambda fig, f: draw(fig, f, cfg)
 
 
-def _bus(name: str, path: str | None, args: argparse.Namespace, rng: np.random.Generator):
+def _bus(render: RenderConfig, rng: np.random.Generator):
     """The episode's pictures; returns (times, frames, draw)."""
     from repro.envs.bus import BusConfig
     from repro.envs.bus.engine import BusBatch
     from repro.envs.bus.render import draw, frame_of_state
 
+    name, path = render.policy, render.path
     if name == "checkpoint":
         cfg, policy = _trained(path, "bus", BusConfig, rng)
     else:
         cfg = BusConfig()
-        policy = bus_policies.make_policy(name, cfg, results_dir=args.results_dir or RESULTS_DIR,
+        policy = bus_policies.make_policy(name, cfg, results_dir=render.results_dir,
                                           mlp_run=path, results_param="--results-dir",
                                           mlp_param="--policy", gru_run=path, gru_param="--policy")
     batch = BusBatch(cfg, 1)
@@ -147,7 +179,7 @@ def _bus(name: str, path: str | None, args: argparse.Namespace, rng: np.random.G
         pending[0] = batch.advance(policy(pending[0]))
 
     frames = _run(lambda: frame_of_state(cfg, batch.state(0)), lambda: float(batch.state(0)["now"]),
-                  cfg.horizon / (4 * args.frames), lambda: len(pending[0]) > 0, act)
+                  cfg.horizon / (4 * render.frames), lambda: len(pending[0]) > 0, act)
     return [f.time for f in frames], frames, lambda fig, f: draw(fig, f, cfg)
 
 
