@@ -53,8 +53,9 @@ def check_x6(results: Path) -> Verdict:
               f"{cfg['batch_decisions']:,} decisions each; test ADR on {cfg['test_episodes']:,} "
               "episodes per policy, mean [95% bootstrap CI] over runs (heuristic: one test, +-1.96 "
               "SEM over paths). " + ". ".join(parts) + ". PS-TRPO's runs are made under the "
-              f"learner's arithmetic the sidecar records ({kernels}), before its MKL arithmetic "
-              "changes; SB3's do not use that learner." + caveat)
+              f"learner's arithmetic the sidecar records ({kernels}); SB3's do not use that "
+              "learner: they compute with torch's own kernels, which may differ between CPU "
+              "vendors in the last digits." + caveat)
     return Verdict("; ".join(ours), verdict, detail, scale_of(path))
 
 
