@@ -57,9 +57,10 @@ def outputs(folder: Path) -> tuple[str, bytes]:
 
 @pytest.mark.slow
 @pytest.mark.skipif(not kernels.pinnable(), reason="the pin applies to x86-64 CPUs with AVX2")
-@pytest.mark.parametrize("learner", LEARNERS)
-def test_kernel_levels_give_the_same_bytes(tmp_path, learner):
-    first, second = (outputs(train(tmp_path / name, learner, **env))
-                     for name, env in LEVELS.items())
-    assert first[0] == second[0]  # the progress table
-    assert first[1] == second[1]  # the checkpoint
+def test_kernel_levels_give_the_same_bytes(tmp_path):
+    """Both learners in one test, so that the generic set-up's numba cache is compiled once."""
+    for learner in LEARNERS:
+        first, second = (outputs(train(tmp_path / f"{learner}-{name}", learner, **env))
+                         for name, env in LEVELS.items())
+        assert first[0] == second[0], learner  # the progress table
+        assert first[1] == second[1], learner  # the checkpoint
