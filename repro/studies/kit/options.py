@@ -1,4 +1,5 @@
-"""Command-line options every driver shares, and where a driver writes by default."""
+"""Command-line options every driver shares, what they resolve to (`Folders`, `Workers`, `Command`:
+the frozen records a driver's `run` reads), and where a driver writes by default."""
 
 from __future__ import annotations
 
