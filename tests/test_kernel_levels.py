@@ -56,6 +56,7 @@ def outputs(folder: Path) -> tuple[str, bytes]:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # four training processes and a numba cache compiled from scratch
 @pytest.mark.skipif(not kernels.pinnable(), reason="the pin applies to x86-64 CPUs with AVX2")
 def test_kernel_levels_give_the_same_bytes(tmp_path):
     """Both learners in one test, so that the generic set-up's numba cache is compiled once."""
