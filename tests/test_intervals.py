@@ -183,3 +183,19 @@ def test_c2_bounds_the_spread_by_bonferroni_over_the_lambdas():
                                     each[1][2] - each[0][1]))
     assert gap == pytest.approx((105.0, (each[0][1] + each[1][1]) / 2 + 200.0,
                                  (each[0][2] + each[1][2]) / 2 + 200.0))
+
+
+@pytest.mark.slow
+def test_the_coverage_study_runs_at_smoke_scale_where_no_scores_can_be_pooled(tmp_path, capsys):
+    """`make reproduce SCALE=smoke` runs interval-coverage on studies of 1-2 seeds a setting:
+    the smoke scale leaves the suite population out; asked for, it is refused, nothing written."""
+    from repro.cli import main
+
+    folders = ["--results-dir", str(tmp_path / "res"), "--figures-dir", str(tmp_path / "fig")]
+    assert main(["interval-coverage", "--scale", "smoke", *folders]) == 0
+    table = pd.read_csv(tmp_path / "res" / "interval_coverage.csv")
+    assert set(table.population) == {"normal", "lognormal", "t3"}
+    other = ["--results-dir", str(tmp_path / "res2"), "--figures-dir", str(tmp_path / "fig2")]
+    assert main(["interval-coverage", "--scale", "smoke", "--populations", "suite", *other]) == 2
+    assert "--populations: must be without suite" in capsys.readouterr().err
+    assert not (tmp_path / "res2" / "interval_coverage.csv").exists()

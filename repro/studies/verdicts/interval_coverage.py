@@ -76,11 +76,16 @@ class IntervalCoverageConfig(Validated):
     """Nominal levels: the claims' 95%, and 1 - 0.05 / 4, each interval of C2's Bonferroni
     bound over four lambdas."""
     populations: tuple[str, ...] = (*POPULATIONS, SUITE)
+    """Populations the groups are drawn from: the parametric ones, and ``suite``, the per-seed
+    scores of the studies in the results folder."""
     kinds: tuple[str, ...] = INTERVALS
+    """Interval kinds whose coverage is measured."""
     statistics: tuple[str, ...] = STATISTICS
+    """Statistics the intervals are of."""
 
     SCALES: ClassVar[dict] = {
-        "smoke": dict(trials=100, n_boot=200, sizes=(3, 5)),
+        # smoke-scale studies train 1-2 seeds per setting, too few to pool: no suite population
+        "smoke": dict(trials=100, n_boot=200, sizes=(3, 5), populations=tuple(POPULATIONS)),
         "quick": {},
         "paper": dict(trials=5000),
     }
