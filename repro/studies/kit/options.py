@@ -99,7 +99,6 @@ class Folders:
         assert self.runs is not None, "a driver that trains nothing asked for its runs folder"
         return check_writable_dir(self.runs.joinpath(*parts), "--runs-dir")
 
-
     def open(self) -> tuple[Path, Path]:
         """The results and figures folders of a driver that draws figures, checked before any
         work (:meth:`open_figures`, then :meth:`open_results`)."""
@@ -109,7 +108,7 @@ class Folders:
 
 _ADDRESS = re.compile(r"(?:(tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*"
                       r"[A-Za-z0-9])?):([0-9]{1,5})")
-_SCHEDULER_FORM = "the address of a running Dask scheduler, tcp://HOST:PORT (or tls://)"
+SCHEDULER_FORM = "the address of a running Dask scheduler, tcp://HOST:PORT (or tls://)"
 
 
 def check_scheduler(scheduler: str) -> tuple[str, str, int]:
@@ -118,9 +117,8 @@ def check_scheduler(scheduler: str) -> tuple[str, str, int]:
     m = _ADDRESS.fullmatch(scheduler)
     port = int(m.group(3)) if m else 0
     if not m or not 1 <= port <= 65535:
-        raise UsageError("--scheduler", _SCHEDULER_FORM, scheduler)
+        raise UsageError("--scheduler", SCHEDULER_FORM, scheduler)
     return m.group(1) or "tcp", m.group(2).strip("[]"), port
-
 
 
 @dataclass(frozen=True)

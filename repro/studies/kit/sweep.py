@@ -56,7 +56,7 @@ from repro.runs.run_folder import (CHECKPOINT, CONFIG, KEPT, LOCK, PROGRESS, PRO
                                    epochs_done, is_finished, kernels_in_todays_terms, locked_by,
                                    recorded_kernels, writer_lock)
 from repro.runs.workers import die_with_parent
-from repro.studies.kit.options import (_SCHEDULER_FORM, EVERY_CORE, Workers, add_common,
+from repro.studies.kit.options import (EVERY_CORE, SCHEDULER_FORM, Workers, add_common,
                                      check_scheduler)
 
 
@@ -343,7 +343,7 @@ def _train(pending: list[TrainJob], root: Path, workers: Workers) -> None:
     """Train the runs ``pending`` under ``root``, holding its sweep.lock (:func:`run_sweep`)."""
     scheduler = workers.scheduler
     processes = min(len(pending), workers.processes)
-    if not scheduler:  # the runs train on this machine, ``workers`` at a time
+    if not scheduler:  # the runs train on this machine, ``processes`` at a time
         largest = max(pending, key=lambda j: sum(training_bytes(j.train, _env(j))))
         check_training_size(largest.train, _env(largest), runs=processes)
     with folder_lock(root, SWEEP_LOCK, "--runs-dir", "a folder of runs"):
@@ -442,7 +442,7 @@ def _dask_client(scheduler: str) -> Any:
     answered, found = _within(deadline, lambda: socket.getaddrinfo(host, port,
                                                                     type=socket.SOCK_STREAM))
     if not answered or isinstance(found, BaseException) or not found:
-        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} whose host can be found (within "
+        raise UsageError("--scheduler", f"{SCHEDULER_FORM} whose host can be found (within "
                          f"{deadline:g} s)", scheduler)
     ip = found[0][4][0]
     numeric = f"{scheme}://{'[' + ip + ']' if ':' in ip else ip}:{port}"
@@ -451,10 +451,10 @@ def _dask_client(scheduler: str) -> Any:
         what = ("nothing answered within " f"{deadline:g} s" if not answered
                 else f"a {identity.get('type')} answered" if isinstance(identity, dict)
                 else "no Dask scheduler answered")
-        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} ({what})", scheduler)
+        raise UsageError("--scheduler", f"{SCHEDULER_FORM} ({what})", scheduler)
     answered, client = _within(deadline, lambda: Client(scheduler, timeout=deadline))
     if not answered or isinstance(client, BaseException):
-        raise UsageError("--scheduler", f"{_SCHEDULER_FORM} (it did not take a client within "
+        raise UsageError("--scheduler", f"{SCHEDULER_FORM} (it did not take a client within "
                          f"{deadline:g} s)", scheduler)
     return client
 
