@@ -36,14 +36,24 @@ help:
 
 # torch is installed first and on its own so that pip takes a CPU build: the `+cpu` build from a
 # local wheel or index where the machine has one (PyPI has none, so this fails fast elsewhere), else
-# from PyTorch's CPU index, else the default build (macOS, where it is CPU-only anyway).
+# from PyTorch's CPU index, else the default build (macOS, where it is CPU-only anyway). The rest
+# goes in with uv where PyPI has it (seconds, where pip takes a minute; the installed torch
+# satisfies the suite's range, so uv keeps it), else with pip. Nothing is byte-compiled at install
+# time (--no-compile, as uv): Python compiles a module on its first import and keeps the byte code,
+# in .venv and in the git-ignored __pycache__ folders, so that only what the suite imports is
+# compiled, once. For that the targets run with byte code writes allowed, whatever
+# PYTHONDONTWRITEBYTECODE says in the caller's environment (some images set it): without them,
+# each of the hundreds of processes a test run or a study starts compiles its imports anew.
+PIP := $(BIN)/pip install -q --no-compile
+unexport PYTHONDONTWRITEBYTECODE
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install -q --upgrade pip
-	$(BIN)/pip install -q "torch==$(TORCH_VERSION)+cpu" 2>/dev/null \
-	  || $(BIN)/pip install -q "torch==$(TORCH_VERSION)+cpu" --extra-index-url https://download.pytorch.org/whl/cpu \
-	  || $(BIN)/pip install -q "torch==$(TORCH_VERSION)"
-	$(BIN)/pip install -q -e ".[test]"
+	$(PIP) --upgrade pip
+	$(PIP) "torch==$(TORCH_VERSION)+cpu" 2>/dev/null \
+	  || $(PIP) "torch==$(TORCH_VERSION)+cpu" --extra-index-url https://download.pytorch.org/whl/cpu \
+	  || $(PIP) "torch==$(TORCH_VERSION)"
+	($(PIP) uv && $(BIN)/uv pip install -q --python $(PY) -e ".[test]") 2>/dev/null \
+	  || $(PIP) -e ".[test]"
 	touch $@
 
 setup: $(STAMP) ## create .venv and install the suite
