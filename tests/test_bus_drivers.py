@@ -70,7 +70,26 @@ def test_load_figure_fails_on_the_corrected_semantics(tmp_path):
     panel."""
     assert main(["fig-bus-load", "--results-dir", str(tmp_path), "--figures-dir",
                  str(tmp_path / "fig"), "--policies", "authors", "--corrected"]) == 0
-    assert load_distances(pd.read_csv(tmp_path / "bus_load.csv"))["authors"] > 1.0
+    assert load_distances(pd.read_csv(tmp_path / "corrected" / "bus_load.csv"))["authors"] > 1.0
+
+
+def test_each_semantics_writes_a_folder_of_its_own_at_its_scale(tmp_path):
+    """The bus writes the same file names for every semantics: a corrected or switched run writes
+    into the subfolder named for its semantics, at the scale asked (they choose the study, not
+    its settings), and leaves the released results beside it as they were."""
+    res, fig = tmp_path / "res", tmp_path / "fig"
+    common = ["fig-bus-load", "--scale", "paper", "--results-dir", str(res), "--figures-dir",
+              str(fig), "--policies", "nohold", "authors"]
+    assert main(common) == 0
+    released = {p: p.read_bytes() for p in res.iterdir() if p.is_file()}
+    for switches, folder in ((["--corrected"], "corrected"),
+                             (["--no-b1-reward"], "b2-b3-b4-b5")):
+        assert main([*common, *switches]) == 0
+        side = json.loads((res / folder / "bus_load.provenance.json").read_text())
+        assert side["scale"] == "paper" and (fig / folder / "bus_load.png").exists()
+        assert {p: p.read_bytes() for p in res.iterdir() if p.is_file()} == released
+    theirs = pd.read_csv(res / "corrected" / "bus_load.csv")
+    assert not theirs.equals(pd.read_csv(res / "bus_load.csv"))
 
 
 def test_thresholds_deterministic(smoke, tmp_path):

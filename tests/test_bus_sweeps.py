@@ -49,15 +49,22 @@ def test_outputs(sweeps):
 
 
 def test_mlp_run_of_other_switches_is_refused(sweeps, capsys, tmp_path):
-    """The sweep trained the released semantics: a corrected figure cannot show its MLP."""
+    """The sweep trained the released semantics: a corrected figure cannot show its MLP, named
+    or as the best run of the corrected sweep, which has not run."""
     res, _, _ = sweeps
     before = sorted(p.name for p in res.iterdir())
-    assert main(["fig-bus-load", "--results-dir", str(res), "--figures-dir", str(tmp_path),
-                 "--policies", "mlp", "--corrected"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--mlp-run: must be a run trained with this command's switches" \
-        in err[0] and "b1_reward" in err[0]
-    assert sorted(p.name for p in res.iterdir()) == before and not any(tmp_path.iterdir())
+    released = pd.read_csv(res / "bus_lambda_summary.csv").dropna(subset=["run"]).run.iloc[0]
+    for named in (["--mlp-run", released], []):
+        assert main(["fig-bus-load", "--results-dir", str(res), "--figures-dir", str(tmp_path),
+                     "--policies", "mlp", "--corrected", *named]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1, err
+        if named:
+            assert "--mlp-run: must be a run trained with this command's switches" in err[0]
+            assert "b1_reward" in err[0]
+        else:
+            assert str(res / "corrected") in err[0], err
+    assert sorted(p.name for p in res.iterdir()) == before and not any(tmp_path.rglob("*.*"))
 
 
 def test_runs_from_before_the_switches_count_as_corrected(tmp_path):

@@ -23,10 +23,12 @@ from repro.runs.results import save_figure
 from repro.studies.bus import pictures
 from repro.studies.bus.pictures import (PictureConfig, add_policy_arguments, policy_grid,
                                         run_policy_figure)
+from repro.studies.bus.policies import semantics_folders
 from repro.studies.kit.options import Command, Folders
 
 VARIANTS = pictures.VARIANTS
-"""Options that choose the picture's panels, not their settings (read by the command line)."""
+"""Options that choose the picture's panels and the corridor's semantics, not their settings (read
+by the command line)."""
 
 
 def plot(arrivals: pd.DataFrame, stem, all_buses: bool, sources: list[Path]) -> None:
@@ -57,5 +59,6 @@ configure = pictures.configure
 
 
 def run(cmd: Command[PictureConfig], folders: Folders) -> int:
-    return run_policy_figure(cmd, folders, command="fig-bus-arrivals", csv_name="bus_arrivals.csv",
+    return run_policy_figure(cmd, semantics_folders(folders, cmd.study.bus),
+                             command="fig-bus-arrivals", csv_name="bus_arrivals.csv",
                              table_of=lambda arrivals: arrivals, plot_table=plot)

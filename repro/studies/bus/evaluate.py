@@ -25,7 +25,8 @@ from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, ma
 from repro.envs.bus.metrics import (REGULARITY_BAND_MIN, record_loads, time_to_regularity,
                                     time_to_uniform)
 from repro.learn.config import LEARNERS
-from repro.studies.bus.policies import GRU_PANELS, POLICIES, PolicySources, picture_arrivals
+from repro.studies.bus.policies import (GRU_PANELS, POLICIES, PolicySources, picture_arrivals,
+                                        semantics_folder)
 
 
 def _finite_or_none(x: float) -> float | None:
@@ -69,7 +70,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the mlp policy is the best run of this learner's lambda "
                    "sweep: " + ", ".join(LEARNERS) + " (default authors)")
     p.add_argument("--results-dir", help="where bus_thresholds.csv and bus_lambda_summary.csv "
-                   f"are read (default: {RESULTS_DIR})")
+                   f"are read (default: {RESULTS_DIR}; of another semantics than the released "
+                   "simulator's, its subfolder named for them, e.g. corrected/)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_switch_arguments(p)
 
@@ -83,7 +85,8 @@ class EvalConfig:
     sources: PolicySources
     """Where a trained or optimised policy comes from."""
     results_dir: Path
-    """Where the optimised thresholds and the best trained run are read (``--results-dir``)."""
+    """Where the optimised thresholds and the best trained run are read (``--results-dir``, its
+    subfolder of the corridor's semantics: :func:`~repro.studies.bus.policies.semantics_folder`)."""
     json: bool
     """Print one JSON object (``--json``)."""
     bus: BusConfig
@@ -107,9 +110,10 @@ def configure(args: argparse.Namespace) -> EvalConfig:
         ("--results-dir", args.results_dir, own_thresholds or best_mlp,
          "with --policy thresholds without --thresholds, or mlp without --mlp-run (they read "
          "it)"))
+    bus = config_from_args(args)
     return EvalConfig(policy=args.policy, sources=PolicySources.of(args),
-                      results_dir=Path(args.results_dir or RESULTS_DIR), json=args.json,
-                      bus=config_from_args(args))
+                      results_dir=semantics_folder(Path(args.results_dir or RESULTS_DIR), bus),
+                      json=args.json, bus=bus)
 
 
 def run(cfg: EvalConfig) -> int:

@@ -36,11 +36,12 @@ from repro.studies.bus import pictures
 from repro.studies.bus.pictures import (PictureConfig, add_policy_arguments, learner_csv,
                                         policy_grid, run_policy_figure)
 from repro.studies.bus.policies import (TrainedPolicy, lambda_summary_csv, make_policy,
-                                        picture_arrivals)
+                                        picture_arrivals, semantics_folders)
 from repro.studies.kit.options import Command, Folders
 
 VARIANTS = pictures.VARIANTS
-"""Options that choose the picture's panels, not their settings (read by the command line)."""
+"""Options that choose the picture's panels and the corridor's semantics, not their settings (read
+by the command line)."""
 
 LOAD_CSV = "bus_load.csv"
 SWITCHES_CSV = "bus_load_switches.csv"
@@ -116,6 +117,7 @@ configure = pictures.configure
 
 
 def run(cmd: Command[PictureConfig], folders: Folders) -> int:
+    folders = semantics_folders(folders, cmd.study.bus)
     rc = run_policy_figure(cmd, folders, command="fig-bus-load", csv_name=LOAD_CSV, table_of=loads,
                            plot_table=plot)
     if cmd.replot:

@@ -19,16 +19,17 @@ from repro.paper import BUS_BUSES_DRAWN
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
 from repro.studies.bus.gru_runs import best_gru_run
-from repro.studies.bus.policies import (DEFAULT_PANELS, GRU_PANELS, POLICIES, PolicySources,
-                                        best_run, picture_arrivals)
+from repro.studies.bus.policies import (BUS_VARIANTS, DEFAULT_PANELS, GRU_PANELS, POLICIES,
+                                        PolicySources, best_run, picture_arrivals)
 from repro.studies.kit.options import (Command, Folders, add_common, add_replot, read_for_replot,
                                        replot_figures)
 from repro.studies.kit.sweep import add_sweep_arguments
 
 
-VARIANTS = ("policies",)
-"""The option that chooses which panels a picture holds, not its settings: each panel's episode is
-the same whichever others are drawn (:func:`repro.studies.kit.options.scale_departures`)."""
+VARIANTS = ("policies", *BUS_VARIANTS)
+"""The options that choose which panels a picture holds (each panel's episode is the same
+whichever others are drawn) and the corridor's semantics, not its settings
+(:func:`repro.studies.kit.options.scale_departures`)."""
 
 TITLES = {"nohold": "No Holding", "mlp": "Optimized MLP Policy",
           "authors": "Authors' Thresholds", "thresholds": "Optimized Thresholds (ours)",

@@ -23,7 +23,27 @@ from repro.learn.trained_policy import (check_fits, load_trained_run, policy_fro
                                         trained_env_config)
 from repro.runs.results import read_result
 from repro.runs.run_folder import CHECKPOINT
+from repro.studies.kit.options import Folders
 from repro.studies.kit.sweep import policy_stream
+
+
+BUS_VARIANTS = ("corrected", *SWITCHES)
+"""The options that choose the corridor's semantics (``--corrected``, B1-B5), and so the folder
+of the results (:func:`semantics_folder`): a bus driver's variants, not departures from its
+scale's settings (:func:`repro.studies.kit.options.scale_departures`)."""
+
+
+def semantics_folder(results: Path, bus: BusConfig) -> Path:
+    """Where the bus results of ``bus``'s semantics lie under the results folder ``results``:
+    itself for the released simulator's (B1-B5 on), else its subfolder named for them
+    (``corrected``, or the switches on, e.g. ``b1-b4``). The bus writes the same file names for
+    every semantics; the subfolder keeps one semantics' results from replacing another's."""
+    return results if bus.semantics == "released" else results / bus.semantics
+
+
+def semantics_folders(folders: Folders, bus: BusConfig) -> Folders:
+    """A bus driver's ``folders`` with its results and figures in :func:`semantics_folder`."""
+    return folders if bus.semantics == "released" else folders.within(bus.semantics)
 
 
 class TrainedPolicy:

@@ -51,7 +51,7 @@ from repro.learn.config import (LEARNERS, SAMPLERS, add_learner_option, batch_un
 from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
 from repro.runs.stats import bootstrap_ci, iqm
-from repro.studies.bus.policies import read_thresholds
+from repro.studies.bus.policies import BUS_VARIANTS, read_thresholds, semantics_folders
 from repro.studies.kit.options import (Command, Folders, add_replot, read_for_replot,
                                        replot_figures)
 from repro.studies.kit.sweep import TrainJob, add_study_arguments, run_dir, run_sweep
@@ -282,9 +282,9 @@ def plot(cfg: BusSweepConfig, sweep: str, table: pd.DataFrame, baselines: dict[s
 
 FLAGS = ("seeds", "epochs", "final_epochs", "early_epochs", "sampler")
 """The BusSweepConfig fields the sweeps take as flags, besides ``--learner``."""
-VARIANTS = ("sampler",)
-"""The option that chooses the study (``*_pool``), not its settings
-(:func:`repro.studies.kit.options.scale_departures`)."""
+VARIANTS = ("sampler", *BUS_VARIANTS)
+"""The options that choose the study (``*_pool``; the semantics, :func:`semantics_folder`), not
+its settings (:func:`repro.studies.kit.options.scale_departures`)."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -319,6 +319,7 @@ def run_named(sweep: str, cmd: Command[tuple[BusSweepConfig, BusConfig]],
               folders: Folders) -> int:
     """The command of the sweep ``sweep`` ("lambda" or "batch")."""
     (cfg, bus), seed = cmd.study, cmd.seed
+    folders = semantics_folders(folders, bus)
     if cmd.replot:
         return replot(sweep, cfg, folders)
     results, figures = folders.open()

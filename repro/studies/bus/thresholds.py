@@ -27,7 +27,7 @@ from repro.envs.bus import BusConfig, add_switch_arguments, config_from_args, ma
 from repro.envs.bus.policies import AUTHORS_THRESHOLDS, ThresholdPolicy
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
-from repro.studies.bus.policies import THRESHOLDS_CSV
+from repro.studies.bus.policies import BUS_VARIANTS, THRESHOLDS_CSV, semantics_folders
 from repro.studies.kit.options import Command, Folders, add_common
 
 
@@ -84,6 +84,11 @@ def optimise(cfg: ThresholdsConfig, bus: BusConfig, seed: int) -> pd.DataFrame:
     return table
 
 
+VARIANTS = BUS_VARIANTS
+"""The options that choose the corridor's semantics, and so the results' folder, not the search's
+settings (read by the command line)."""
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p, figures=False)
     add_switch_arguments(p)
@@ -97,7 +102,7 @@ def configure(args: argparse.Namespace) -> Command[tuple[ThresholdsConfig, BusCo
 
 def run(cmd: Command[tuple[ThresholdsConfig, BusConfig]], folders: Folders) -> int:
     (cfg, bus), seed = cmd.study, cmd.seed
-    results = folders.open_results()
+    results = semantics_folders(folders, bus).open_results()
     t0 = time.perf_counter()
     table = optimise(cfg, bus, seed)
     prov = provenance(cfg, command="bus-thresholds", scale=folders.scale, seed=seed,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Generic, TypeVar
 
@@ -76,6 +76,13 @@ class Folders:
 
         return cls(scale=args.scale, results=named("results"), figures=named("figures"),
                    runs=named("runs"), overwrite=bool(getattr(args, "overwrite", False)))
+
+    def within(self, name: str) -> Folders:
+        """These folders with the results and the figures in their subfolders ``name`` (the runs
+        where they are)."""
+        return replace(
+            self, results=self.results / name,
+            figures=None if self.figures is None else self.figures / name)
 
     def open_results(self) -> Path:
         """The results folder, checked and held until the command ends: writable, no other
