@@ -13,9 +13,13 @@ from repro.runs.memory import keep_freed_memory
 glibc_only = pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="a no-op without glibc")
 
 _FAULTS = """
-import resource, sys
+import ctypes, resource, sys
 import numpy as np
 from repro.runs.memory import keep_freed_memory
+# no transparent huge pages (PR_SET_THP_DISABLE), so that the faults count the 4 KiB pages touched:
+# numpy asks for huge pages for large arrays, and whether the kernel has them free varies from
+# one allocation to the next
+ctypes.CDLL(None).prctl(41, 1, 0, 0, 0)
 if sys.argv[1] == "keep":
     keep_freed_memory()
 for _ in range(2):
