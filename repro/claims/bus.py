@@ -261,10 +261,10 @@ CLAIMS = [
 ]
 
 
-CORRECTED_DIR = "corrected"
-"""Subfolder of the results with the bus results of the corrected semantics (``--corrected``):
-the sweeps' CSVs made with B1-B5 off, and the figure CSVs redrawn from them with --corrected
-(their MLP runs are not kept, so there is no MLP panel)."""
+CORRECTED_DIR = BusConfig.corrected().semantics
+"""Subfolder of the results with the bus results of the corrected semantics (B1-B5 off), where
+the bus drivers write them with ``--corrected``
+(:func:`repro.studies.bus.policies.semantics_folder`)."""
 
 
 def NOTES(results: Path) -> str:  # noqa: N802 (the registry's name for a topic's notes)
