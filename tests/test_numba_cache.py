@@ -85,21 +85,28 @@ def test_engines_cached_by_separate_processes_load_together(tmp_path):
     assert together.stdout == "".join(p.stdout for p in alone)
 
 
-def test_a_source_change_anywhere_in_the_package_makes_cached_kernels_stale(tmp_path,
-                                                                            monkeypatch):
+def test_a_source_change_a_kernel_can_see_makes_cached_kernels_stale(tmp_path, monkeypatch):
     """numba stamps a cache with its function's own file only; the suite's stamp also holds the
-    package's source digest, so a kernel cached before a callee in another file changed is not
-    loaded after the change."""
+    digest of the source kernels can see, so a kernel cached before a callee in another file
+    changed is not loaded after the change; a change to a study leaves the cache valid."""
     package = tmp_path / "pkg"
-    (package / "sub").mkdir(parents=True)
-    (package / "a.py").write_text("x = 1\n")
-    (package / "sub" / "b.py").write_text("y = 2\n")
+    for part in ("envs", "studies"):
+        (package / part).mkdir(parents=True)
+    (package / "paper.py").write_text("x = 1\n")
+    (package / "envs" / "b.py").write_text("y = 2\n")
+    (package / "studies" / "c.py").write_text("z = 3\n")
     before = numba_cache.source_digest(package)
     assert numba_cache.source_digest(package) == before
-    (package / "sub" / "b.py").write_text("y = 3\n")
+    (package / "studies" / "c.py").write_text("z = 4\n")
+    numba_cache.source_digest.cache_clear()
+    assert numba_cache.source_digest(package) == before
+    (package / "envs" / "b.py").write_text("y = 3\n")
     numba_cache.source_digest.cache_clear()
     after = numba_cache.source_digest(package)
     assert after != before
+    assert set(numba_cache.KERNEL_SOURCES) >= {p.name for p in numba_cache.PACKAGE.iterdir()
+                                               if p.name not in ("studies", "claims", "cli.py",
+                                                                 "__main__.py", "__pycache__")}
 
     def cache_file():
         return IndexDataCacheFile(str(tmp_path), "kernel-1.py311", b"stamp")
