@@ -6,20 +6,17 @@ import numpy as np
 import pandas as pd
 
 from repro.cli import main
-from repro.learn.config import TrainConfig
 
-MLP = "mlp-" + "x".join(map(str, TrainConfig.hidden)) + "-tanh"
-"""The benchmarks' policy: the default learner's network."""
+MLPS = ("authors-mlp-32-tanh", "suite-mlp-32x32-tanh")
+"""The benchmarks' policies: each learner's fresh network."""
 
 
 def test_bench_bus_smoke(tmp_path):
     assert main(["bench-bus", "--scale", "smoke", "--results-dir", str(tmp_path)]) == 0
     df = pd.read_csv(tmp_path / "bench_bus.csv")
-    assert sorted(zip(df.engine, df.policy)) == [("fast", MLP), ("fast", "nohold"),
-                                                 ("fast-step-api", MLP),
-                                                 ("fast-step-api", "nohold"),
-                                                 ("reference", MLP),
-                                                 ("reference", "nohold")]
+    assert sorted(zip(df.engine, df.policy)) == sorted(
+        (engine, policy) for engine in ("fast", "fast-step-api", "reference")
+        for policy in (*MLPS, "nohold"))
     assert (df.decisions > df.episodes).all()
     np.testing.assert_allclose(df.episodes_per_cpu_second * df.cpu_seconds, df.episodes)
     np.testing.assert_allclose(df.decisions_per_second * df.wall_seconds, df.decisions)

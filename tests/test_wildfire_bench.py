@@ -6,23 +6,22 @@ import numpy as np
 import pytest
 
 from repro.envs.wildfire import WildfireConfig
-from repro.learn.config import TrainConfig
 from repro.learn.trained_policy import load_trained_run
 from repro.studies.bench.wildfire import WildfireBenchConfig, measure
 
 pytestmark = pytest.mark.slow  # studies end to end, subprocesses: left out of make test-fast
 
-MLP = "mlp-" + "x".join(map(str, TrainConfig.hidden)) + "-tanh"
-"""The benchmarks' policy: the default learner's network."""
+MLPS = ("authors-mlp-32-tanh", "suite-mlp-32x32-tanh")
+"""The benchmarks' policies: each learner's fresh network."""
 
 
 def test_measure_reports_both_engines_and_policies():
     cfg = WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1)
     frame = measure(cfg, seed=4)
-    assert sorted(zip(frame.engine, frame.policy)) == [
-        ("fast", MLP), ("fast", "random"), ("fast-step-api", MLP), ("fast-step-api", "random"),
-        ("reference", MLP), ("reference", "random")]
-    for policy in (MLP, "random"):  # the rollouts' decisions, or a step more
+    assert sorted(zip(frame.engine, frame.policy)) == sorted(
+        (engine, policy) for engine in ("fast", "fast-step-api", "reference")
+        for policy in (*MLPS, "random"))
+    for policy in (*MLPS, "random"):  # the rollouts' decisions, or a step more
         rollouts, steps = (frame[(frame.engine == engine) & (frame.policy == policy)].iloc[0]
                            for engine in ("fast", "fast-step-api"))
         assert rollouts.decisions <= steps.decisions < rollouts.decisions + 20 * 100
@@ -39,7 +38,7 @@ def test_measure_reports_both_engines_and_policies():
 def test_repeats_run_more_batches_of_other_episodes():
     one = measure(WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1), seed=4)
     three = measure(WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=3), seed=4)
-    assert three.episodes.tolist() == [60, 60, 6, 6, 60, 60] and (three.batches == 3).all()
+    assert three.episodes.tolist() == [60, 60, 60, 6, 6, 6, 60, 60, 60] and (three.batches == 3).all()
     assert (three.decisions != 3 * one.decisions).all()  # batches 2 and 3 draw other episodes
     assert np.isfinite(three.select_dtypes("number")).all().all()
 

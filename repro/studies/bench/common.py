@@ -2,12 +2,13 @@
 
 A benchmark runs an environment's fast engine and its SimPy reference under two policies:
 
-- ``mlp``: the default learner's policy exactly as training runs it: a :class:`CategoricalPolicy`
-  with the authors' network (:data:`~repro.learn.config.AUTHORS`: one hidden layer of 32,
-  Glorot-uniform weights), evaluated by the :class:`Sampler` the trainer hands to the engines (one
-  batched numpy forward per round, inverse-CDF sampling). Where that learner normalises
-  observations, the normaliser is fitted to the warm-up rollout, as the trainer's is after its
-  first epoch;
+- each learner's policy (:data:`~repro.learn.config.LEARNERS`) exactly as training runs it, a
+  fresh :class:`CategoricalPolicy` evaluated by the :class:`Sampler` the trainer hands to the
+  engines (each round's decisions row by row in compiled code, inverse-CDF sampling): policy
+  ``authors-mlp-32-tanh``, the authors' network (one hidden layer of 32, Glorot-uniform weights),
+  and ``suite-mlp-32x32-tanh``, the suite's (two of 32, orthogonal weights). Where a learner
+  normalises observations, its normaliser is fitted to the warm-up rollout, as the trainer's is
+  after its first epoch;
 - a cheap policy of the environment, which shows what the engine costs nearly alone.
 
 The fast engine's step API (``make_vector_env``, engine ``fast-step-api``) runs both policies too
@@ -19,7 +20,7 @@ episodes still running when it stops (a wildfire episode's start positions and w
 drawn when it starts), which the rollouts do not.
 
 With ``--checkpoint PATH`` (a training run's ``checkpoint.pt``) the trained policy, with its own
-normaliser, takes the fresh network's place (policy ``checkpoint``), and both engines run that
+normaliser, takes the fresh networks' place (policy ``checkpoint``), and both engines run that
 run's environment settings; the CSV is then ``bench_<env>_checkpoint.csv``. Trained policies can
 make episodes far longer than a fresh one's (see the stay flights of the wildfire's C6 runs),
 which is a different regime for the engine.
@@ -45,6 +46,7 @@ import argparse
 import os
 import time
 from dataclasses import dataclass, fields
+from functools import partial
 from typing import Any, Callable
 
 import numpy as np
@@ -53,7 +55,7 @@ import pandas as pd
 from repro.core.config import Validated, add_config_arguments, for_scale, given_fields
 from repro.core.rollout import BatchEnv, DecisionBatch, Policy, rollout_bytes
 from repro.envs import env_package, make_vector_env, train_defaults
-from repro.learn.config import DEFAULT_LEARNER, LEARNERS
+from repro.learn.config import LEARNERS
 from repro.learn.trained_policy import check_fits, load_trained_run, policy_from_state
 from repro.runs.memory import require_memory
 from repro.runs.provenance import provenance
@@ -150,6 +152,18 @@ def _timed_batches(run: Callable[[_Timed, np.random.SeedSequence], int], policy:
                 engine_decisions_per_cpu_second=np.median(d / (cpu - policy_cpu)))
 
 
+def mlp_name(learner: str) -> str:
+    """The benchmarks' name of a learner's fresh network: "authors-mlp-32-tanh"."""
+    return f"{learner}-mlp-" + "x".join(map(str, LEARNERS[learner].hidden)) + "-tanh"
+
+
+def _sampler(network: Any, normalizer: Any, env: BatchEnv, rng: np.random.Generator) -> Policy:
+    """The trainer's sampler of ``network`` (a :data:`CheapPolicy`'s signature)."""
+    from repro.learn.policy import Sampler
+
+    return Sampler(network, normalizer, rng)
+
+
 def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPolicy,
             cfg: BenchConfig, seed: int, trained: dict[str, Any] | None = None) -> pd.DataFrame:
     """One row per engine and policy (see the module docstring); ``trained``: a loaded
@@ -157,25 +171,22 @@ def measure(fast: BatchEnv, reference: BatchEnv, cheap_name: str, cheap: CheapPo
     Batches that cannot fit in memory are refused first."""
     import torch  # here, not above: a command's options are checked without torch
 
-    from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+    from repro.learn.policy import CategoricalPolicy, ObsNormalizer
 
     for env, episodes, param in ((fast, cfg.fast_episodes, "--fast-episodes"),
                                  (reference, cfg.reference_episodes, "--reference-episodes")):
         require_memory(rollout_bytes(env, episodes), param, episodes, "a batch of episodes")
     if trained is None:
         warm_up = fast.rollout(cheap(fast, np.random.default_rng(seed)), cfg.fast_episodes, seed)
-        learner = LEARNERS[DEFAULT_LEARNER]
-        normalizer = ObsNormalizer(fast.obs_dim)
-        if learner.normalize_obs:
-            normalizer.update(warm_up.obs)
-        hidden = learner.hidden
-        torch.manual_seed(seed)
-        network = CategoricalPolicy(fast.obs_dim, fast.n_actions, hidden, learner.init)
-        policies: dict[str, CheapPolicy] = {
-            "mlp-" + "x".join(map(str, hidden)) + "-tanh":
-                lambda env, rng: Sampler(network, normalizer, rng),
-            cheap_name: cheap,
-        }
+        policies: dict[str, CheapPolicy] = {}
+        for name, learner in LEARNERS.items():
+            normalizer = ObsNormalizer(fast.obs_dim)
+            if learner.normalize_obs:
+                normalizer.update(warm_up.obs)
+            torch.manual_seed(seed)
+            network = CategoricalPolicy(fast.obs_dim, fast.n_actions, learner.hidden, learner.init)
+            policies[mlp_name(name)] = partial(_sampler, network, normalizer)
+        policies[cheap_name] = cheap
     else:
         check_fits(trained, fast, "--checkpoint", None)
         fast.rollout(cheap(fast, np.random.default_rng(seed)), 1, seed)  # compiles the engine
