@@ -38,7 +38,8 @@ def test_measure_reports_both_engines_and_policies():
 def test_repeats_run_more_batches_of_other_episodes():
     one = measure(WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=1), seed=4)
     three = measure(WildfireBenchConfig(fast_episodes=20, reference_episodes=2, repeats=3), seed=4)
-    assert three.episodes.tolist() == [60, 60, 60, 6, 6, 6, 60, 60, 60] and (three.batches == 3).all()
+    assert three.episodes.tolist() == [60, 60, 60, 6, 6, 6, 60, 60, 60]
+    assert (three.batches == 3).all()
     assert (three.decisions != 3 * one.decisions).all()  # batches 2 and 3 draw other episodes
     assert np.isfinite(three.select_dtypes("number")).all().all()
 
