@@ -7,6 +7,7 @@ config allows and both initialisations."""
 from __future__ import annotations
 
 import itertools
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,7 +16,8 @@ from torch import nn
 
 from repro.learn.config import INITS
 from repro.learn.network import TanhMLP
-from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
+from repro.learn.policy import (BLOCK, BLOCK_MIN, CategoricalPolicy, ObsNormalizer, Sampler,
+                                 _logits_rows)
 from repro.learn.policy_kernel import logits_row
 
 OBS_DIM, N_ACTIONS, ROWS = 7, 5, 64
@@ -103,6 +105,27 @@ def test_the_samplers_evaluation_is_the_spec_layer_by_layer(hidden, init):
                          for o in obs])
         np.testing.assert_allclose(rows, z, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(sampler.logits(obs), pre[-1], rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("hidden, init", CASES)
+def test_a_round_in_blocks_gives_the_bits_of_the_row_by_row_evaluation(hidden, init):
+    """A round of BLOCK_MIN rows or more is evaluated in blocks, a smaller one row by row: the
+    logits and the actions are the same bits either way, at the threshold, across blocks, and for
+    observations far outside the normaliser's range (saturated units)."""
+    policy, norm, _, _ = network(hidden, init, seed=5)
+    sampler = Sampler(policy, norm, np.random.default_rng(0))
+    rng = np.random.default_rng(6)
+    n = 2 * BLOCK + 3
+    obs = rng.normal(2.0, 5.0, size=(n, OBS_DIM)) * rng.choice([1.0, 1e3], size=(n, 1))
+    u = rng.random(n)
+    rows = _logits_rows(obs, sampler.weights, sampler.biases, sampler.mean, sampler.scale)
+    one_by_one = np.array([sampler.act(SimpleNamespace(obs=obs[r:r + 1]), u[r:r + 1])[0]
+                           for r in range(n)])
+    assert len(set(one_by_one)) > 1
+    for size in (BLOCK_MIN - 1, BLOCK_MIN, BLOCK + 1, n):
+        assert sampler.logits(obs[:size]).tobytes() == rows[:size].tobytes()
+        actions = sampler.act(SimpleNamespace(obs=obs[:size]), u[:size])
+        np.testing.assert_array_equal(actions, one_by_one[:size])
 
 
 def test_the_spec_can_tell_another_activation():
