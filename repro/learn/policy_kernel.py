@@ -1,8 +1,9 @@
 """The shared categorical tanh-MLP policy evaluated one decision at a time in compiled code: the
 arithmetic of the :class:`repro.learn.policy.Sampler`.
 
-Engines hand the policy one round of decisions at a time, and the sampler evaluates it row by row
-with the functions here, whatever the round's size. The arithmetic is the network's, in float32:
+Engines hand the policy one round of decisions at a time, and the sampler evaluates a small round
+row by row with the functions here (a large one in blocks, with the same sums:
+:class:`~repro.learn.policy.Sampler`). The arithmetic is the network's, in float32:
 each layer's sums in input order, then the bias, then tanh (:func:`tanh32`, correctly rounded).
 It is the same on every CPU: numba reorders no sums and fuses no multiply-adds without fast-math,
 while numpy's BLAS, which blocks its sums by CPU, stays out of it (:mod:`repro.runs.kernels`).

@@ -4,7 +4,7 @@ A benchmark runs an environment's fast engine and its SimPy reference under two 
 
 - each learner's policy (:data:`~repro.learn.config.LEARNERS`) exactly as training runs it, a
   fresh :class:`CategoricalPolicy` evaluated by the :class:`Sampler` the trainer hands to the
-  engines (each round's decisions row by row in compiled code, inverse-CDF sampling): policy
+  engines (each round's decisions in compiled code, inverse-CDF sampling): policy
   ``authors-mlp-32-tanh``, the authors' network (one hidden layer of 32, Glorot-uniform weights),
   and ``suite-mlp-32x32-tanh``, the suite's (two of 32, orthogonal weights). Where a learner
   normalises observations, its normaliser is fitted to the warm-up rollout, as the trainer's is
