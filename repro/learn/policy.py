@@ -197,7 +197,9 @@ class Sampler:
         """Per layer, the (outputs,) biases, float32."""
         units = max(self.weights[0].shape[0], *(w.shape[0] for w in self.layers))
         self._scratch = np.empty((2, units * BLOCK), np.float32)
-        """Two buffers, each as large as a block's widest layer (or its inputs)."""
+        """Two buffers, each as large as a block's widest layer (or its inputs): every call of a
+        large round writes them, so one sampler serves one thread at a time (as engines and
+        workers call it)."""
         self.mean = normalizer.mean.copy()
         self.scale = 1.0 / np.sqrt(normalizer.var + normalizer.eps)
         self.rng = rng
