@@ -11,9 +11,6 @@ SEED   ?= 0
 ARGS   ?=
 TORCH_VERSION ?= 2.13.0
 STAMP  := $(VENV)/.installed
-# the bus pictures' panels in `make reproduce`: the paper's, and the released GRU policy that drew
-# them (C5 is decided on it; its runs are trained by the first of the two)
-BUS_PANELS := nohold authors thresholds mlp gru gru-greedy
 # pytest-xdist workers of `make test`: auto, one per core; 0 runs the tests in this process
 TEST_WORKERS ?= auto
 
@@ -67,32 +64,8 @@ test-fast: $(STAMP) ## the tests not marked slow (about a minute): while editing
 lint: $(STAMP) ## ruff: style (100 columns) and likely bugs (pyproject.toml says which rules)
 	$(BIN)/ruff check repro tests
 
-reproduce: $(STAMP) ## run every driver at SCALE, then its verdicts: a smoke check below paper scale
-	$(MAKE) race SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) bus-thresholds SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) bus-lambda SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) bus-batch SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) bus-lambda-pool SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) bus-batch-pool SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) bus-arrivals SCALE=$(SCALE) ARGS="--policies $(BUS_PANELS)"
-	$(MAKE) bus-loads SCALE=$(SCALE) ARGS="--policies $(BUS_PANELS)"
-	$(MAKE) scaling SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED) ARGS="--sim-version 2017-04-22"
-	$(MAKE) transfer SCALE=$(SCALE) SEED=$(SEED) ARGS=--corrected
-	$(MAKE) transfer-pool SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) transfer-heuristics SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) wildfire-behaviour SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) wildfire-penalty SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) wildfire-races SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) advantage-estimators SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) advantage-sb3 SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) transfer-order SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) transfer-dt SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) transfer-ablation SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) transfer-inputs SCALE=$(SCALE) SEED=$(SEED)
-	$(MAKE) interval-coverage SCALE=$(SCALE) SEED=$(SEED)
-	$(REPRO) claims --results-dir results/$(SCALE)
+reproduce: $(STAMP) ## every study at SCALE, their runs trained together, then the verdicts (ARGS="--studies transfer transfer-dt": some of them)
+	$(REPRO) reproduce --scale $(SCALE) --seed $(SEED) $(ARGS)
 
 claims: $(STAMP) ## render paper_claims.md from results/paper/ (ARGS="--results-dir results/quick": a smoke check; "--interval percentile": decided with the percentile bootstrap)
 	$(REPRO) claims $(ARGS)

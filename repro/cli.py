@@ -79,6 +79,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "claims": ("repro.claims", "render paper_claims.md from the result files"),
     "interval-coverage": (S + "verdicts.interval_coverage",
                           "coverage of the claims' interval kinds at 3, 5 and 10 runs"),
+    "reproduce": ("repro.reproduce", "every study at --scale, their runs trained together, then "
+                  "the verdicts"),
 }
 """command -> (module, one-line description)."""
 ALIASES: dict[str, str] = {
@@ -253,6 +255,11 @@ def show_defaults(parser: argparse.ArgumentParser) -> None:
             action.help += " (default: %(default)s)"
 
 
+def command_module(name: str) -> Any:
+    """The module of the command ``name`` (or of one of its other names), imported."""
+    return importlib.import_module(COMMANDS[ALIASES.get(name, name)][0])
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
@@ -268,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"repro: error: command: must be one of {', '.join([*COMMANDS, *ALIASES])}, got "
               f"{typed!r}", file=sys.stderr)
         return 2
-    module = importlib.import_module(COMMANDS[name][0])
+    module = command_module(name)
     parser = OneLineParser(prog=f"repro {typed}", description=COMMANDS[name][1])
     keys: dict[str, str] = {}  # flag -> "FILE: key" of the --config file that gave it
     try:

@@ -10,6 +10,17 @@ import repro  # noqa: F401  (first, so that it pins the CPU kernels before a tes
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The tests that declare a longer time limit than the default (``pytest.mark.timeout``)
+    run first, longest first, the others in their order: with a worker per core, a long test
+    taken up last would keep one core busy while the others idle at the end of the run."""
+    def limit(item: pytest.Item) -> float:
+        mark = item.get_closest_marker("timeout")
+        return float(mark.args[0]) if mark and mark.args else 0.0
+
+    items.sort(key=lambda item: -limit(item))
+
+
 def run_cli(*args: str, cwd: Path | None = None,
             timeout: float = 240) -> subprocess.CompletedProcess:
     """Run the real entry point, `python -m repro ...`, as a user would (killed after ``timeout``

@@ -1,8 +1,9 @@
 """The package's layers: core, paper <- envs, runs <- learn <- studies <- claims <- cli <-
-__main__. A module imports only from its own package and the layers below it, so each layer can
-be read (and reused) without the ones above it: never from a layer above, never from a sibling
-package of its own layer (the environments never import the run bookkeeping, nor it them), and
-no module imports, through others, itself. Imports inside functions count too."""
+reproduce (which runs the other commands through the command line) <- __main__. A module imports
+only from its own package and the layers below it, so each layer can be read (and reused) without
+the ones above it: never from a layer above, never from a sibling package of its own layer (the
+environments never import the run bookkeeping, nor it them), and no module imports, through
+others, itself. Imports inside functions count too."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "repro"
 LAYER = {"core": 0, "paper": 0, "envs": 1, "runs": 1, "learn": 2, "studies": 3, "claims": 4,
-         "cli": 5, "__main__": 6}
+         "cli": 5, "reproduce": 6, "__main__": 7}
 
 
 def layer(module: str) -> int:

@@ -74,13 +74,13 @@ def _cells(cache: Path, *n_agents: int) -> subprocess.CompletedProcess:
 
 @pytest.mark.timeout(900)
 def test_engines_cached_by_separate_processes_load_together(tmp_path):
-    """The wildfire engine compiled for three N in three processes, as the test suite's commands
-    and workers fill the cache, then loaded together by a fourth, as a study does: each N must
-    run its own code. With numba's per-process compilation counter the three compilations had
-    one symbol, and the fourth process crashed in the engine's set-up (SIGSEGV)."""
-    alone = [_cells(tmp_path, n) for n in (3, 6, 12)]
+    """The wildfire engine compiled for two N in two processes, as the test suite's commands
+    and workers fill the cache, then loaded together by a third, as a study does: each N must
+    run its own code. With numba's per-process compilation counter the two compilations had one
+    symbol, and the third process crashed in the engine's set-up (SIGSEGV)."""
+    alone = [_cells(tmp_path, n) for n in (3, 6)]
     assert all(p.returncode == 0 for p in alone), [p.stderr[-2000:] for p in alone]
-    together = _cells(tmp_path, 3, 6, 12)
+    together = _cells(tmp_path, 3, 6)
     assert together.returncode == 0, together.stderr[-2000:]
     assert together.stdout == "".join(p.stdout for p in alone)
 
@@ -106,7 +106,8 @@ def test_a_source_change_a_kernel_can_see_makes_cached_kernels_stale(tmp_path, m
     assert after != before
     assert set(numba_cache.KERNEL_SOURCES) >= {p.name for p in numba_cache.PACKAGE.iterdir()
                                                if p.name not in ("studies", "claims", "cli.py",
-                                                                 "__main__.py", "__pycache__")}
+                                                                 "reproduce.py", "__main__.py",
+                                                                 "__pycache__")}
 
     def cache_file():
         return IndexDataCacheFile(str(tmp_path), "kernel-1.py311", b"stamp")

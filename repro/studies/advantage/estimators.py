@@ -47,7 +47,8 @@ from repro.runs.results import save_figure, write_result
 from repro.runs.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.studies.bus import sweeps as bus_sweeps
 from repro.studies.kit.options import Command, Folders, add_replot, replot_pair
-from repro.studies.kit.sweep import TrainJob, add_study_arguments, run_dir, run_sweep
+from repro.studies.kit.sweep import (TrainJob, add_study_arguments, run_dir, run_sweep,
+                                    run_sweeps)
 from repro.studies.transfer import study as transfer
 
 REFERENCE = "m-gae"
@@ -120,15 +121,27 @@ def estimator_jobs(cfg: MgaeStudyConfig, base: list[TrainJob]) -> list[tuple[str
             if e == REFERENCE or not is_m_gae(e, job.train.lam)]
 
 
-def bus_runs(cmd: Command[MgaeStudyConfig], folders: Folders) -> pd.DataFrame:
-    """Train (or resume) the bus runs; one row per run with its final return."""
-    cfg = cmd.study
-    sweep = cfg.bus(folders.scale)
+def bus_jobs(cmd: Command[MgaeStudyConfig], folders: Folders) -> tuple[
+        list[tuple[str, TrainJob]], Path]:
+    """The bus runs, labelled by estimator, and the folder of their run folders."""
+    sweep = cmd.study.bus(folders.scale)
     bus = BusConfig()
-    root = folders.run_root(bus_sweeps.runs_folder(bus))
     base = [j for j in bus_sweeps.jobs(sweep, "lambda", cmd.seed, bus)
             if j.train.lam == sweep.batch_lambda]  # the paper's bus lambda, 2
-    labelled = estimator_jobs(cfg, base)
+    return estimator_jobs(cmd.study, base), folders.run_root(bus_sweeps.runs_folder(bus))
+
+
+def wildfire_jobs(cmd: Command[MgaeStudyConfig], folders: Folders) -> list[tuple[str, TrainJob]]:
+    """The wildfire runs, labelled by estimator (in the transfer study's run folders)."""
+    study = cmd.study.wildfire(folders.scale)
+    return estimator_jobs(cmd.study, [job for _, job in transfer.make_jobs(study, folders.scale,
+                                                                          cmd.seed)])
+
+
+def bus_runs(cmd: Command[MgaeStudyConfig], folders: Folders) -> pd.DataFrame:
+    """Train (or resume) the bus runs; one row per run with its final return."""
+    sweep = cmd.study.bus(folders.scale)
+    labelled, root = bus_jobs(cmd, folders)
     run_sweep([job for _, job in labelled], root, cmd.workers)
     rows = []
     for estimator, job in labelled:
@@ -143,8 +156,7 @@ def bus_runs(cmd: Command[MgaeStudyConfig], folders: Folders) -> pd.DataFrame:
 def wildfire_runs(cmd: Command[MgaeStudyConfig], folders: Folders) -> pd.DataFrame:
     """Train (or resume) the wildfire runs and test them on ED; one row per run with its ADR."""
     study = cmd.study.wildfire(folders.scale)
-    base = [job for _, job in transfer.make_jobs(study, folders.scale, cmd.seed)]
-    labelled = estimator_jobs(cmd.study, base)
+    labelled = wildfire_jobs(cmd, folders)
     tested, sweep = transfer.train_and_test(study, folders, labelled, cmd.seed, cmd.workers)
     return pd.DataFrame(dict(env="wildfire", estimator=tested.simulator,
                              lam=[job.train.lam for _, job in labelled],
@@ -237,6 +249,10 @@ def run(cmd: Command[MgaeStudyConfig], folders: Folders) -> int:
         return replot(cfg, folders)
     results, figures = folders.open()
     t0 = time.perf_counter()
+    bus_labelled, bus_root = bus_jobs(cmd, folders)
+    wildfire_root = transfer.runs_folder(folders, cfg.wildfire(scale))
+    run_sweeps([([job for _, job in bus_labelled], bus_root),  # both environments' in one pool
+                ([job for _, job in wildfire_jobs(cmd, folders)], wildfire_root)], cmd.workers)
     runs = pd.concat([bus_runs(cmd, folders), wildfire_runs(cmd, folders)],
                      ignore_index=True)
     summary = summarise(runs, cfg.n_boot, seed)

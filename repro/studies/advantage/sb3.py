@@ -48,7 +48,8 @@ from repro.runs.provenance import provenance
 from repro.runs.results import read_provenance, save_figure, write_result
 from repro.runs.stats import bootstrap_ci, ci_side, iqm, sem
 from repro.studies.kit.options import Command, Folders, add_replot, read_for_replot, replot_figures
-from repro.studies.kit.sweep import TrainJob, add_study_arguments, map_tasks, run_sweep
+from repro.studies.kit.sweep import (TrainJob, add_study_arguments, map_tasks, run_sweep,
+                                    run_sweeps)
 from repro.studies.wildfire.study import adr, evaluate
 
 ENVS = ("wildfire", "bus")
@@ -250,6 +251,15 @@ def sb3_runs(cmd: Command[Sb3StudyConfig], root: Path) -> pd.DataFrame:
                          for key in wanted])
 
 
+def trpo_jobs(cfg: Sb3StudyConfig, env: str, seed: int) -> list[TrainJob]:
+    """The PS-TRPO runs of ``env`` (in the folder ``env`` of the study's runs)."""
+    return [TrainJob(f"ps-trpo-mgae-seed{s}",
+                     train_config("quick", env, "authors", seed=s, epochs=cfg.updates,
+                                  batch_decisions=cfg.batch_decisions, lam=lam_of(env)),
+                     env_config(env))
+            for s in range(seed, seed + cfg.seeds)]
+
+
 def trpo_runs(cmd: Command[Sb3StudyConfig], root: Path) -> pd.DataFrame:
     """Train (or resume) the PS-TRPO runs with the sweep machinery and test them."""
     from repro.runs.run_folder import CHECKPOINT
@@ -258,11 +268,7 @@ def trpo_runs(cmd: Command[Sb3StudyConfig], root: Path) -> pd.DataFrame:
     cfg, seed = cmd.study, cmd.seed
     rows = []
     for env in ENVS:
-        jobs = [TrainJob(f"ps-trpo-mgae-seed{s}",
-                         train_config("quick", env, "authors", seed=s, epochs=cfg.updates,
-                                      batch_decisions=cfg.batch_decisions, lam=lam_of(env)),
-                         env_config(env))
-                for s in range(seed, seed + cfg.seeds)]
+        jobs = trpo_jobs(cfg, env, seed)
         folders = run_sweep(jobs, root / env, cmd.workers)
         for job, folder in zip(jobs, folders):
             progress = pd.read_csv(folder / "progress.csv")
@@ -404,6 +410,8 @@ def run(cmd: Command[Sb3StudyConfig], folders: Folders) -> int:
     results, figures = folders.open()
     root = folders.run_root("beyond-sb3")
     t0 = time.perf_counter()
+    # the PS-TRPO runs of both environments first, in one pool (then SB3's, on the same workers)
+    run_sweeps([(trpo_jobs(cfg, env, seed), root / env) for env in ENVS], cmd.workers)
     runs = pd.concat([sb3_runs(cmd, root), trpo_runs(cmd, root),
                       heuristic_rows(cfg, seed)], ignore_index=True)[list(COLUMNS)]
     summary = summarise(runs, cfg.n_boot, seed)

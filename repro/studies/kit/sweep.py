@@ -35,10 +35,11 @@ import tempfile
 import threading
 import time
 import warnings
-from contextlib import ExitStack
+from contextlib import ExitStack, contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -247,38 +248,38 @@ def _on_joblib(fn: Callable[..., Any], tasks: list[tuple], workers: int, doing: 
         raise _died(doing, f"joblib: {_exit_causes(str(err))}", then) from None
 
 
-def _run_on_dask(pending: list[TrainJob], root: Path, scheduler: str) -> None:
-    """Train ``pending`` on the Dask scheduler ``scheduler``, one epoch per task, into their run
-    folders under ``root``; stops (UsageError naming --scheduler) when the cluster stops answering
-    (:func:`_next_finished`), the epochs finished so far kept in the run folders."""
+def _run_on_dask(pending: list[tuple[TrainJob, Path]], scheduler: str) -> None:
+    """Train ``pending``, each a (job, root), on the Dask scheduler ``scheduler``, one epoch per
+    task, into their run folders; stops (UsageError naming --scheduler) when the cluster stops
+    answering (:func:`_next_finished`), the epochs finished so far kept in the run folders."""
     from dask.distributed import as_completed
 
     with _dask_client(scheduler) as client, ExitStack() as locks:
-        running: dict[Any, TrainJob] = {}
+        running: dict[Any, tuple[TrainJob, Path]] = {}
 
-        def next_epoch(job: TrainJob) -> Any:
+        def next_epoch(job: TrainJob, root: Path) -> Any:
             """The task that trains ``job``'s next epoch (or, when its epochs are done, finishes
             its run folder)."""
             folder = run_dir(root, job)
             epochs = min(epochs_done(folder) + 1, job.train.epochs)
             step = dataclasses.replace(job, train=dataclasses.replace(job.train, epochs=epochs))
             future = client.submit(run_shipped_job, step, folder_files(folder), pure=False)
-            running[future] = job
+            running[future] = (job, root)
             return future
 
-        for job in pending:
+        for job, root in pending:
             locks.enter_context(writer_lock(run_dir(root, job), "--runs-dir"))
-        done = as_completed([next_epoch(job) for job in pending])
+        done = as_completed([next_epoch(job, root) for job, root in pending])
         while not done.is_empty():
             future = _next_finished(done, client, scheduler)
-            job = running.pop(future)
+            job, root = running.pop(future)
             folder = run_dir(root, job)
             files = _dask_result(future, f"training {job.name}", _RESUMES)
             for stale in set(folder_files(folder)) - set(files):  # e.g. a killed write's leftovers
                 (folder / stale).unlink()
             _write_files(folder, files)
             if not is_finished(folder, job.train.epochs):
-                done.add(next_epoch(job))
+                done.add(next_epoch(job, root))
 
 
 def check_jobs(jobs: list[TrainJob], root: Path) -> None:
@@ -304,22 +305,74 @@ def run_sweep(jobs: list[TrainJob], root: Path, workers: Workers = EVERY_CORE) -
     same runs (two identical commands started together) is refused in one line naming
     --runs-dir, as is one that finds a run of its own being trained by another process (a
     ``train`` in it), before any worker starts. The kernels every run was trained under go into
-    the command's sidecars (:func:`_note_kernels`)."""
-    check_jobs(jobs, root)
-    pending = longest_first([j for j in jobs if not is_done(root, j)])
+    the command's sidecars (:func:`_note_kernels`). While a plan is made (:func:`planning`), a
+    sweep with runs to train trains none: it adds them to the plan and raises :class:`Planned`."""
+    return run_sweeps([(jobs, root)], workers)[0]
+
+
+def run_sweeps(sweeps: list[tuple[list[TrainJob], Path]],
+               workers: Workers = EVERY_CORE) -> list[list[Path]]:
+    """:func:`run_sweep` of several sweeps, each (jobs, root), at once: every sweep's folders are
+    checked before any run trains, and the runs to train, of all of them, train in one pool
+    (:func:`train_runs`); each sweep's folders, in the order given."""
+    for jobs, root in sweeps:
+        check_jobs(jobs, root)
+    pending = [(j, Path(root)) for jobs, root in sweeps for j in jobs if not is_done(root, j)]
+    plan = _PLAN.get()
+    if plan is not None and (pending or not plan.finish):
+        plan.runs += pending
+        raise Planned(len(pending))
     if pending:
-        _train(pending, Path(root), workers)
-    folders = [run_dir(root, j) for j in jobs]
-    _note_kernels(folders)
-    return folders
+        train_runs(pending, workers)
+    done = [[run_dir(root, j) for j in jobs] for jobs, root in sweeps]
+    _note_kernels([folder for folders in done for folder in folders])
+    return done
 
 
-def longest_first(jobs: list[TrainJob]) -> list[TrainJob]:
-    """``jobs`` in the order the workers take them: by their expected cost, epochs times the
-    batch's size (:func:`repro.learn.sizes.training_bytes`), largest first (ties in the order
-    given), so that no worker is left with one long run while the others idle at the end. Each
-    run's result does not depend on when it trains."""
-    return sorted(jobs, key=lambda j: -j.train.epochs * training_bytes(j.train, _env(j))[0])
+class Planned(Exception):
+    """A command stopped while a plan was made (:func:`planning`): at a sweep, its runs to train
+    added to the plan; to be run again once they are trained."""
+
+
+@dataclass
+class Plan:
+    """The runs that commands run under :func:`planning` would train."""
+
+    finish: bool
+    """Whether a command may run to its end: a sweep with nothing to train returns its runs and
+    the command goes on; else every sweep and task map stops it (:class:`Planned`), before any
+    work, so that it is planned, never run."""
+    runs: list[tuple[TrainJob, Path]] = dataclasses.field(default_factory=list)
+    """(job, root) of each run to train, in the order the sweeps named them."""
+
+
+_PLAN: ContextVar[Plan | None] = ContextVar("sweep_plan", default=None)
+"""The plan being made, if one is (:func:`planning`)."""
+
+
+@contextmanager
+def planning(finish: bool) -> Iterator[Plan]:
+    """While it lasts, a sweep trains nothing: :func:`run_sweep` adds the runs it would train to
+    the :class:`Plan` this yields and raises :class:`Planned`, and so, unless ``finish``, does a
+    sweep with nothing to train and :func:`map_tasks`. So a command run inside it stops at its
+    first sweep with runs to train (or, unless ``finish``, at its first sweep or task map), and
+    the runs that several commands would train can be trained in one pool
+    (:func:`train_runs`)."""
+    plan = Plan(finish)
+    token = _PLAN.set(plan)
+    try:
+        yield plan
+    finally:
+        _PLAN.reset(token)
+
+
+def longest_first(runs: list[tuple[TrainJob, Path]]) -> list[tuple[TrainJob, Path]]:
+    """``runs``, each a (job, root), in the order the workers take them: by their expected cost,
+    epochs times the batch's size (:func:`repro.learn.sizes.training_bytes`), largest first (ties
+    in the order given), so that no worker is left with one long run while the others idle at
+    the end. Each run's result does not depend on when it trains."""
+    return sorted(runs, key=lambda run: -run[0].train.epochs * training_bytes(
+        run[0].train, _env(run[0]))[0])
 
 
 def _note_kernels(folders: list[Path]) -> None:
@@ -339,23 +392,33 @@ def _note_kernels(folders: list[Path]) -> None:
                       "under those kernels", KernelWarning, stacklevel=3)
 
 
-def _train(pending: list[TrainJob], root: Path, workers: Workers) -> None:
-    """Train the runs ``pending`` under ``root``, holding its sweep.lock (:func:`run_sweep`)."""
+def train_runs(runs: list[tuple[TrainJob, Path]], workers: Workers = EVERY_CORE) -> None:
+    """Train (or resume) the runs ``runs``, each a (job, root) of a sweep whose jobs were checked
+    (:func:`check_jobs`), in one pool longest first (:func:`longest_first`), whichever sweeps
+    they come from; a run named twice (two commands that share it) trains once. Holds each
+    root's sweep.lock meanwhile (:func:`run_sweep`)."""
+    unique: dict[Path, tuple[TrainJob, Path]] = {}
+    for job, root in runs:
+        first = unique.setdefault(run_dir(root, job), (job, root))[0]
+        if (first.train, first.env_config) != (job.train, job.env_config):
+            raise ValueError(f"two sweeps ask for {run_dir(root, job)} with other settings")
+    pending = longest_first(list(unique.values()))
     scheduler = workers.scheduler
     processes = min(len(pending), workers.processes)
     if not scheduler:  # the runs train on this machine, ``processes`` at a time
-        largest = max(pending, key=lambda j: sum(training_bytes(j.train, _env(j))))
+        largest = max((j for j, _ in pending), key=lambda j: sum(training_bytes(j.train, _env(j))))
         check_training_size(largest.train, _env(largest), runs=processes)
-    with folder_lock(root, SWEEP_LOCK, "--runs-dir", "a folder of runs"):
-        for job in pending:
+    with ExitStack() as locks:
+        for root in dict.fromkeys(root for _, root in pending):
+            locks.enter_context(folder_lock(root, SWEEP_LOCK, "--runs-dir", "a folder of runs"))
+        for job, root in pending:
             holder = locked_by(run_dir(root, job))
             require(holder is None, "--runs-dir", f"a folder of runs no other process is "
                     f"writing to ({holder} holds {job.name}/{LOCK})", str(root))
         if scheduler:
-            _run_on_dask(pending, root, scheduler)
+            _run_on_dask(pending, scheduler)
         else:
-            _on_joblib(run_job, [(j, root) for j in pending], processes,
-                       "training the sweep's runs", _RESUMES)
+            _on_joblib(run_job, pending, processes, "training the sweep's runs", _RESUMES)
 
 
 def map_tasks(fn: Callable[..., Any], tasks: list[tuple],
@@ -363,7 +426,11 @@ def map_tasks(fn: Callable[..., Any], tasks: list[tuple],
     """``[fn(*task) for task in tasks]`` on joblib worker processes, or on the Dask scheduler
     ``workers`` names; the tasks carry everything they need (no shared disk). On Dask, a cluster
     that stops answering stops the call (:func:`_next_finished`); a worker that dies stops it with
-    :class:`~repro.core.errors.WorkerDied`."""
+    :class:`~repro.core.errors.WorkerDied`. While a plan that may not finish commands is made
+    (:func:`planning`), it raises :class:`Planned` instead."""
+    plan = _PLAN.get()
+    if plan is not None and not plan.finish:
+        raise Planned(0)
     scheduler = workers.scheduler
     if scheduler:
         from dask.distributed import as_completed

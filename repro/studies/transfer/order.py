@@ -39,7 +39,7 @@ from repro.learn.config import learner_label, learner_stem
 from repro.runs.provenance import provenance
 from repro.runs.results import save_figure, write_result
 from repro.studies.kit.options import Command, Folders, add_replot, replot_pair
-from repro.studies.kit.sweep import check_jobs
+from repro.studies.kit.sweep import run_sweeps
 from repro.studies.transfer.study import (TransferConfig, add_size_arguments, batch_label, effects,
                                           make_jobs, recorded_config, runs_folder, study_config,
                                           summarise, train_and_test)
@@ -121,9 +121,10 @@ def run(cmd: Command[TransferConfig], folders: Folders) -> int:
     results, figures = folders.open()
     plan = [(semantics, order, cfg, runs_folder(folders, cfg))
             for semantics, order, cfg in studies(base)]
-    for _, _, cfg, runs in plan:  # every study's folders before any trains
-        check_jobs([job for _, job in make_jobs(cfg, scale, seed)], runs)
     t0 = time.perf_counter()
+    # every study's runs in one pool (each study's folders checked before any trains)
+    run_sweeps([([job for _, job in make_jobs(cfg, scale, seed)], runs)
+                for _, _, cfg, runs in plan], cmd.workers)
     per_policy, summary = [], []
     for semantics, order, cfg, _ in plan:
         tested, _ = train_and_test(cfg, folders, make_jobs(cfg, scale, seed), seed, cmd.workers)

@@ -41,8 +41,9 @@ from repro.core.errors import UsageError
 from repro.runs.provenance import provenance
 from repro.runs.results import read_result, save_figure, write_result
 from repro.runs.stats import INTERVALS, STATISTICS, coverage, iqm
-from repro.studies.kit.options import (Command, Folders, add_common, add_replot, read_for_replot,
-                                       replot_figures)
+from repro.studies.kit.options import (EVERY_CORE, Command, Folders, Workers, add_common,
+                                       add_replot, read_for_replot, replot_figures)
+from repro.studies.kit.sweep import map_tasks
 
 NAME = "interval_coverage"
 """Stem of the result file and the figure."""
@@ -145,25 +146,31 @@ def sampler(draw: Callable, n: int, groups: int) -> Callable:
     return lambda rng, m: tuple(draw(rng, (m, n)) for _ in range(groups))
 
 
-def measure(cfg: IntervalCoverageConfig, pool: np.ndarray, seed: int) -> pd.DataFrame:
-    """The coverage table: one row per population, statistic, n and kind."""
-    rows = []
-    for name in cfg.populations:
-        draw, mean, trimmed, sd = population(name, pool)
-        for statistic in cfg.statistics:
-            truth = {"mean": mean, "iqm": trimmed, "difference": 0.0}[statistic]
-            for n, level in ((n, c) for c in cfg.confidences for n in cfg.sizes):
-                key = (list((*POPULATIONS, SUITE)).index(name), STATISTICS.index(statistic), n,
-                       round(level * 1e4))
-                rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
-                found = coverage(sampler(draw, n, 2 if statistic == "difference" else 1),
-                                 truth, statistic, cfg.kinds, trials=cfg.trials,
-                                 confidence=level, n_boot=cfg.n_boot, rng=rng)
-                rows += [dict(population=name, statistic=statistic, n=n, kind=kind,
-                              confidence=level, trials=cfg.trials, n_boot=cfg.n_boot,
-                              truth=truth, **{**r, "median_width": r["median_width"] / sd})
-                         for kind, r in found.items()]
-    return pd.DataFrame(rows)
+def measure(cfg: IntervalCoverageConfig, pool: np.ndarray, seed: int,
+            workers: Workers = EVERY_CORE) -> pd.DataFrame:
+    """The coverage table: one row per population, statistic, n and kind. Each cell (population,
+    statistic, n, level) has its own random stream, so the cells are measured in parallel
+    (``map_tasks``) and the table does not depend on where or in which order."""
+    cells = [(cfg, name, statistic, n, level, pool, seed) for name in cfg.populations
+             for statistic in cfg.statistics
+             for n, level in ((n, c) for c in cfg.confidences for n in cfg.sizes)]
+    return pd.DataFrame([row for rows in map_tasks(measure_cell, cells, workers) for row in rows])
+
+
+def measure_cell(cfg: IntervalCoverageConfig, name: str, statistic: str, n: int, level: float,
+                 pool: np.ndarray, seed: int) -> list[dict]:
+    """The rows of one cell of :func:`measure`'s table, one per interval kind."""
+    draw, mean, trimmed, sd = population(name, pool)
+    truth = {"mean": mean, "iqm": trimmed, "difference": 0.0}[statistic]
+    key = (list((*POPULATIONS, SUITE)).index(name), STATISTICS.index(statistic), n,
+           round(level * 1e4))
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
+    found = coverage(sampler(draw, n, 2 if statistic == "difference" else 1), truth, statistic,
+                     cfg.kinds, trials=cfg.trials, confidence=level, n_boot=cfg.n_boot, rng=rng)
+    return [dict(population=name, statistic=statistic, n=n, kind=kind, confidence=level,
+                 trials=cfg.trials, n_boot=cfg.n_boot, truth=truth,
+                 **{**r, "median_width": r["median_width"] / sd})
+            for kind, r in found.items()]
 
 
 def plot(table: pd.DataFrame, stem: Path, sources: list[Path]) -> None:
@@ -201,6 +208,7 @@ def plot(table: pd.DataFrame, stem: Path, sources: list[Path]) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_common(p)
     add_config_arguments(p, IntervalCoverageConfig)
+    p.add_argument("--n-jobs", type=int, help="worker processes (default: all cores)")
     add_replot(p)
 
 
@@ -224,7 +232,7 @@ def run(cmd: Command[IntervalCoverageConfig], folders: Folders) -> int:
         raise UsageError("--populations", f"without {SUITE} where --results-dir holds no "
                          "per-seed scores", ",".join(cfg.populations))
     t0 = time.perf_counter()
-    table = measure(cfg, pool, seed)
+    table = measure(cfg, pool, seed, cmd.workers)
     prov = provenance(cfg, command="interval-coverage", scale=scale, seed=seed,
                       wall_seconds=time.perf_counter() - t0,
                       extra=dict(suite_pool=dict(values=len(pool), files=used)))
