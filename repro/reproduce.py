@@ -16,9 +16,10 @@ of them are trained together, so that no core idles while runs remain:
 3. Repeat from 1 with the studies not yet finished, until none is left (a study with several
    sweeps, or one that waited, plans more in a later round).
 
-A round that neither finishes a study nor plans a run ends the command with the error of the
-first study that waited. Every run is checkpointed, so the same command run again resumes where
-it stopped and finishes nothing twice. The rounds' timings go to ``reproduce_timing.csv``.
+The first study of a round runs to its end, plans runs or fails (its error ends the command), so
+every round moves on. Every run is checkpointed, so the same command run again resumes where it
+stopped and trains nothing twice (the studies that had finished test their policies again). The
+rounds' timings go to ``reproduce_timing.csv``.
 """
 
 from __future__ import annotations

@@ -74,13 +74,14 @@ def _cells(cache: Path, *n_agents: int) -> subprocess.CompletedProcess:
 
 @pytest.mark.timeout(900)
 def test_engines_cached_by_separate_processes_load_together(tmp_path):
-    """The wildfire engine compiled for two N in two processes, as the test suite's commands
-    and workers fill the cache, then loaded together by a third, as a study does: each N must
-    run its own code. With numba's per-process compilation counter the two compilations had one
-    symbol, and the third process crashed in the engine's set-up (SIGSEGV)."""
-    alone = [_cells(tmp_path, n) for n in (3, 6)]
+    """The wildfire engine compiled for three N in three processes (the fewest that crash without
+    the fix), as the test suite's commands and workers fill the cache, then loaded together by a
+    fourth, as a study does: each N must run its own code. With numba's per-process compilation
+    counter the three compilations had one symbol, and the fourth process crashed in the engine's
+    set-up (SIGSEGV)."""
+    alone = [_cells(tmp_path, n) for n in (3, 6, 12)]
     assert all(p.returncode == 0 for p in alone), [p.stderr[-2000:] for p in alone]
-    together = _cells(tmp_path, 3, 6)
+    together = _cells(tmp_path, 3, 6, 12)
     assert together.returncode == 0, together.stderr[-2000:]
     assert together.stdout == "".join(p.stdout for p in alone)
 
