@@ -6,7 +6,8 @@ named after the job. Runs are checkpointed every epoch by the trainer, so re-run
 finished runs and resumes interrupted ones exactly where they stopped. A folder holding a run made
 with other settings is refused before anything runs (use another ``--runs-dir``). Each job carries
 its own seed in its TrainConfig, so the results do not depend on the scheduler or on the order in
-which workers pick up jobs.
+which workers pick up jobs. A study of several sweeps trains them in one pool (:func:`run_sweeps`),
+and so do several studies run under one plan (:func:`planning`, as ``reproduce`` runs them).
 
 On a Dask cluster the run folders stay on the client's disk: the client locks a job's folder and
 sends its files (none for a new run) with a task that trains one more epoch; the worker trains in a
