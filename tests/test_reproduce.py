@@ -12,7 +12,9 @@ import pytest
 from repro.cli import main
 from repro.core.config import for_scale
 from repro.reproduce import STUDIES, TIMING
-from repro.studies.kit.sweep import Planned, map_tasks, planning, run_sweep
+from repro.runs.run_folder import CHECKPOINT
+from repro.studies.kit.options import Workers
+from repro.studies.kit.sweep import Planned, map_tasks, planning, run_sweep, run_sweeps
 from repro.studies.transfer.study import TransferConfig, make_jobs
 
 
@@ -43,6 +45,29 @@ def test_a_plan_that_may_not_finish_stops_at_every_sweep_and_task_map(tmp_path):
 def _csvs(folder: Path) -> dict[str, bytes]:
     """The result CSVs in ``folder`` by name, with their bytes (the timing record left out)."""
     return {p.name: p.read_bytes() for p in sorted(folder.glob("*.csv")) if p.name != TIMING}
+
+
+@pytest.mark.slow
+def test_two_sweeps_train_in_one_pool_on_dask_as_on_joblib(tmp_path):
+    """The runs of two sweeps (two roots) in one pool, on a Dask cluster and on joblib's workers:
+    the same checkpoints, each in its own sweep's folder."""
+    distributed = pytest.importorskip("dask.distributed")
+    first, second = _jobs()[:2]
+
+    def sweeps(root: Path) -> list:
+        return [([first], root / "a"), ([second], root / "b")]
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  protocol="tcp://", host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        dask = Workers(scheduler=cluster.scheduler_address)
+        on_dask = run_sweeps(sweeps(tmp_path / "dask"), dask)
+    on_joblib = run_sweeps(sweeps(tmp_path / "joblib"), Workers(n_jobs=2))
+    assert [[f.relative_to(tmp_path / "dask") for f in s] for s in on_dask] == [
+        [Path("a", first.name)], [Path("b", second.name)]]
+    for dask_runs, joblib_runs in zip(on_dask, on_joblib):
+        for a, b in zip(dask_runs, joblib_runs):
+            assert (a / CHECKPOINT).read_bytes() == (b / CHECKPOINT).read_bytes()
 
 
 def _folders(root: Path) -> list[str]:
