@@ -367,13 +367,25 @@ def planning(finish: bool) -> Iterator[Plan]:
         _PLAN.reset(token)
 
 
+RECURRENT_COST = 60
+"""How many times a recurrent policy's run (``--policy gru``) costs an MLP's of the same epochs
+and batch: a bus epoch of 12,000 decisions takes the GRU about 5.7 s on one core, the authors' MLP
+about 0.1 s (docs/performance.md, Whole runs). The batch's size in bytes alone ranks the two alike,
+which left the pictures' five GRU runs, the longest of any study, to the end of the pool."""
+
+
 def longest_first(runs: list[tuple[TrainJob, Path]]) -> list[tuple[TrainJob, Path]]:
     """``runs``, each a (job, root), in the order the workers take them: by their expected cost,
-    epochs times the batch's size (:func:`repro.learn.sizes.training_bytes`), largest first (ties
-    in the order given), so that no worker is left with one long run while the others idle at
-    the end. Each run's result does not depend on when it trains."""
-    return sorted(runs, key=lambda run: -run[0].train.epochs * training_bytes(
-        run[0].train, _env(run[0]))[0])
+    epochs times the batch's size (:func:`repro.learn.sizes.training_bytes`), times
+    :data:`RECURRENT_COST` for a recurrent policy, largest first (ties in the order given), so
+    that no worker is left with one long run while the others idle at the end. Each run's result
+    does not depend on when it trains."""
+    def cost(run: tuple[TrainJob, Path]) -> float:
+        train = run[0].train
+        weight = RECURRENT_COST if train.policy == "gru" else 1
+        return weight * train.epochs * training_bytes(train, _env(run[0]))[0]
+
+    return sorted(runs, key=lambda run: -cost(run))
 
 
 def _note_kernels(folders: list[Path]) -> None:
