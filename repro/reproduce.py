@@ -86,8 +86,7 @@ class ReproduceConfig(Validated):
     """Which studies ``reproduce`` runs."""
 
     studies: tuple[str, ...] = tuple(STUDIES)
-    """The studies to run, by name (they run in the order of the full list; default: every
-    one)."""
+    """The studies to run, by name; they run in the order of the default, which is every study."""
 
     def validate(self) -> None:
         for name in self.studies:
