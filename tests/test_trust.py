@@ -26,6 +26,7 @@ from repro.core.errors import UsageError, require
 from repro.core.rollout import rollout_bytes
 from repro.learn.trained_policy import policy_from_checkpoint
 from repro.runs import memory
+from repro.runs import results as results_module
 from repro.runs.locks import folder_lock
 from repro.runs.results import (CSV_HASH, RESULTS_LOCK, csv_bytes, read_provenance, read_result,
                                 sidecar_path, write_result)
@@ -191,6 +192,27 @@ def test_a_sidecar_without_a_hash_is_taken_as_it_is(tmp_path):
     write_result_csv(pd.DataFrame(dict(x=[3])), tmp_path / "old.csv")
     assert CSV_HASH not in read_provenance(tmp_path / "old.csv")
     assert read_result(tmp_path / "old.csv").x.tolist() == [3]
+
+
+def test_a_csv_without_a_sidecar_waits_for_one_only_while_its_folder_is_being_written(
+        tmp_path, monkeypatch):
+    """A reader gives a writer at work (old sidecar removed, CSV and sidecar still to come) a
+    moment; a folder that nobody changed for longer holds a result that is simply not yet run,
+    read so at once (the claims read such files a hundred times)."""
+    path = tmp_path / "t.csv"
+    path.write_text("x\n1\n")
+    naps = []
+    monkeypatch.setattr(results_module.time, "sleep", naps.append)
+    with pytest.raises(FileNotFoundError):
+        read_result(path)
+    assert naps  # just written: waited
+    old = time.time() - 2 * results_module.WRITER_MOMENT
+    for changed in (path, tmp_path):
+        os.utime(changed, (old, old))
+    naps.clear()
+    with pytest.raises(FileNotFoundError):
+        read_result(path)
+    assert naps == []
 
 
 WRITER = """

@@ -384,11 +384,18 @@ def recreation_paths(path: str | Path) -> list[Path]:
     return sorted(path.parent.glob(RECREATION.format(stem=_stem(path), time="*")))
 
 
+WRITER_MOMENT = 1.0
+"""Seconds since a CSV or its folder last changed within which a reader that finds no sidecar
+waits for one: a writer removes the old sidecar, writes the CSV, then the new sidecar at once
+(:func:`write_result`); each step changes the folder."""
+
+
 def read_result(result: str | Path) -> pd.DataFrame:
     """The table of a result whose sidecar belongs to it. FileNotFoundError (naming the file),
     which reads "not yet run", if the CSV or its sidecar is missing, or if the sidecar records
     another CSV's hash (a pair torn by a writer, or a CSV edited by hand); a writer at work is
-    given a moment to finish its pair. A sidecar without a hash is taken as it is (results
+    given a moment to finish its pair (a CSV without its sidecar, while the CSV or its folder
+    changed within :data:`WRITER_MOMENT`). A sidecar without a hash is taken as it is (results
     written before the hash was recorded)."""
     result, side = Path(result), sidecar_path(result)
     for attempt in range(4):
@@ -400,8 +407,12 @@ def read_result(result: str | Path) -> pd.DataFrame:
             if side.read_bytes() != before:
                 continue  # rewritten meanwhile
         except FileNotFoundError:
-            if not result.exists():
+            try:
+                changed = max(result.stat().st_mtime, result.parent.stat().st_mtime)
+            except FileNotFoundError:
                 raise FileNotFoundError(errno.ENOENT, "missing", str(result)) from None
+            if time.time() - changed > WRITER_MOMENT:
+                break  # no writer is between the old sidecar's removal and the new one
             continue
         want = json.loads(before).get(CSV_HASH)
         if want is None or want == hashlib.sha256(data).hexdigest():
