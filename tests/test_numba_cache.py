@@ -55,35 +55,62 @@ def test_without_the_lock_one_signature_gets_the_others_code(tmp_path, monkeypat
     assert loaded != {"signature 0": "code 0", "signature 1": "code 1"}
 
 
-_CELLS = """
+_ROLLOUTS = """
+import itertools
 import sys
+
 import repro
-from repro.studies.races.wildfire_races import cell
-for n in sys.argv[1:]:
-    r = cell("nearest", int(n), -1.0, 2, 0)
-    print(n, r["decisions"], r["races"])
+from numba.core.bytecode import FunctionIdentity
+
+from repro.envs.bus import make_env
+from repro.envs.bus.params import BusConfig
+from repro.envs.bus.policies import no_holding
+
+if sys.argv[1] == "numba-ids":  # numba's own per-process counter: the suite without its fix
+    FunctionIdentity._unique_ids = itertools.count(1)
+for n in sys.argv[2:]:
+    rollout = make_env(BusConfig(n_buses=int(n), horizon=600.0)).rollout(no_holding, 2, 0)
+    print(n, len(rollout.actions), rollout.rewards.sum())
 """
+SIZES = (3, 6)
+"""Two record layouts of the bus engine (the number of buses sizes its state's fields)."""
 
 
-def _cells(cache: Path, *n_agents: int) -> subprocess.CompletedProcess:
-    """beyond-races' cells of ``n_agents`` UAVs in a fresh process that caches into ``cache``."""
-    return subprocess.run([sys.executable, "-c", _CELLS, *map(str, n_agents)],
+def _rollouts(cache: Path, ids: str, *n_buses: int) -> subprocess.CompletedProcess:
+    """Bus rollouts with ``n_buses`` buses in a fresh process that caches its kernels into
+    ``cache``, with numba's compilation ids drawn by the suite ("suite") or by numba's own
+    counter ("numba-ids")."""
+    return subprocess.run([sys.executable, "-c", _ROLLOUTS, ids, *map(str, n_buses)],
                           env=dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT)),
                           capture_output=True, text=True, timeout=600)
 
 
+def _compiled_apart_then_loaded_together(cache: Path, ids: str
+                                         ) -> tuple[str, subprocess.CompletedProcess]:
+    """The engine compiled for each of SIZES in a process of its own, as the test suite's
+    commands and workers fill the cache, then loaded together by another, as a study does: what
+    the processes alone printed, and the last one."""
+    alone = [_rollouts(cache, ids, n) for n in SIZES]
+    assert all(p.returncode == 0 for p in alone), [p.stderr[-2000:] for p in alone]
+    return "".join(p.stdout for p in alone), _rollouts(cache, ids, *SIZES)
+
+
 @pytest.mark.timeout(900)
 def test_engines_cached_by_separate_processes_load_together(tmp_path):
-    """The wildfire engine compiled for three N in three processes (the fewest that crash without
-    the fix), as the test suite's commands and workers fill the cache, then loaded together by a
-    fourth, as a study does: each N must run its own code. With numba's per-process compilation
-    counter the three compilations had one symbol, and the fourth process crashed in the engine's
-    set-up (SIGSEGV)."""
-    alone = [_cells(tmp_path, n) for n in (3, 6, 12)]
-    assert all(p.returncode == 0 for p in alone), [p.stderr[-2000:] for p in alone]
-    together = _cells(tmp_path, 3, 6, 12)
+    """Each layout runs its own code when kernels compiled by separate processes are loaded
+    together (the suite's random compilation ids give each compilation a symbol of its own)."""
+    alone, together = _compiled_apart_then_loaded_together(tmp_path, "suite")
     assert together.returncode == 0, together.stderr[-2000:]
-    assert together.stdout == "".join(p.stdout for p in alone)
+    assert together.stdout == alone
+
+
+@pytest.mark.timeout(900)
+def test_with_numbas_own_ids_one_layout_runs_the_others_code(tmp_path):
+    """The failure the random ids prevent: with numba's per-process counter both compilations
+    get one symbol, and the process that loads both runs the first layout's code on the second's
+    records (here its episodes end without a decision; the wildfire engine crashed, SIGSEGV)."""
+    alone, together = _compiled_apart_then_loaded_together(tmp_path, "numba-ids")
+    assert together.returncode != 0 or together.stdout != alone
 
 
 def test_a_source_change_a_kernel_can_see_makes_cached_kernels_stale(tmp_path, monkeypatch):
