@@ -81,3 +81,44 @@ def test_scales_change_sizes_only():
     smoke, paper = for_scale(RaceConfig, "smoke"), for_scale(RaceConfig, "paper")
     assert (smoke.delta, smoke.n_min, smoke.n_max) == (paper.delta, paper.n_min, paper.n_max)
     assert paper.n_sets == 10_000
+
+
+FIT = """
+import numpy as np
+from repro.studies.races.study import fit_power_law
+
+rng = np.random.default_rng(0)
+for lo, hi, beta, noise in ((20, 300, 2.0163, 1e-3), (2, 20, 2.2, 1e-2)):
+    n = np.unique(np.round(np.geomspace(lo, hi, 15)))
+    print(*map(repr, fit_power_law(n, 0.5 * n ** -beta * np.exp(rng.normal(0, noise, len(n))))))
+"""
+
+
+def test_the_power_law_fit_is_statsmodels_ols_in_the_same_bits_on_every_cpu():
+    """beta, its standard error and alpha as statsmodels' OLS gives them, and the same bits
+    whichever kernels OpenBLAS would pick and with numpy's CPU-specific kernels off (through
+    statsmodels, the fit's last bits moved with OPENBLAS_CORETYPE)."""
+    import subprocess
+    import sys
+
+    import statsmodels.api as sm
+
+    from repro.studies.races.study import fit_power_law
+    from tests.conftest import ROOT, env_without_pins
+
+    rng = np.random.default_rng(3)
+    n = np.arange(2, 21)
+    dt = 0.6 * n ** -2.2 * np.exp(rng.normal(0, 0.05, len(n)))
+    ols = sm.OLS(np.log(dt), sm.add_constant(np.log(n))).fit()
+    np.testing.assert_allclose(fit_power_law(n, dt), (-ols.params[1], ols.bse[1],
+                                                     np.exp(ols.params[0])), rtol=1e-12)
+    assert np.isnan(fit_power_law(n[:2], dt[:2])[1])  # no residual degree of freedom
+
+    def fits(**env: str) -> str:
+        done = subprocess.run([sys.executable, "-c", FIT], env=env_without_pins(**env), cwd=ROOT,
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
+        return done.stdout
+
+    assert fits() == fits(OPENBLAS_CORETYPE="Prescott", NPY_DISABLE_CPU_FEATURES=(
+        "AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL AVX512_SPR"))

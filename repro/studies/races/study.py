@@ -5,6 +5,8 @@ dT ~ N^-beta; and the names of the result files they share."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from repro.envs.renewal.distributions import Distribution
@@ -113,9 +115,19 @@ def race_probability_exact(dist: Distribution, dt: float, n: int) -> float:
 
 
 def fit_power_law(n: np.ndarray, dt: np.ndarray) -> tuple[float, float, float]:
-    """OLS of log dT on log N (statsmodels): returns beta, its standard error, and alpha."""
-    import statsmodels.api as sm
-
-    x = sm.add_constant(np.log(np.asarray(n, dtype=float)))
-    res = sm.OLS(np.log(np.asarray(dt, dtype=float)), x).fit()
-    return float(-res.params[1]), float(res.bse[1]), float(np.exp(res.params[0]))
+    """OLS of log dT = log alpha - beta log N: beta, its standard error (NaN below three points)
+    and alpha, as statsmodels' OLS gives them, in arithmetic that is the same on every CPU:
+    libm's log and exp of each number and exactly rounded sums (``math.fsum``). Through
+    statsmodels the fit ran in LAPACK, whose kernels OpenBLAS picks by the CPU, and numpy's log,
+    which has CPU-specific kernels: its last bits moved with the machine."""
+    x = [math.log(v) for v in np.asarray(n, dtype=float).tolist()]
+    y = [math.log(v) for v in np.asarray(dt, dtype=float).tolist()]
+    m = len(x)
+    x_mean, y_mean = math.fsum(x) / m, math.fsum(y) / m
+    sxx = math.fsum((a - x_mean) * (a - x_mean) for a in x)
+    slope = math.fsum((a - x_mean) * (b - y_mean) for a, b in zip(x, y)) / sxx
+    intercept = y_mean - slope * x_mean
+    rss = math.fsum((b - intercept - slope * a) * (b - intercept - slope * a)
+                    for a, b in zip(x, y))
+    se = math.sqrt(rss / (m - 2) / sxx) if m > 2 else math.nan
+    return -slope, se, math.exp(intercept)
