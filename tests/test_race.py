@@ -97,8 +97,8 @@ for n, beta, noise in ((range(20, 301, 20), 2.0163, 1e-3), (range(2, 21), 2.2, 1
 
 def test_the_power_law_fit_is_statsmodels_ols_in_the_same_bits_on_every_cpu():
     """beta, its standard error and alpha as statsmodels' OLS gives them, and the same bits
-    whichever kernels OpenBLAS would pick and with numpy's CPU-specific kernels off (through
-    statsmodels, the fit's last bits moved with OPENBLAS_CORETYPE)."""
+    whichever kernels OpenBLAS would pick and with numpy's CPU-specific kernels off (the same
+    script through statsmodels gives other last bits under OPENBLAS_CORETYPE=Prescott)."""
     import subprocess
     import sys
 

@@ -117,9 +117,9 @@ def race_probability_exact(dist: Distribution, dt: float, n: int) -> float:
 def fit_power_law(n: np.ndarray, dt: np.ndarray) -> tuple[float, float, float]:
     """OLS of log dT = log alpha - beta log N: beta, its standard error (NaN below three points)
     and alpha, as statsmodels' OLS gives them, in arithmetic that is the same on every CPU:
-    libm's log and exp of each number and exactly rounded sums (``math.fsum``). Through
-    statsmodels the fit ran in LAPACK, whose kernels OpenBLAS picks by the CPU, and numpy's log,
-    which has CPU-specific kernels: its last bits moved with the machine."""
+    libm's log and exp of each number and exactly rounded sums (``math.fsum``). Not statsmodels
+    itself: it runs in LAPACK, whose kernels OpenBLAS picks by the CPU, on numpy's log, which has
+    CPU-specific kernels, so its last bits move with the machine."""
     x = [math.log(v) for v in np.asarray(n, dtype=float).tolist()]
     y = [math.log(v) for v in np.asarray(dt, dtype=float).tolist()]
     m = len(x)
