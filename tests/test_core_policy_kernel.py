@@ -11,13 +11,32 @@ from numba import njit
 
 from repro.core.rollout import DecisionBatch
 from repro.learn.policy import CategoricalPolicy, ObsNormalizer, Sampler
-from repro.learn.policy_kernel import act_row, logits_row, sigmoid64, tanh32, tanh64
+from repro.learn.policy_kernel import (LAYER_SLOTS, act_row, depth, logits_row, sigmoid64, slots,
+                                      tanh32, tanh64)
 
 
 @njit  # not cached: numba's cache would not see a change of tanh32's file
 def _tanh_all(v, out):
     for i in range(len(v)):
         out[i] = tanh32(v[i])
+
+
+@njit  # not cached, as _tanh_all
+def _depth(layers):
+    return depth(layers)
+
+
+def test_slots_pad_a_network_to_whole_slots_and_depth_counts_its_layers():
+    """Networks of one to four layers share one tuple type (so one compilation of each kernel); a
+    deeper one takes the next multiple; the empty slots are not layers."""
+    w = np.ones((3, 2), np.float32)
+    for layers in (1, 2, 4, 5):
+        padded = slots([w] * layers, layers, np.float32, 2)
+        assert len(padded) == (LAYER_SLOTS if layers <= LAYER_SLOTS else 2 * LAYER_SLOTS)
+        assert all(a.shape == (0, 0) and a.dtype == np.float32 for a in padded[layers:])
+        assert _depth(padded) == layers
+    hidden = slots([], 1, np.float64, 2)  # a network without hidden layers
+    assert len(hidden) == LAYER_SLOTS and _depth(hidden) == 0
 
 
 def test_tanh32_is_numpys_float64_tanh_rounded_to_float32():

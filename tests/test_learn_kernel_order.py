@@ -18,6 +18,7 @@ from numba import njit
 from repro.learn import network
 from repro.learn.baseline import LinearFeatureBaseline, _normal_equations
 from repro.learn.network import CHUNK, LANES, TanhMLP, activation, padded
+from repro.learn.policy_kernel import depth, slots
 
 
 @njit(cache=True)
@@ -25,8 +26,9 @@ def _reference_pass(x, weights, biases, g, probs, vw, vb, scale, fisher):
     """Decision by decision over the padded batch ``x`` (in_dim, columns): the forward pass
     (hidden activations, slopes, logits), J v (``vw``, ``vb``) and the per-lane sums of the
     gradient of sum(c * logits), c the cotangent ``g`` (n_actions, columns), or, where ``fisher``,
-    c = p (J v - p . J v) ``scale`` with ``probs`` p. Returns (logits, J v, flat gradient)."""
-    last = len(weights) - 1
+    c = p (J v - p . J v) ``scale`` with ``probs`` p. Returns (logits, J v, flat gradient). The
+    per-layer arrays as the kernels take them (``slots``)."""
+    last = depth(weights) - 1
     cols = x.shape[1]
     logits = np.empty((weights[last].shape[0], cols), x.dtype)
     jv_out = np.empty_like(logits)
@@ -146,10 +148,12 @@ def test_network_kernels_sum_in_their_stated_order(shape, dtype):
     g = rng.normal(size=(n, n_actions))
     fwd = net.forward(obs)
     probs = network.probabilities(fwd)
-    vw, vb = net.split(v.astype(net.dtype))
+    layers = len(hidden) + 1
+    vw, vb = (slots(a, layers, net.dtype, a[0].ndim) for a in net.split(v.astype(net.dtype)))
     gt = np.zeros((n_actions, padded(n)), net.dtype)
     gt[:, :n] = g.T
-    args = (fwd.x, tuple(net.weights), tuple(net.biases))
+    args = (fwd.x, slots(net.weights, layers, net.dtype, 2),
+            slots(net.biases, layers, net.dtype, 1))
     logits, jv, grad = _reference_pass(*args, gt, probs, vw, vb, 0.0, False)
     assert fwd.logits.tobytes() == logits.tobytes()
     assert net.jvp(fwd, v).tobytes() == np.ascontiguousarray(jv[:, :n].T).tobytes()

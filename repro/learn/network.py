@@ -25,7 +25,9 @@ sampler bit for bit.
 Layout: inputs, activations and logits are feature-major, (units, N rounded up to a whole
 :data:`CHUNK`); the padding columns hold zero inputs, whose terms are never used or weigh 0. A
 layer's weights are (outputs, inputs), as torch keeps them; flat parameter vectors follow torch's
-``parameters_to_vector`` order (per layer: the weight row by row, then the bias).
+``parameters_to_vector`` order (per layer: the weight row by row, then the bias). The per-layer
+arrays reach the compiled loops as :func:`~repro.learn.policy_kernel.slots`, so that networks of
+every depth up to four layers share their compilations.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from numba import njit, types
 from numba.extending import overload
 from torch import nn
 
-from repro.learn.policy_kernel import tanh32, tanh64
+from repro.learn.policy_kernel import depth, slots, tanh32, tanh64
 
 LANES = 64
 """The partial sums that a sum over decisions keeps: with :data:`CHUNK`, this, not the CPU, fixes
@@ -139,6 +141,22 @@ class TanhMLP:
             self.weights = tuple(m.weight.numpy().copy() for m in self.linears)
             """Per layer, the (outputs, inputs) weights."""
             self.biases = tuple(m.bias.numpy().copy() for m in self.linears)
+        self._layers = self._slots(self.weights, 2), self._slots(self.biases, 1)
+
+    def _slots(self, arrays, ndim: int, dtype=None) -> tuple[np.ndarray, ...]:
+        """Per-layer (or per-hidden-layer) arrays of ``ndim`` dimensions as the compiled loops take
+        them, in the network's dtype unless given."""
+        return slots(arrays, len(self.shapes), dtype or self.dtype, ndim)
+
+    def _pass(self, fwd: Forward) -> tuple:
+        """A pass's inputs, activations and slopes as the compiled loops take them."""
+        return fwd.x, self._slots(fwd.hidden, 2), self._slots(fwd.slopes, 2)
+
+    def _direction(self, v: np.ndarray) -> tuple:
+        """A flat direction's per-layer (weights, biases), cast to the network's dtype, as the
+        compiled loops take them."""
+        vw, vb = self.split(np.asarray(v, dtype=self.dtype))
+        return self._slots(vw, 2), self._slots(vb, 1)
 
     def get_flat(self) -> np.ndarray:
         return np.concatenate([np.concatenate([w.ravel(), b]) for w, b
@@ -175,13 +193,14 @@ class TanhMLP:
         hidden = tuple(np.empty((o, cols), self.dtype) for o, _ in self.shapes[:-1])
         slopes = tuple(np.empty((o, cols), self.dtype) for o, _ in self.shapes[:-1])
         logits = np.empty((self.shapes[-1][0], cols), self.dtype)
-        _forward(xt, self.weights, self.biases, hidden, slopes, logits)
+        _forward(xt, *self._layers, self._slots(hidden, 2), self._slots(slopes, 2), logits)
         return Forward(n, xt, hidden, slopes, logits)
 
     def _accumulators(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
-        """Zeroed per-lane gradient sums: weights (outputs, inputs, LANES), biases."""
-        return (tuple(np.zeros((o, i, LANES)) for o, i in self.shapes),
-                tuple(np.zeros((o, LANES)) for o, _ in self.shapes))
+        """Zeroed per-lane gradient sums: weights (outputs, inputs, LANES), biases (as the
+        compiled loops take them)."""
+        return (self._slots([np.zeros((o, i, LANES)) for o, i in self.shapes], 3, np.float64),
+                self._slots([np.zeros((o, LANES)) for o, _ in self.shapes], 2, np.float64))
 
     def _flat(self, gw: tuple[np.ndarray, ...], gb: tuple[np.ndarray, ...]) -> np.ndarray:
         """Per-lane sums added in lane order, as one flat vector."""
@@ -196,9 +215,8 @@ class TanhMLP:
     def jvp_columns(self, fwd: Forward, v: np.ndarray) -> np.ndarray:
         """J v feature-major: (n_actions, padded N), its padding columns the outputs' change at
         zero inputs."""
-        vw, vb = self.split(np.asarray(v, dtype=self.dtype))
         out = np.empty((len(self.biases[-1]), fwd.x.shape[1]), self.dtype)
-        _jvp(fwd.x, fwd.hidden, fwd.slopes, self.weights, vw, vb, out)
+        _jvp(*self._pass(fwd), self._layers[0], *self._direction(v), out)
         return out
 
     def vjp(self, fwd: Forward, g: np.ndarray) -> np.ndarray:
@@ -209,16 +227,15 @@ class TanhMLP:
         """:meth:`vjp` of ``g`` given feature-major, (n_actions, padded N) in the network's
         dtype, zero beyond column N."""
         gw, gb = self._accumulators()
-        _vjp(fwd.x, fwd.hidden, fwd.slopes, g, self.weights, gw, gb)
+        _vjp(*self._pass(fwd), g, self._layers[0], gw, gb)
         return self._flat(gw, gb)
 
     def fisher_product(self, fwd: Forward, probs: np.ndarray, v: np.ndarray) -> np.ndarray:
         """J' M J v / N, M = diag(p) - p p' per decision: the Hessian of the mean KL in the
         parameters applied to ``v``, in one pass over the batch. ``probs``: pi(. | o) as
         :func:`probabilities` gives it for the pass ``fwd``."""
-        vw, vb = self.split(np.asarray(v, dtype=self.dtype))
         gw, gb = self._accumulators()
-        _fisher(fwd.x, fwd.hidden, fwd.slopes, probs, self.weights, vw, vb, 1.0 / fwd.n, gw, gb)
+        _fisher(*self._pass(fwd), probs, self._layers[0], *self._direction(v), 1.0 / fwd.n, gw, gb)
         return self._flat(gw, gb)
 
 
@@ -235,7 +252,7 @@ def probabilities(fwd: Forward) -> np.ndarray:
 
 @njit(cache=True, error_model="numpy")
 def _forward(x, weights, biases, hidden, slopes, logits):
-    last = len(weights) - 1
+    last = depth(weights) - 1
     for n0 in range(0, x.shape[1], CHUNK):
         for k in range(last + 1):
             dst = logits if k == last else hidden[k]
@@ -311,7 +328,7 @@ def _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy):
     """J v for the chunk of decisions at ``n0``: rows [:n_actions] of ``dy`` (width, CHUNK);
     ``da`` is scratch of the same shape. Per unit, the bias's change, then the terms of the
     weights' change in input order, then (past the first layer) those of the inputs' change."""
-    last = len(weights) - 1
+    last = depth(weights) - 1
     for k in range(last + 1):
         w, dw, db = weights[k], vw[k], vb[k]
         src = x if k == 0 else hidden[k - 1]
@@ -329,10 +346,10 @@ def _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _backward_chunk(n0, slopes, weights, deltas):
-    """Carry the output cotangent in ``deltas[-1]`` (the chunk of decisions at ``n0``) back to
-    every hidden layer's ``deltas[k]``: per unit, the terms of the outputs in output order, then
-    times tanh'."""
-    for k in range(len(weights) - 1, 0, -1):
+    """Carry the output cotangent in the last layer's ``deltas`` (the chunk of decisions at
+    ``n0``) back to every hidden layer's ``deltas[k]``: per unit, the terms of the outputs in
+    output order, then times tanh'."""
+    for k in range(depth(weights) - 1, 0, -1):
         prev = deltas[k - 1]
         prev[:, :] = 0.0
         add_products(prev, 0, deltas[k], 0, weights[k].T)
@@ -348,7 +365,7 @@ def _accumulate(n0, x, hidden, deltas, gw, gb):
     ((outputs, inputs, LANES)) and ``gb`` ((outputs, LANES)): lane u of a weight's sum gets
     delta_j x_i of the chunk's decisions u, u + LANES, u + 2 LANES, ... in that order, summed in the
     network's dtype, then added in float64."""
-    for k in range(len(gw)):
+    for k in range(depth(gw)):
         accumulate_layer(n0, x if k == 0 else hidden[k - 1], deltas[k], gw[k], gb[k])
 
 
@@ -438,9 +455,9 @@ def _jvp(x, hidden, slopes, weights, vw, vb, out):
 
 @njit(cache=True, error_model="numpy")
 def _vjp(x, hidden, slopes, g, weights, gw, gb):
-    deltas = _chunk_deltas(weights)
+    deltas, last = _chunk_deltas(weights), depth(weights) - 1
     for n0 in range(0, x.shape[1], CHUNK):
-        deltas[-1][:, :] = g[:, n0:n0 + CHUNK]
+        deltas[last][:, :] = g[:, n0:n0 + CHUNK]
         _backward_chunk(n0, slopes, weights, deltas)
         _accumulate(n0, x, hidden, deltas, gw, gb)
 
@@ -449,11 +466,11 @@ def _vjp(x, hidden, slopes, g, weights, gw, gb):
 def _fisher(x, hidden, slopes, probs, weights, vw, vb, scale, gw, gb):
     width = _width(weights)
     da, dy = np.empty((width, CHUNK), x.dtype), np.empty((width, CHUNK), x.dtype)
-    deltas = _chunk_deltas(weights)
+    deltas, last = _chunk_deltas(weights), depth(weights) - 1
     mean = np.empty(CHUNK)
     for n0 in range(0, x.shape[1], CHUNK):
         _jvp_chunk(n0, x, hidden, slopes, weights, vw, vb, da, dy)
-        kl_weighting(n0, probs, dy, scale, mean, deltas[-1])
+        kl_weighting(n0, probs, dy, scale, mean, deltas[last])
         _backward_chunk(n0, slopes, weights, deltas)
         _accumulate(n0, x, hidden, deltas, gw, gb)
 
@@ -477,7 +494,7 @@ def kl_weighting(n0, probs, jv, scale, mean, out):
 @njit(cache=True, error_model="numpy")
 def _flatten(gw, gb, out):
     at = 0
-    for k in range(len(gw)):
+    for k in range(depth(gw)):
         g, b = gw[k], gb[k]
         for j in range(g.shape[0]):
             for i in range(g.shape[1]):

@@ -17,7 +17,7 @@ from torch import nn
 
 from repro.core.rollout import DecisionBatch
 from repro.learn.network import affine_chunk
-from repro.learn.policy_kernel import logits_into, sample_row, tanh32, width
+from repro.learn.policy_kernel import depth, logits_into, sample_row, slots, tanh32, width
 
 DTYPE = torch.float32
 
@@ -190,11 +190,16 @@ class Sampler:
                  rng: np.random.Generator):
         linears = [m for m in policy.net if isinstance(m, nn.Linear)]
         self.weights = tuple(m.weight.detach().numpy().T.copy() for m in linears)
-        """Per layer, the (inputs, outputs) weights, float32, C-contiguous."""
-        self.layers = tuple(m.weight.detach().numpy().copy() for m in linears)
-        """Per layer, the (outputs, inputs) weights, float32, C-contiguous: the blocks' layout."""
+        """Per layer, the (inputs, outputs) weights, float32, C-contiguous: the rows' layout. A
+        plain tuple, so that the row loop is compiled for the network's depth
+        (:mod:`repro.learn.policy_kernel`)."""
         self.biases = tuple(m.bias.detach().numpy().copy() for m in linears)
         """Per layer, the (outputs,) biases, float32."""
+        n, f32 = len(linears), np.float32
+        self.layers = slots([m.weight.detach().numpy().copy() for m in linears], n, f32, 2)
+        """Per layer, the (outputs, inputs) weights, float32, C-contiguous: the blocks' layout, as
+        :func:`slots` (a block's work per layer hides what the runtime depth costs)."""
+        self._block_biases = slots(self.biases, n, f32, 1)
         units = max(self.weights[0].shape[0], *(w.shape[0] for w in self.layers))
         self._scratch = np.empty((2, units * BLOCK), np.float32)
         """Two buffers, each as large as a block's widest layer (or its inputs): every call of a
@@ -210,7 +215,8 @@ class Sampler:
         if len(obs) < BLOCK_MIN:
             return _logits_rows(obs, self.weights, self.biases, self.mean, self.scale)
         out = np.empty((len(obs), len(self.biases[-1])), np.float32)
-        _logits_blocks(obs, self.layers, self.biases, self.mean, self.scale, self._scratch, out)
+        _logits_blocks(obs, self.layers, self._block_biases, self.mean, self.scale, self._scratch,
+                       out)
         return out
 
     def probabilities(self, obs: np.ndarray) -> np.ndarray:
@@ -234,7 +240,7 @@ class Sampler:
         if len(actions) < BLOCK_MIN:
             _act_rows(batch.obs, self.weights, self.biases, self.mean, self.scale, u, actions)
         else:
-            _act_blocks(batch.obs, self.layers, self.biases, self.mean, self.scale, u,
+            _act_blocks(batch.obs, self.layers, self._block_biases, self.mean, self.scale, u,
                         self._scratch, actions)
         return actions
 
@@ -259,7 +265,7 @@ def _block_logits(obs, r0, m, layers, biases, mean, scale, scratch):
         xi = src[i]
         for c in range(m):
             xi[c] = np.float32((obs[r0 + c, i] - mean[i]) * scale[i])
-    last = len(layers) - 1
+    last = depth(layers) - 1
     for k in range(last + 1):
         units = layers[k].shape[0]
         dst = scratch[(k + 1) % 2, :units * m].reshape((units, m))
@@ -285,7 +291,7 @@ def _logits_blocks(obs, layers, biases, mean, scale, scratch, out):
 def _act_blocks(obs, layers, biases, mean, scale, u, scratch, actions):
     """The actions of a round, a block of rows at a time, each row's with its uniform u:
     :func:`_act_rows`'s arithmetic."""
-    n_actions = layers[-1].shape[0]
+    n_actions = layers[depth(layers) - 1].shape[0]
     row, cdf = np.empty(n_actions, np.float32), np.empty(n_actions)
     for r0 in range(0, obs.shape[0], BLOCK):
         m = min(BLOCK, obs.shape[0] - r0)

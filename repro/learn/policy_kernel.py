@@ -12,6 +12,14 @@ tests/test_policy_network.py checks these layers, the torch module and the deriv
 are their float64 counterparts, plain arithmetic that vectorises, for the recurrent policy
 (:mod:`repro.learn.gru_kernel`) and the float64 networks of the tests.
 
+numba compiles a kernel for each type of its arguments and types a tuple by its length. The
+row-by-row kernels here take a network's per-layer arrays as a plain tuple, so that they are
+compiled for its depth (a round of a few rows costs a quarter less than with a depth known only at
+run time); the kernels that work a chunk or block of decisions at a time (the sampler's blocks,
+:mod:`repro.learn.network`) take them as :func:`slots`, tuples of :data:`LAYER_SLOTS` entries, so
+that networks of one to four layers share one compilation per dtype, and find the depth with
+:func:`depth`.
+
 numba caches a compiled kernel under its own source file's timestamp only, so kernels elsewhere
 that call these (the sampler's) keep a stale copy after an edit here: ``make clean`` removes the
 caches.
@@ -22,6 +30,29 @@ from __future__ import annotations
 import math
 import numpy as np
 from numba import njit
+
+LAYER_SLOTS = 4
+"""The entries of the tuples that carry a network's per-layer arrays into compiled code: a
+network of up to this many layers fills them, a deeper one a multiple of them."""
+
+
+def slots(arrays, layers: int, dtype, ndim: int) -> tuple:
+    """``arrays`` (one per layer, or one per hidden layer, of a network of ``layers`` layers) as the
+    kernels take them: padded with empty arrays of ``dtype`` and ``ndim`` dimensions to ``layers``
+    rounded up to a whole number of :data:`LAYER_SLOTS`."""
+    count = -(-layers // LAYER_SLOTS) * LAYER_SLOTS
+    return tuple(arrays) + (np.empty((0,) * ndim, dtype),) * (count - len(arrays))
+
+
+@njit(cache=True, inline="always")
+def depth(layers):
+    """The layers of a network whose per-layer arrays ``layers`` are :func:`slots`: its non-empty
+    entries (a layer has at least one unit and one input)."""
+    n = 0
+    for w in layers:
+        if w.size > 0:
+            n += 1
+    return n
 
 
 @njit(cache=True)
@@ -130,7 +161,8 @@ def sigmoid64(z):
 def logits_into(obs, weights, biases, mean, scale, x, y):
     """The network's logits (float32) for one raw observation ``obs``, computed in the float32
     scratch ``x`` and ``y`` (each at least as long as the observation and every layer) and
-    returned as a view of ``x``."""
+    returned as a view of ``x``. ``weights`` (inputs, outputs) and ``biases``: a tuple with one
+    array per layer."""
     for i in range(len(obs)):
         x[i] = np.float32((obs[i] - mean[i]) * scale[i])
     last = len(weights) - 1
