@@ -123,11 +123,11 @@ def test_engines_agree_on_a_larger_batch():
     assert ref.rewards.max() > 0
 
 
-@pytest.mark.parametrize("n_agents", [64, 140])
-def test_engines_agree_with_many_uavs(n_agents):
+def test_engines_agree_with_many_uavs():
     """Beyond the 128 pending events the engine's heap once had (60 UAVs overfilled it, 140
-    overran it): the heap is sized from the number of UAVs."""
-    cfg = WildfireConfig(n_agents=n_agents, dt=1.0)
+    overran it): the heap is sized from the number of UAVs. (One size: each compiles the engine
+    for its state layout.)"""
+    cfg = WildfireConfig(n_agents=140, dt=1.0)
     ref = make_reference_env(cfg).rollout(make_policy("random", 3, cfg, 1), 1, 5)
     fast = make_env(cfg).rollout(make_policy("random", 3, cfg, 1), 1, 5)
     assert_same(ref, fast)
