@@ -141,7 +141,9 @@ class TanhMLP:
             self.weights = tuple(m.weight.numpy().copy() for m in self.linears)
             """Per layer, the (outputs, inputs) weights."""
             self.biases = tuple(m.bias.numpy().copy() for m in self.linears)
-        self._layers = self._slots(self.weights, 2), self._slots(self.biases, 1)
+        self._weight_slots = self._slots(self.weights, 2)
+        """The weights as the compiled loops take them; likewise the biases."""
+        self._bias_slots = self._slots(self.biases, 1)
 
     def _slots(self, arrays, ndim: int, dtype=None) -> tuple[np.ndarray, ...]:
         """Per-layer (or per-hidden-layer) arrays of ``ndim`` dimensions as the compiled loops take
@@ -193,7 +195,8 @@ class TanhMLP:
         hidden = tuple(np.empty((o, cols), self.dtype) for o, _ in self.shapes[:-1])
         slopes = tuple(np.empty((o, cols), self.dtype) for o, _ in self.shapes[:-1])
         logits = np.empty((self.shapes[-1][0], cols), self.dtype)
-        _forward(xt, *self._layers, self._slots(hidden, 2), self._slots(slopes, 2), logits)
+        _forward(xt, self._weight_slots, self._bias_slots, self._slots(hidden, 2),
+                 self._slots(slopes, 2), logits)
         return Forward(n, xt, hidden, slopes, logits)
 
     def _accumulators(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
@@ -216,7 +219,7 @@ class TanhMLP:
         """J v feature-major: (n_actions, padded N), its padding columns the outputs' change at
         zero inputs."""
         out = np.empty((len(self.biases[-1]), fwd.x.shape[1]), self.dtype)
-        _jvp(*self._pass(fwd), self._layers[0], *self._direction(v), out)
+        _jvp(*self._pass(fwd), self._weight_slots, *self._direction(v), out)
         return out
 
     def vjp(self, fwd: Forward, g: np.ndarray) -> np.ndarray:
@@ -227,7 +230,7 @@ class TanhMLP:
         """:meth:`vjp` of ``g`` given feature-major, (n_actions, padded N) in the network's
         dtype, zero beyond column N."""
         gw, gb = self._accumulators()
-        _vjp(*self._pass(fwd), g, self._layers[0], gw, gb)
+        _vjp(*self._pass(fwd), g, self._weight_slots, gw, gb)
         return self._flat(gw, gb)
 
     def fisher_product(self, fwd: Forward, probs: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -235,7 +238,8 @@ class TanhMLP:
         parameters applied to ``v``, in one pass over the batch. ``probs``: pi(. | o) as
         :func:`probabilities` gives it for the pass ``fwd``."""
         gw, gb = self._accumulators()
-        _fisher(*self._pass(fwd), probs, self._layers[0], *self._direction(v), 1.0 / fwd.n, gw, gb)
+        _fisher(*self._pass(fwd), probs, self._weight_slots, *self._direction(v), 1.0 / fwd.n,
+                gw, gb)
         return self._flat(gw, gb)
 
 
