@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -51,6 +53,15 @@ def test_t_intervals_match_their_textbook_forms():
     ci = sps.ttest_ind(x, y, equal_var=False).confidence_interval(0.95)
     assert interval([x, y], "difference")[1:] == pytest.approx((ci.low, ci.high))
     assert interval([np.array([1.0])])[1:] == (-np.inf, np.inf)  # one score: no interval
+
+
+@pytest.mark.parametrize("statistic", ["mean", "iqm", "difference"])
+def test_a_group_of_one_score_has_no_t_interval_and_no_warning(statistic):
+    """As a smoke-scale study with one seed meets it: the whole line, quietly."""
+    groups = [np.array([1.0]), np.array([1.0, 2.0])][:1 + (statistic == "difference")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert interval(groups, statistic)[1:] == (-np.inf, np.inf)
 
 
 def test_the_expanded_level_widens_most_at_few_runs():

@@ -107,7 +107,12 @@ def estimate(groups: tuple[np.ndarray, ...], statistic: str) -> np.ndarray:
 
 def standard_error(groups: tuple[np.ndarray, ...],
                    statistic: str) -> tuple[np.ndarray, np.ndarray]:
-    """The standard error of :func:`estimate` and the degrees of freedom of its t interval."""
+    """The standard error of :func:`estimate` and the degrees of freedom of its t interval; where a
+    group has one score, there is no spread to estimate: no standard error, no degrees of
+    freedom."""
+    batch = groups[0].shape[:-1]
+    if min(g.shape[-1] for g in groups) < 2:
+        return np.full(batch, np.nan), np.zeros(batch)
     if statistic == "difference":
         v = [g.var(axis=-1, ddof=1) / g.shape[-1] for g in groups]
         with np.errstate(invalid="ignore"):  # two resamples without spread: no df, not used
@@ -115,8 +120,6 @@ def standard_error(groups: tuple[np.ndarray, ...],
         return np.sqrt(v[0] + v[1]), df
     x = groups[0]
     n = x.shape[-1]
-    if n < 2:  # no spread to estimate: no degrees of freedom
-        return np.full(x.shape[:-1], np.nan), np.zeros(x.shape[:-1])
     g = _trimmed(n) if statistic == "iqm" else 0
     se = _winsorized_sd(x, g) / ((1 - 2 * g / n) * np.sqrt(n))
     return se, np.full(se.shape, n - 2 * g - 1, dtype=float)
