@@ -8,9 +8,9 @@ import simpy
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from repro.core.rollout import DecisionBatch, Rollout
+from repro.core.rollout import DecisionBatch, Rollout, children
 from repro.envs.wildfire import WildfireConfig, draw_episodes, make_env, make_reference_env
-from repro.envs.wildfire.params import SAME_INSTANT_ORDERS
+from repro.envs.wildfire.params import SAME_INSTANT_ORDERS, EpisodeStream
 from repro.envs.wildfire.policies import POLICIES
 
 DTS = (None, 10 ** -1, 10 ** -0.5, 1.0, 10 ** 0.5, 10.0)
@@ -243,6 +243,23 @@ def test_draws_are_prefix_stable():
     other = draw_episodes(cfg, 3, 10)
     assert not np.array_equal(small.starts, other.starts)
     assert not np.array_equal(small.holds, other.holds)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_holds_are_numpys_normal_draws(seed):
+    """The holds are numpy's ``Generator.normal`` values, and the stream is where that call would
+    leave it: the same bits, the ziggurat's tail (beyond 3.44 standard deviations) included."""
+    cfg = WildfireConfig()
+    stream = EpisodeStream(cfg, seed)
+    numpy_stream = np.random.default_rng(children(seed, 2)[1])
+    first = stream.draw(700).holds
+    assert first.tobytes() == numpy_stream.normal(cfg.hold_mean, cfg.hold_std,
+                                                  first.shape).tobytes()
+    assert np.sum(np.abs(first - cfg.hold_mean) > 3.45 * cfg.hold_std) > 50  # the tail drawn
+    second = stream.draw(2).holds  # where the first batch left the stream
+    assert second.tobytes() == numpy_stream.normal(cfg.hold_mean, cfg.hold_std,
+                                                   second.shape).tobytes()
+    assert stream._holds.bit_generator.state == numpy_stream.bit_generator.state
 
 
 def test_simpy_same_instant_order():
