@@ -112,16 +112,23 @@ def test_paper_claims_md_is_never_rendered_from_a_smaller_scale(tmp_path, monkey
 
 
 def test_paper_scale_results_render_paper_claims_md(tmp_path, monkeypatch):
-    """The committed paper-scale results, a complete set, render paper_claims.md."""
+    """The committed paper-scale results, a complete set, render paper_claims.md: the
+    checkout's from results/paper, and from a copy elsewhere one beside the copy, leaving the
+    checkout's as it was."""
     from repro.cli import main
 
-    shutil.copytree(ROOT / "results" / "paper", tmp_path / "paper")
+    shutil.copytree(ROOT / "results" / "paper", tmp_path / "results" / "paper")
+    shutil.copytree(ROOT / "results" / "paper", tmp_path / "mine")
     monkeypatch.chdir(tmp_path)
-    assert main(["claims", "--results-dir", "paper"]) == 0
+    assert main(["claims"]) == 0
     text = (tmp_path / "paper_claims.md").read_text()
     assert text.startswith("# Paper claims") and "smoke check, not evidence" not in text
     assert "from the paper-scale result CSVs only" in text
-    assert not (tmp_path / "paper" / "claims.md").exists()
+    assert not (tmp_path / "results" / "paper" / "claims.md").exists()
+    assert main(["claims", "--results-dir", "mine"]) == 0
+    assert (tmp_path / "paper_claims.md").read_text() == text
+    mine = (tmp_path / "mine" / "paper_claims.md").read_text()
+    assert mine.startswith("# Paper claims") and "(results in `mine/`, paper scale)" in mine
 
 
 def test_an_incomplete_set_of_paper_scale_results_never_renders_paper_claims_md(

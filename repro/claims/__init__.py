@@ -308,6 +308,9 @@ def _cell(s: str) -> str:
 PAPER = "paper"
 """The scale whose results, and only whose, make paper_claims.md."""
 PAPER_CLAIMS = "paper_claims.md"
+DEFAULT_RESULTS = "results/paper"
+"""The committed paper-scale results, the only ones whose verdicts go to the checkout's
+paper_claims.md; a complete set elsewhere gets a paper_claims.md of its own, in its folder."""
 SMOKE_OUT = "claims.md"
 """The file a smaller scale's verdicts go to, in its results folder."""
 SMOKE_NOTE = (
@@ -485,15 +488,16 @@ WIDTH = 100
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--results-dir", default="results/paper",
-                   help="folder the checks read (default results/paper)")
+    p.add_argument("--results-dir", default=DEFAULT_RESULTS,
+                   help=f"folder the checks read (default {DEFAULT_RESULTS})")
     p.add_argument("--interval", default=INTERVALS[0],
                    help=f"the 95%% intervals that decide the claims that compare intervals: "
                    f"{' or '.join(INTERVALS)} (default {INTERVALS[0]}, whose coverage at 5 runs "
                    f"the interval-coverage study checks)")
     p.add_argument("--out", help=f"the rendered table, a Markdown file (.md; default "
-                   f"{PAPER_CLAIMS} for a complete set of paper-scale results; otherwise a smoke "
-                   f"check, <results-dir>/{SMOKE_OUT}, never {PAPER_CLAIMS})")
+                   f"{PAPER_CLAIMS} for a complete set of paper-scale results, in the checkout "
+                   f"for {DEFAULT_RESULTS} and in --results-dir for another folder; otherwise a "
+                   f"smoke check, <results-dir>/{SMOKE_OUT}, never {PAPER_CLAIMS})")
 
 
 @dataclass(frozen=True)
@@ -528,7 +532,10 @@ def run(cmd: ClaimsCommand) -> int:
     results = cmd.results
     evaluated = evaluate_all(results, cmd.interval)
     paper = is_paper_set(results, evaluated)
-    default = PAPER_CLAIMS if paper else str(results / SMOKE_OUT)
+    # the checkout's paper_claims.md describes results/paper; another folder's verdicts stay in it
+    default = (str(results / SMOKE_OUT) if not paper else PAPER_CLAIMS
+               if results.resolve() == Path(DEFAULT_RESULTS).resolve()
+               else str(results / PAPER_CLAIMS))
     out = check_names(default if cmd.out is None else cmd.out, "--out")
     missing = missing_claims(evaluated)
     why = (f"results of the {' and '.join(sorted(result_scales(results)))} scale"
