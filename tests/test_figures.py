@@ -111,21 +111,19 @@ def sha256(path: Path) -> str:
 
 
 def assert_sidecar_describes(stem: Path, sources: list[Path], scale: str,
-                             recorded_paths: bool = True) -> dict:
+                             check_paths: bool = True) -> dict:
     """The sidecar of the figure ``stem`` records its PNG's and PDF's hashes, the result CSVs
-    ``sources`` (in order) with their bytes' hashes, which their own sidecars record too where
-    they record one (results older than the hash do not), and ``scale``; returns it. With
-    ``recorded_paths`` false the sources are matched by file name only: a committed figure's
-    sidecar records where its CSVs were when it was drawn (written once, possibly another
-    folder), and the committed CSVs are the same bytes."""
+    ``sources`` (in order; at their paths unless ``check_paths`` is false) with their bytes'
+    hashes, which their own sidecars record too where they record one (results older than the
+    hash do not), and ``scale``; returns it. A committed figure's sidecar records where its CSVs
+    were when it was drawn (written once, possibly another machine's folder), so its sources are
+    checked by their bytes only."""
     prov = json.loads(figure_sidecar(stem).read_text())
     assert prov["figures"] == {f"{stem.name}{ext}": sha256(f"{stem}{ext}")
                                for ext in (".png", ".pdf")}
-    recorded = [Path(s["csv"]) for s in prov["sources"]]
-    if recorded_paths:
-        assert [p.resolve() for p in recorded] == [s.resolve() for s in sources]
-    else:
-        assert [p.name for p in recorded] == [s.name for s in sources]
+    assert len(prov["sources"]) == len(sources)
+    if check_paths:
+        assert [Path(s["csv"]).resolve() for s in prov["sources"]] == [s.resolve() for s in sources]
     for record, source in zip(prov["sources"], sources):
         assert record[CSV_HASH] == sha256(source)
         assert read_provenance(source).get(CSV_HASH, sha256(source)) == sha256(source)
@@ -324,4 +322,4 @@ def test_the_committed_figures_sidecars_describe_them():
         prov = json.loads(side.read_text())
         results = PAPER / side.parent.relative_to(figures)
         sources = [results / Path(s["csv"]).name for s in prov["sources"]]
-        assert_sidecar_describes(stem, sources, "paper", recorded_paths=False)
+        assert_sidecar_describes(stem, sources, "paper", check_paths=False)

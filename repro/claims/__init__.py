@@ -532,10 +532,12 @@ def run(cmd: ClaimsCommand) -> int:
     results = cmd.results
     evaluated = evaluate_all(results, cmd.interval)
     paper = is_paper_set(results, evaluated)
-    # the checkout's paper_claims.md describes results/paper; another folder's verdicts stay in it
-    default = (str(results / SMOKE_OUT) if not paper else PAPER_CLAIMS
-               if results.resolve() == Path(DEFAULT_RESULTS).resolve()
-               else str(results / PAPER_CLAIMS))
+    if not paper:
+        default = str(results / SMOKE_OUT)
+    elif results.resolve() == Path(DEFAULT_RESULTS).resolve():
+        default = PAPER_CLAIMS
+    else:  # the checkout's paper_claims.md describes results/paper only
+        default = str(results / PAPER_CLAIMS)
     out = check_names(default if cmd.out is None else cmd.out, "--out")
     missing = missing_claims(evaluated)
     why = (f"results of the {' and '.join(sorted(result_scales(results)))} scale"
