@@ -367,11 +367,13 @@ def planning(finish: bool) -> Iterator[Plan]:
         _PLAN.reset(token)
 
 
-RECURRENT_COST = 60
+RECURRENT_COST = 75
 """How many times a recurrent policy's run (``--policy gru``) costs an MLP's of the same epochs
-and batch: a bus epoch of 12,000 decisions takes the GRU about 5.7 s on one core, the authors' MLP
-about 0.1 s (docs/performance.md, Whole runs). The batch's size in bytes alone ranks the two alike,
-which left the pictures' five GRU runs, the longest of any study, to the end of the pool."""
+and batch: a bus epoch of 12,000 decisions from 40 workers (about 21,000: each worker keeps the
+episode it has in flight) takes the GRU about 2.0 s on one core, the authors' MLP about 0.026 s
+(the 2-core AMD EPYC, Zen 5, ``train --env bus --scale paper``). The batch's size in bytes alone
+ranks the two alike, which left the pictures' five GRU runs, the longest of any study, to the end
+of the pool."""
 
 
 def longest_first(runs: list[tuple[TrainJob, Path]]) -> list[tuple[TrainJob, Path]]:
