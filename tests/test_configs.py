@@ -65,3 +65,24 @@ def test_a_studys_refusal_names_the_flag_of_the_field_it_refuses(cls):
             tried += 1
             assert err.param == flag(field.name), (field.name, str(err))
     assert tried, f"{cls.__name__}: no numeric field is checked"
+
+
+def test_the_wildfire_studies_of_trained_policies_share_one_training_definition():
+    """Transfer, behaviour and penalty configs extend StudyTraining: its fields first and in its
+    order (the order their sidecars record), its docstrings where a config says no more, and its
+    checks, which name the flag."""
+    from repro.core.config import field_docs
+    from repro.studies.kit.training import StudyTraining
+    from repro.studies.wildfire.penalty import PenaltyConfig
+    from repro.studies.wildfire.study import BehaviourConfig
+
+    shared = [f.name for f in dataclasses.fields(StudyTraining)]
+    assert shared == ["seeds", "epochs", "learner", "batch_decisions", "batch_episodes"]
+    for cls in (TransferConfig, BehaviourConfig, PenaltyConfig):
+        assert issubclass(cls, StudyTraining)
+        assert [f.name for f in dataclasses.fields(cls)][:len(shared)] == shared
+        for name in ("learner", "batch_decisions", "batch_episodes"):
+            assert field_docs(cls)[name] == field_docs(StudyTraining)[name], (cls, name)
+        with pytest.raises(UsageError, match="--batch-decisions"):
+            cls(batch_decisions=0)
+    assert BehaviourConfig().batch_episodes == 200 and TransferConfig().batch_episodes == 150

@@ -312,17 +312,6 @@ def add_study_learner_arguments(p: Any, writes: str) -> None:
                    help="training episodes per epoch, with a learner that counts them (paper: 600)")
 
 
-def check_policy_study(cfg: Any) -> None:
-    """Refuse (UsageError naming the flag) a bad value of the fields every wildfire study of
-    trained policies has: seeds, epochs, the learner, its batch sizes and the test episodes."""
-    cfg.check(cfg.seeds >= 1, "seeds", "an integer >= 1")
-    cfg.check(cfg.epochs >= 1, "epochs", "an integer >= 1")
-    cfg.check(cfg.learner in LEARNERS, "learner", "one of " + ", ".join(LEARNERS))
-    cfg.check(cfg.batch_decisions >= 1, "batch_decisions", "an integer >= 1")
-    cfg.check(cfg.batch_episodes >= 1, "batch_episodes", "an integer >= 1")
-    cfg.check(cfg.test_episodes >= 1, "test_episodes", "an integer >= 1")
-
-
 def add_learner_arguments(p: Any) -> None:
     """``--learner`` and a flag for every TrainConfig setting (each overrides the named learner's,
     the environment's and the scale's value of that setting; docs/semantics.md section 5.7).

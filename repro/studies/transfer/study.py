@@ -15,19 +15,19 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
-from repro.core.config import (Validated, add_config_arguments, for_scale, from_recorded,
-                               given_fields)
+from repro.core.config import add_config_arguments, for_scale, from_recorded, given_fields
 from repro.core.rollout import children
 from repro.envs.wildfire import (QUIRKS, RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, make_env,
                                  version_suffix)
 from repro.learn.config import (BATCH_UNITS, LEARNERS, SAMPLERS, SETTING_FIELDS,
-                                add_study_learner_arguments, batch_unit, check_policy_study,
-                                learner_suffix, setting_tag)
+                                add_study_learner_arguments, batch_unit, learner_suffix,
+                                setting_tag)
 from repro.paper import TRANSFER_ADR
 from repro.runs.stats import bootstrap_ci, iqm, sem
 from repro.studies.kit.options import ONE_PROCESS, Folders, Workers, add_common
 from repro.studies.kit.sweep import (TrainJob, add_sweep_arguments, map_tasks, policy_stream,
                                      run_sweep)
+from repro.studies.kit.training import StudyTraining
 from repro.studies.wildfire.study import adr, evaluate
 
 
@@ -36,21 +36,14 @@ _TEST_ENV_STREAM, _TEST_POLICY_STREAM, _BOOT_STREAM = 0, 1, 2
 
 
 @dataclass(frozen=True)
-class TransferConfig(Validated):
-    """Sizes of the transfer study; the simulators and their semantics never change with scale."""
+class TransferConfig(StudyTraining):
+    """Sizes of the transfer study; the simulators and their semantics never change with scale.
+    How each policy trains: :class:`~repro.studies.kit.training.StudyTraining`."""
 
     seeds: int = 3
     """Policies trained from scratch per training simulator (paper: 5)."""
     epochs: int = 60
     """Training epochs per policy (paper: 300)."""
-    learner: str = "authors"
-    """The named learner that trains every policy (``repro.learn.config.LEARNERS``)."""
-    batch_decisions: int = 3000
-    """Training decisions per epoch when the learner counts its batch in decisions (the released
-    runner: 12,000)."""
-    batch_episodes: int = 150
-    """Training episodes per epoch when the learner counts its batch in episodes (the paper's
-    table: 600 to 1,200)."""
     settings: tuple[tuple[str, Any], ...] = ()
     """Learner settings changed from the learner's, as (TrainConfig field, value) pairs (an
     ablation, ``learner-ablation``); each adds a tag to the file stem."""
@@ -95,7 +88,8 @@ class TransferConfig(Validated):
     }
 
     def validate(self) -> None:
-        check_policy_study(self)
+        super().validate()
+        self.check(self.test_episodes >= 1, "test_episodes", "an integer >= 1")
         self.check(self.sim_version in SIM_VERSIONS, "sim_version",
                    "one of " + ", ".join(SIM_VERSIONS))
         self.check(all(k in SETTING_FIELDS for k, _ in self.settings), "settings",
@@ -195,15 +189,11 @@ def make_jobs(cfg: TransferConfig, scale: str, seed: int) -> list[tuple[str, Tra
     """(simulator label, job) for every simulator and training seed seed .. seed + seeds - 1.
 
     Replicate r uses the same training seed on every simulator (common initial policies)."""
-    from repro.learn.config import study_train_config
-
     settings = (*cfg.settings, *((("sampler", cfg.sampler),) if cfg.pool else ()))
     jobs = []
     for label, env in cfg.simulators().items():
         for s in range(seed, seed + cfg.seeds):
-            train = study_train_config(scale, "wildfire", cfg.learner, cfg.batch_decisions,
-                                       cfg.batch_episodes, settings, seed=s,
-                                       epochs=cfg.epochs)
+            train = cfg.train_config(scale, s, settings)
             jobs.append((label, TrainJob(job_name(env, s), train, env)))
     return jobs
 

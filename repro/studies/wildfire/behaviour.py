@@ -67,11 +67,7 @@ _TEST_ENV_STREAM, _POLICY_STREAM = 0, 1
 
 
 def make_jobs(cfg: BehaviourConfig, scale: str, seed: int) -> list[TrainJob]:
-    from repro.learn.config import study_train_config
-
-    return [TrainJob(f"ed-seed{s}", study_train_config(scale, "wildfire", cfg.learner,
-                                                       cfg.batch_decisions, cfg.batch_episodes,
-                                                       seed=s, epochs=cfg.epochs), cfg.env())
+    return [TrainJob(f"ed-seed{s}", cfg.train_config(scale, s), cfg.env())
             for s in range(seed, seed + cfg.seeds)]
 
 
@@ -122,11 +118,11 @@ def measure(cfg: BehaviourConfig, jobs: list[TrainJob], folders: list[Path],
 
 
 FLAGS = ("seeds", "epochs", "sim_version", "test_episodes", "max_decisions")
+"""The BehaviourConfig fields the study takes as flags, besides the learner and its batch sizes
+(:func:`repro.learn.config.add_study_learner_arguments`)."""
 VARIANTS = ("sim_version",)
 """The option that chooses the study (``*_20170422``), not its settings
 (:func:`repro.studies.kit.options.scale_departures`)."""
-"""The BehaviourConfig fields the study takes as flags, besides the learner and its batch sizes
-(:func:`repro.learn.config.add_study_learner_arguments`)."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

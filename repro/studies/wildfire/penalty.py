@@ -47,8 +47,7 @@ from repro.core.rollout import Rollout
 from repro.envs.wildfire import RELEASED_VERSION, WildfireConfig, make_env
 from repro.envs.wildfire.params import DIST, INTEREST, STATUS, fire_blocks
 from repro.envs.wildfire.policies import FlowchartPolicy
-from repro.learn.config import (add_study_learner_arguments, learner_name, learner_suffix,
-                                study_train_config)
+from repro.learn.config import add_study_learner_arguments, learner_name, learner_suffix
 from repro.paper import BEHAVIOUR_FREQUENCIES
 from repro.runs.provenance import provenance
 from repro.runs.results import write_result
@@ -119,10 +118,7 @@ def authors_shares(counts: dict[str, int]) -> dict[str, float]:
 
 
 def make_jobs(cfg: PenaltyConfig, scale: str, seed: int) -> list[TrainJob]:
-    return [TrainJob(f"pen{p:g}-ed-seed{s}",
-                     study_train_config(scale, "wildfire", cfg.learner, cfg.batch_decisions,
-                                        cfg.batch_episodes, seed=s, epochs=cfg.epochs),
-                     cfg.penalty_env(p))
+    return [TrainJob(f"pen{p:g}-ed-seed{s}", cfg.train_config(scale, s), cfg.penalty_env(p))
             for p in cfg.penalties for s in range(seed, seed + cfg.seeds)]
 
 

@@ -10,15 +10,16 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from repro.core.config import Validated, for_scale, given_fields
+from repro.core.config import for_scale, given_fields
 from repro.core.rollout import Policy, Rollout, concat, rollout_bytes
 from repro.envs.wildfire import (RELEASED_VERSION, SIM_VERSIONS, WildfireConfig, fire_positions,
                                  version_suffix)
 from repro.envs.wildfire.params import DIST, INTEREST, OWN_X, OWN_Y, STATUS, fire_blocks
 from repro.envs.wildfire.policies import OBSERVED_AT_FIRE_TOL
-from repro.learn.config import check_policy_study, learner_suffix
+from repro.learn.config import learner_suffix
 from repro.runs.memory import require_memory
 from repro.runs.stats import sem
+from repro.studies.kit.training import StudyTraining
 
 
 BATCH_EPISODES = 1000
@@ -69,8 +70,9 @@ FIRES_PER_CLUSTER = 3
 
 
 @dataclass(frozen=True)
-class BehaviourConfig(Validated):
-    """Sizes of the behaviour study (the ED simulator and its semantics never change)."""
+class BehaviourConfig(StudyTraining):
+    """Sizes of the behaviour study (the ED simulator and its semantics never change). How each
+    policy trains: :class:`~repro.studies.kit.training.StudyTraining`."""
 
     seeds: int = 1
     """Policies trained from scratch (the paper examined one). Long ED runs can drift into
@@ -78,14 +80,7 @@ class BehaviourConfig(Validated):
     makes their epochs up to ten times slower; hence one at quick scale."""
     epochs: int = 300
     """Training epochs per policy (paper: 3,000)."""
-    learner: str = "authors"
-    """The named learner that trains every policy (``repro.learn.config.LEARNERS``)."""
-    batch_decisions: int = 3000
-    """Training decisions per epoch when the learner counts its batch in decisions (the released
-    runner: 12,000)."""
     batch_episodes: int = 200
-    """Training episodes per epoch when the learner counts its batch in episodes (the paper's
-    table: 600 to 1,200)."""
     sim_version: str = RELEASED_VERSION
     """The released simulator's version (``repro.envs.wildfire.SIM_VERSIONS``)."""
     test_episodes: int = 1000
@@ -104,7 +99,8 @@ class BehaviourConfig(Validated):
     }
 
     def validate(self) -> None:
-        check_policy_study(self)
+        super().validate()
+        self.check(self.test_episodes >= 1, "test_episodes", "an integer >= 1")
         self.check(self.sim_version in SIM_VERSIONS, "sim_version",
                    "one of " + ", ".join(SIM_VERSIONS))
         self.check(self.max_decisions is None or self.max_decisions >= 1, "max_decisions",
