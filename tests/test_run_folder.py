@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import shutil
 import subprocess
 import sys
@@ -217,7 +218,7 @@ def _truncate(p: Path) -> None:
 
 DAMAGE = {
     "truncated checkpoint": (CHECKPOINT, _truncate),
-    "random checkpoint": (CHECKPOINT, lambda p: p.write_bytes(os.urandom(3000))),
+    "random checkpoint": (CHECKPOINT, lambda p: p.write_bytes(random.Random(0).randbytes(3000))),
     "empty checkpoint": (CHECKPOINT, lambda p: p.write_bytes(b"")),
     "checkpoint is a folder": (CHECKPOINT, lambda p: (p.unlink(), p.mkdir())),
     "truncated config": ("config.json", _truncate),
